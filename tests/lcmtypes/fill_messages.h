@@ -1,0 +1,175 @@
+#pragma once
+// One filled-in example of every visco LCM type (values chosen so that every field differs from its default).
+// A type added to lcmtypes/ without a Fill() overload here fails to compile the tests: none can be forgotten.
+
+#include "visco/all_lcm_types.h"
+
+namespace visco::testing {
+
+inline void Fill(image_t& m) {
+  m.utime = 1700000000000001;
+  m.seq = 42;
+  m.camera = "cam0";
+  m.width = 4;
+  m.height = 3;
+  m.row_stride = 4;
+  m.pixel_format = image_t::PIXEL_FORMAT_GRAY8;
+  m.data.resize(12);
+  for (int i = 0; i < 12; ++i) m.data[i] = static_cast<uint8_t>(i * 17);
+  m.size = 12;
+}
+inline void Fill(tag_detection_t& m) {
+  m.utime = 1700000000000002;
+  m.family = "tag36h11";
+  m.id = 7;
+  for (int i = 0; i < 4; ++i) {
+    m.corners[i][0] = 100.5 + i;
+    m.corners[i][1] = 200.25 - i;
+  }
+  m.decision_margin = 55.5;
+  m.hamming = 1;
+  m.position[0] = 0.1;
+  m.position[1] = -0.2;
+  m.position[2] = 0.9;
+  m.orientation[0] = 0.5;
+  m.orientation[1] = 0.5;
+  m.orientation[2] = -0.5;
+  m.orientation[3] = 0.5;
+  m.reprojection_error = 0.12;
+  m.tracked = true;
+}
+inline void Fill(tag_detections_t& m) {
+  m.utime = 1700000000000003;
+  m.frame_utime = 1700000000000000;
+  m.frame_seq = 9;
+  m.camera = "cam0";
+  m.processing_time_s = 0.011;
+  m.detections.resize(2);
+  Fill(m.detections[0]);
+  Fill(m.detections[1]);
+  m.detections[1].id = 8;
+  m.num_detections = 2;
+}
+inline void Fill(object_pose_t& m) {
+  m.utime = 1700000000000004;
+  m.object_id = "peg";
+  m.position[0] = 1.0;
+  m.position[1] = 2.0;
+  m.position[2] = 0.05;
+  m.orientation[0] = 1.0;
+  m.position_stddev = 0.002;
+  m.orientation_stddev = 0.01;
+  m.contact_refined = true;
+}
+inline void Fill(object_poses_t& m) {
+  m.utime = 1700000000000005;
+  m.frame_utime = 1700000000000000;
+  m.poses.resize(1);
+  Fill(m.poses[0]);
+  m.num_poses = 1;
+}
+inline void Fill(visual_event_t& m) {
+  m.utime = 1700000000000006;
+  m.cvc_ray = "vc3.cm1";
+  m.cm_vertex = 1;
+  m.signed_distance_px = -3.5;
+  m.distance_stddev_px = 0.4;
+  m.state = visual_event_t::STATE_NEGATIVE;
+  m.crossed = true;
+}
+inline void Fill(visual_events_t& m) {
+  m.utime = 1700000000000007;
+  m.frame_utime = 1700000000000000;
+  m.frame_seq = 9;
+  m.latency_s = 0.013;
+  m.events.resize(1);
+  Fill(m.events[0]);
+  m.num_events = 1;
+}
+inline void Fill(robot_estimate_t& m) {
+  m.utime = 1700000000000008;
+  m.frame_seq = 9;
+  m.valid = true;
+  m.position[0] = 3.25;
+  m.position[1] = 4.5;
+  m.position_stddev = 0.003;
+  m.heading = 0.1;
+}
+inline void Fill(motion_step_t& m) {
+  m.theta = -1.5707963267948966;
+  m.active_rays = {"vc0.cm0", "vc2.cm1"};
+  m.num_active_rays = 2;
+  m.terminate_kind = motion_step_t::TERMINATE_VC;
+  m.terminate_ref = "vc2.cm1";
+  m.timeout_s = 12.5;
+}
+inline void Fill(motion_strategy_t& m) {
+  m.utime = 1700000000000009;
+  m.scene = "slot";
+  m.feasible = true;
+  m.speed = 0.05;
+  m.steps.resize(2);
+  Fill(m.steps[0]);
+  Fill(m.steps[1]);
+  m.steps[1].terminate_kind = motion_step_t::TERMINATE_GOAL;
+  m.num_steps = 2;
+}
+inline void Fill(velocity_command_t& m) {
+  m.utime = 1700000000000010;
+  m.node_id = 5;
+  m.seq = 123;
+  m.velocity[0] = 0.01;
+  m.velocity[1] = -0.05;
+  m.estop = false;
+  m.reset = true;
+}
+inline void Fill(robot_status_t& m) {
+  m.utime = 1700000000000011;
+  m.node_id = 5;
+  m.seq = 77;
+  m.command_seq = 123;
+  m.position[0] = 3.0;
+  m.position[1] = 4.0;
+  m.velocity[0] = 0.01;
+  m.velocity[1] = -0.04;
+  m.contact = true;
+  m.contact_force[1] = 2.5;
+  m.state = robot_status_t::STATE_MOVING;
+  m.fault_bits = int32_t{robot_status_t::FAULT_SEQUENCE} | int32_t{robot_status_t::FAULT_BUS};
+}
+inline void Fill(heartbeat_t& m) {
+  m.utime = 1700000000000012;
+  m.sender = "driver";
+  m.node_id = 5;
+  m.counter = 1000;
+  m.state = heartbeat_t::STATE_OPERATIONAL;
+}
+inline void Fill(fault_t& m) {
+  m.utime = 1700000000000013;
+  m.source = "controller";
+  m.code = fault_t::CODE_VISION_STALE;
+  m.severity = fault_t::SEVERITY_ERROR;
+  m.robot_stopped = true;
+  m.cleared = false;
+  m.message = "robot estimate 25 ms old (> 10 ms)";
+}
+inline void Fill(controller_telemetry_t& m) {
+  m.utime = 1700000000000014;
+  m.step_index = 1;
+  m.mode = controller_telemetry_t::MODE_VISUAL_COMPLIANT;
+  m.stop_reason = "";
+  m.command[0] = 0.02;
+  m.command[1] = -0.03;
+  m.estimate[0] = 2.0;
+  m.estimate[1] = 1.0;
+  m.estimate_age_s = 0.004;
+  m.period_s = 0.002;
+  m.cycles = 5000;
+  m.overruns = 2;
+  m.jitter_min_s = 1e-6;
+  m.jitter_mean_s = 2e-5;
+  m.jitter_max_s = 3e-4;
+  for (int i = 0; i < 16; ++i) m.jitter_histogram[i] = i * 3;
+}
+
+}  // namespace visco::testing
