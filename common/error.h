@@ -15,9 +15,7 @@ class InputError : public std::runtime_error {
   /// @param object the object within it, e.g. "obstacles[2].polygon" (may be empty).
   /// @param what what is wrong, in words a user understands.
   InputError(std::string file, std::string object, const std::string& what)
-      : std::runtime_error(Compose(file, object, what)),
-        file_(std::move(file)),
-        object_(std::move(object)) {}
+      : std::runtime_error(Compose(file, object, what)), file_(std::move(file)), object_(std::move(object)) {}
 
   const std::string& file() const { return file_; }
   const std::string& object() const { return object_; }

@@ -22,8 +22,8 @@ class LatestValue {
   void Publish(const T& value) {
     slots_[back_] = value;
     // Hand the freshly written slot to the middle position and take the old middle slot as the new back slot.
-    const std::uint8_t previous = middle_.exchange(static_cast<std::uint8_t>(back_ | kFreshBit),
-                                                   std::memory_order_acq_rel);
+    const std::uint8_t previous =
+        middle_.exchange(static_cast<std::uint8_t>(back_ | kFreshBit), std::memory_order_acq_rel);
     back_ = previous & kIndexMask;
     published_.fetch_add(1, std::memory_order_relaxed);
   }
@@ -45,9 +45,9 @@ class LatestValue {
   static constexpr std::uint8_t kFreshBit = 0x4;
   static constexpr std::uint8_t kIndexMask = 0x3;
   T slots_[3]{};
-  std::uint8_t back_ = 0;                  // producer-owned slot index
-  std::atomic<std::uint8_t> middle_{1};    // shared slot index | kFreshBit when it holds an unread value
-  std::uint8_t front_ = 2;                 // consumer-owned slot index
+  std::uint8_t back_ = 0;                // producer-owned slot index
+  std::atomic<std::uint8_t> middle_{1};  // shared slot index | kFreshBit when it holds an unread value
+  std::uint8_t front_ = 2;               // consumer-owned slot index
   std::atomic<std::uint64_t> published_{0};
 };
 

@@ -22,11 +22,11 @@ int main(int argc, char** argv) {
     return 1;
   }
   for (int i = 0; i < repeat; ++i) {
-#define VISCO_PUBLISH(type)                                        \
-  {                                                                \
-    visco::type message;                                           \
-    visco::testing::Fill(message);                                 \
-    if (bus.publish("SPYTEST_" #type, &message) != 0) return 1;    \
+#define VISCO_PUBLISH(type)                                     \
+  {                                                             \
+    visco::type message;                                        \
+    visco::testing::Fill(message);                              \
+    if (bus.publish("SPYTEST_" #type, &message) != 0) return 1; \
   }
     VISCO_FOR_EACH_LCM_TYPE(VISCO_PUBLISH)
 #undef VISCO_PUBLISH
