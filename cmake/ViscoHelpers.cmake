@@ -7,8 +7,10 @@ if(VISCO_WERROR)
   target_compile_options(visco_warnings INTERFACE -Werror)
 endif()
 if(VISCO_SANITIZE STREQUAL "address")
-  target_compile_options(visco_warnings INTERFACE -fsanitize=address,undefined -fno-omit-frame-pointer
-                                                  -fno-sanitize-recover=undefined)
+  # -fno-sanitize=vptr: UBSan's vptr check misfires inside LCM 1.3.1's header-only C++ subscription callbacks
+  # (lcm-cpp-impl.hpp cb_func) although ASan finds no bad access there; every other UB check stays on.
+  target_compile_options(visco_warnings INTERFACE -fsanitize=address,undefined -fno-sanitize=vptr
+                                                  -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
   target_link_options(visco_warnings INTERFACE -fsanitize=address,undefined)
 elseif(VISCO_SANITIZE STREQUAL "thread")
   target_compile_options(visco_warnings INTERFACE -fsanitize=thread -fno-omit-frame-pointer)
