@@ -1,0 +1,206 @@
+#pragma once
+// The controller <-> robot driver CAN protocol (drivers/README.md, drivers/visco.dbc): CANopen-style identifiers,
+// classic CAN frames of 8 bytes, little-endian (Intel) signals, an 8-bit sequence counter and a CRC-8 in every
+// command and status frame. Pure encode/decode, independent of SocketCAN: every function here is real-time safe
+// (no allocation, no exception, no I/O) and returns an enum class status.
+//
+//   id            dir                what                                  bytes
+//   0x000         controller->all    NMT (byte0 command, byte1 node or 0)  2
+//   0x080+node    driver->all        EMCY (CANopen emergency)              8
+//   0x180+node    driver->controller status: seq, command seq, velocity    8 (TPDO1)
+//   0x200+node    controller->driver velocity command                      8 (RPDO1)
+//   0x280+node    driver->controller position                              8 (TPDO2)
+//   0x380+node    driver->controller contact force and fault bits          8 (TPDO3)
+//   0x700+node    driver->all        heartbeat (NMT state)                 1
+
+#include <cstdint>
+
+#include "drivers/robot_link.h"
+
+namespace visco::drivers::can {
+
+// SocketCAN's id flags (linux/can.h), repeated here so that the protocol does not need Linux headers.
+inline constexpr std::uint32_t kEffFlag = 0x80000000U;  // extended (29-bit) frame
+inline constexpr std::uint32_t kRtrFlag = 0x40000000U;  // remote transmission request
+inline constexpr std::uint32_t kErrFlag = 0x20000000U;  // error frame (linux/can/error.h)
+inline constexpr std::uint32_t kSffMask = 0x000007FFU;
+
+/// One classic CAN frame, laid out like Linux's struct can_frame's meaningful parts.
+struct Frame {
+  std::uint32_t id = 0;  // 11-bit id, or with kEffFlag / kRtrFlag / kErrFlag as in SocketCAN
+  std::uint8_t dlc = 0;  // 0..8
+  std::uint8_t data[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+};
+
+// Function codes (CANopen predefined connection set); the node id is added.
+inline constexpr std::uint32_t kNmtId = 0x000;
+inline constexpr std::uint32_t kEmcyBase = 0x080;
+inline constexpr std::uint32_t kStatusBase = 0x180;    // TPDO1
+inline constexpr std::uint32_t kCommandBase = 0x200;   // RPDO1
+inline constexpr std::uint32_t kPositionBase = 0x280;  // TPDO2
+inline constexpr std::uint32_t kForceBase = 0x380;     // TPDO3
+inline constexpr std::uint32_t kHeartbeatBase = 0x700;
+inline constexpr int kMinNode = 1;
+inline constexpr int kMaxNode = 127;
+
+// Scales of the signals (physical = raw * scale).
+inline constexpr double kVelocityScale = 1e-4;  // m/s per bit, int16: +-3.2767 m/s
+inline constexpr double kPositionScale = 1e-5;  // m per bit, int24: +-83.886 m
+inline constexpr double kForceScale = 1e-2;     // N per bit, int16: +-327.67 N
+inline constexpr double kMaxVelocity = 32767 * kVelocityScale;
+
+// Command flags (byte 1 of the command frame). Other bits are reserved and must be zero.
+inline constexpr std::uint8_t kFlagEStop = 0x01;
+inline constexpr std::uint8_t kFlagReset = 0x02;
+
+// NMT commands (byte 0 of an NMT frame).
+inline constexpr std::uint8_t kNmtStart = 0x01;  // -> operational (the driver treats it as a reset request)
+inline constexpr std::uint8_t kNmtStop = 0x02;   // -> stopped: the driver latches an e-stop
+inline constexpr std::uint8_t kNmtPreOperational = 0x80;
+inline constexpr std::uint8_t kNmtResetNode = 0x81;  // the driver treats it as a reset request
+inline constexpr std::uint8_t kNmtResetCommunication = 0x82;
+
+// EMCY error codes (CANopen CiA 301 / 402 meanings).
+inline constexpr std::uint16_t kEmcyNoError = 0x0000;          // error reset: the fault has cleared
+inline constexpr std::uint16_t kEmcyGeneric = 0x1000;          // generic error (used for e-stop)
+inline constexpr std::uint16_t kEmcyCanOverrun = 0x8110;       // CAN overrun (frames lost)
+inline constexpr std::uint16_t kEmcyCanPassive = 0x8120;       // CAN in error passive mode
+inline constexpr std::uint16_t kEmcyBusOffRecovered = 0x8140;  // recovered from bus-off
+inline constexpr std::uint16_t kEmcyProtocol = 0x8200;         // protocol error (checksum, reserved bits, sequence)
+inline constexpr std::uint16_t kEmcyPdoLength = 0x8210;        // PDO not processed due to length error
+inline constexpr std::uint16_t kEmcyRpdoTimeout = 0x8250;      // RPDO timeout: the command watchdog expired
+inline constexpr std::uint16_t kEmcyVelocityLimit = 0x8400;    // velocity speed controller (command limited)
+inline constexpr std::uint16_t kEmcyBounds = 0x8612;           // reference limit (workspace bounds)
+
+/// Result of decoding a frame.
+enum class DecodeStatus : std::uint8_t {
+  kOk = 0,
+  kWrongId,      // not the frame kind this decoder reads (or an extended / RTR / error frame)
+  kBadLength,    // DLC differs from the protocol's
+  kBadChecksum,  // CRC-8 mismatch
+  kBadReserved,  // reserved bits or bytes not zero, or an unknown enum value
+};
+const char* ToString(DecodeStatus status);
+
+/// Result of encoding a frame.
+enum class EncodeStatus : std::uint8_t {
+  kOk = 0,
+  kOutOfRange,  // a value does not fit the signal (commands only; status signals saturate)
+  kBadNode,     // node id outside 1..127
+  kNotFinite,   // NaN or infinity
+};
+const char* ToString(EncodeStatus status);
+
+/// CRC-8/SAE-J1850 (polynomial 0x1D, init 0xFF, final xor 0xFF) of the frame's 11-bit id (two bytes, little-endian)
+/// followed by data[0..6]: byte 7 of command and status frames. Covering the id catches a frame that arrives under
+/// the wrong id. Real-time safe.
+std::uint8_t FrameCrc(std::uint32_t id, const std::uint8_t* data7);
+/// Plain CRC-8/SAE-J1850 of `size` bytes (check value of "123456789" is 0x4B). Real-time safe.
+std::uint8_t Crc8SaeJ1850(const std::uint8_t* bytes, int size);
+
+/// The wire form of a command (what RobotLink sends, what the driver receives).
+struct CommandFrame {
+  std::uint8_t seq = 0;
+  bool estop = false;
+  bool reset = false;
+  double velocity[2] = {0.0, 0.0};  // m/s, world frame, quantised to kVelocityScale
+};
+
+/// The three status frames' content (one status update = TPDO1 + TPDO2 + TPDO3 with the same seq).
+struct StatusFrames {
+  std::uint8_t seq = 0;
+  std::uint8_t command_seq = 0;
+  double velocity[2] = {0.0, 0.0};
+  RobotState state = RobotState::kInit;
+  bool contact = false;
+  double position[2] = {0.0, 0.0};
+  double contact_force[2] = {0.0, 0.0};
+  std::uint16_t fault_bits = 0;
+};
+
+/// An EMCY frame's content. Bytes: 0-1 error code, 2 error register (CiA 301 bits: 0x01 generic, 0x10 communication),
+/// 3 visco fault code (fault_t::CODE_*), 4-5 fault bits, 6 flags (bit0 robot stopped, bit1 cleared), 7 counter.
+struct EmcyFrame {
+  std::uint16_t error_code = 0;
+  std::uint8_t error_register = 0;
+  std::uint8_t code = 0;
+  std::uint16_t fault_bits = 0;
+  bool robot_stopped = false;
+  bool cleared = false;
+  std::uint8_t counter = 0;
+};
+
+/// The kind of a frame from its id alone.
+enum class FrameKind : std::uint8_t {
+  kOther = 0,
+  kNmt,
+  kEmcy,
+  kStatus,
+  kCommand,
+  kPosition,
+  kForce,
+  kHeartbeat,
+  kError,
+};
+/// Classifies `frame` for `node` (frames of other nodes and extended/RTR frames are kOther). Real-time safe.
+FrameKind Classify(const Frame& frame, int node);
+
+EncodeStatus EncodeCommand(int node, const CommandFrame& command, Frame& out);
+DecodeStatus DecodeCommand(int node, const Frame& frame, CommandFrame& out);
+
+/// Encodes the three status frames (status, position, force; in that order). Values beyond a signal's range
+/// saturate; NaN is sent as zero. Real-time safe.
+EncodeStatus EncodeStatusFrames(int node, const StatusFrames& status, Frame out[3]);
+/// Decoders of the three status frames: each fills only its own fields of `out`.
+DecodeStatus DecodeStatusFrame(int node, const Frame& frame, StatusFrames& out);
+DecodeStatus DecodePositionFrame(int node, const Frame& frame, StatusFrames& out);
+DecodeStatus DecodeForceFrame(int node, const Frame& frame, StatusFrames& out);
+
+EncodeStatus EncodeHeartbeat(int node, NmtState state, Frame& out);
+DecodeStatus DecodeHeartbeat(int node, const Frame& frame, NmtState& out);
+
+EncodeStatus EncodeEmcy(int node, const EmcyFrame& emcy, Frame& out);
+DecodeStatus DecodeEmcy(int node, const Frame& frame, EmcyFrame& out);
+
+/// NMT: command and target node (0 = all nodes).
+EncodeStatus EncodeNmt(std::uint8_t command, int target_node, Frame& out);
+/// Decodes an NMT frame addressed to `node` (or to all nodes). kWrongId also when addressed to another node.
+DecodeStatus DecodeNmt(int node, const Frame& frame, std::uint8_t& command);
+
+/// What a SocketCAN error frame (id with kErrFlag, linux/can/error.h) says about the bus.
+struct ErrorFrameInfo {
+  bool bus_off = false;
+  bool restarted = false;      // the controller recovered from bus-off
+  bool error_passive = false;  // rx or tx error passive
+  bool error_warning = false;  // rx or tx error warning
+  bool back_to_active = false;
+  bool rx_overflow = false;  // controller rx buffer overflow
+  bool tx_timeout = false;
+  bool protocol_or_bus_error = false;  // protocol violation, transceiver, no ack, bus error, lost arbitration
+};
+/// Decodes a SocketCAN error frame; kWrongId if `frame` is not one. Real-time safe.
+DecodeStatus DecodeErrorFrame(const Frame& frame, ErrorFrameInfo& out);
+
+// Linux error-frame class bits (in the id) and controller-status bits (data[1]), from linux/can/error.h.
+inline constexpr std::uint32_t kErrTxTimeout = 0x001;
+inline constexpr std::uint32_t kErrLostArb = 0x002;
+inline constexpr std::uint32_t kErrCrtl = 0x004;
+inline constexpr std::uint32_t kErrProt = 0x008;
+inline constexpr std::uint32_t kErrTrx = 0x010;
+inline constexpr std::uint32_t kErrAck = 0x020;
+inline constexpr std::uint32_t kErrBusOff = 0x040;
+inline constexpr std::uint32_t kErrBusError = 0x080;
+inline constexpr std::uint32_t kErrRestarted = 0x100;
+inline constexpr std::uint8_t kCrtlRxOverflow = 0x01;
+inline constexpr std::uint8_t kCrtlTxOverflow = 0x02;
+inline constexpr std::uint8_t kCrtlRxWarning = 0x04;
+inline constexpr std::uint8_t kCrtlTxWarning = 0x08;
+inline constexpr std::uint8_t kCrtlRxPassive = 0x10;
+inline constexpr std::uint8_t kCrtlTxPassive = 0x20;
+inline constexpr std::uint8_t kCrtlActive = 0x40;
+
+/// Accepts `seq` after `last` if it is 1..127 ahead (modulo 256): gaps (lost frames) are tolerated, duplicates and
+/// older frames are not. Real-time safe.
+bool SequenceAdvances(std::uint8_t last, std::uint8_t seq);
+
+}  // namespace visco::drivers::can

@@ -1,0 +1,181 @@
+#pragma once
+// The controller's view of the robot driver: send velocity commands, poll the driver's status, its heartbeat and its
+// faults. One interface, two transports: SocketCAN (drivers/can_protocol.h, drivers/README.md) and LCM (the
+// velocity_command_t / robot_status_t / heartbeat_t / fault_t messages). The controller's loop uses only this header.
+//
+// Threading: one RobotLink is used by one thread (the real-time loop). Everything marked "Real-time safe" does no
+// allocation, takes no lock, throws nothing and never blocks; the factories are not real-time safe (they open
+// sockets, start threads, validate their configuration and throw).
+//
+// Clocks: every `now_us` argument is the caller's monotonic clock in microseconds (e.g. MonotonicMicros() below);
+// the link keeps its peer timers on that clock. Message times (`utime`) are wall-clock microseconds since the epoch.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+namespace visco::drivers {
+
+/// Robot driver state, the same numbers as visco::robot_status_t::STATE_*.
+enum class RobotState : std::uint8_t {
+  kInit = 0,
+  kReady = 1,    // enabled, zero velocity
+  kMoving = 2,   // executing a velocity command
+  kStopped = 3,  // stopped by its command watchdog or a fault; needs a reset command
+  kEStop = 4,    // e-stop latched; needs a reset command
+};
+
+/// Fault bits of the driver (RobotStatus::fault_bits), the same values as visco::robot_status_t::FAULT_*.
+namespace fault_bits {
+inline constexpr std::uint16_t kWatchdog = 1;  // no valid command within the watchdog period
+inline constexpr std::uint16_t kBadFrame = 2;  // malformed command (checksum, length, reserved bits)
+inline constexpr std::uint16_t kSequence = 4;  // command out of sequence (duplicate or older)
+inline constexpr std::uint16_t kLimit = 8;     // command beyond the velocity limit (clamped)
+inline constexpr std::uint16_t kBounds = 16;   // position outside the workspace bounds
+inline constexpr std::uint16_t kBus = 32;      // CAN error passive, bus-off, or the interface went down
+inline constexpr std::uint16_t kEStop = 64;    // e-stop requested
+inline constexpr std::uint16_t kAll = 127;
+}  // namespace fault_bits
+
+/// A velocity command for the robot's reference point. The link numbers the commands itself.
+struct VelocityCommand {
+  double velocity[2] = {0.0, 0.0};  // m/s, world frame (x right, y up)
+  bool estop = false;               // stop now and latch until a reset
+  bool reset = false;               // clear a latched e-stop or stop (send with zero velocity)
+};
+
+/// The driver's feedback.
+struct RobotStatus {
+  std::int64_t utime = 0;           // wall-clock time of the status (LCM: the driver's; CAN: the kernel receive time)
+  std::int64_t receive_us = 0;      // caller's monotonic clock when the link received it (the Poll() time)
+  std::uint32_t seq = 0;            // status sequence counter (CAN: 8 bits)
+  std::uint32_t command_seq = 0;    // seq of the last command the driver applied (CAN: 8 bits)
+  double position[2] = {0.0, 0.0};  // metres, reference point in the world frame
+  double velocity[2] = {0.0, 0.0};  // m/s, actual reference point velocity in the world frame
+  bool contact = false;             // the robot touches something
+  double contact_force[2] = {0.0, 0.0};  // newtons, contact force on the robot, world frame
+  RobotState state = RobotState::kInit;
+  std::uint16_t fault_bits = 0;  // OR of fault_bits::k*
+};
+
+/// CANopen NMT state carried by heartbeats (the same numbers as visco::heartbeat_t::STATE_*).
+enum class NmtState : std::uint8_t {
+  kBootUp = 0x00,
+  kStopped = 0x04,
+  kOperational = 0x05,
+  kPreOperational = 0x7F,
+};
+
+/// Liveness of the driver as seen through its heartbeats.
+enum class PeerState : std::uint8_t {
+  kUnknown = 0,  // no heartbeat seen yet
+  kAlive = 1,    // last heartbeat younger than the heartbeat timeout
+  kLost = 2,     // heartbeat seen before, but older than the timeout: the controller must stop
+};
+
+/// A fault announced by the driver (CAN: an EMCY frame; LCM: a fault_t message) or detected by the link itself
+/// (bus errors, bus-off, receive overflows).
+struct LinkFault {
+  std::int64_t receive_us = 0;   // caller's monotonic clock at reception / detection
+  std::uint16_t emcy_code = 0;   // CANopen emergency error code (0 = error reset / cleared), see can_protocol.h
+  std::int32_t code = 0;         // visco::fault_t::CODE_* (e.g. CODE_PEER_TIMEOUT, CODE_CAN_ERROR)
+  std::uint16_t fault_bits = 0;  // the driver's fault bits at that moment
+  bool robot_stopped = false;    // the driver stopped the robot because of it
+  bool cleared = false;          // announces that the fault has cleared
+  bool local = false;            // detected by this link (bus state), not reported by the driver
+};
+
+/// Result of a real-time link call.
+enum class LinkResult : std::uint8_t {
+  kOk = 0,
+  kNoData,      // nothing new (Take* calls)
+  kBusOff,      // the bus is off or the interface is down; the command was not sent
+  kBufferFull,  // the kernel's transmit queue (or the LCM hand-off) is full; the command was not sent
+  kOutOfRange,  // the command cannot be represented on the wire (|v| beyond the frame's range); not sent
+  kError,       // another I/O error (counted in LinkCounters::io_errors)
+};
+
+/// Returns a short name for a result ("ok", "bus-off", ...). Real-time safe.
+const char* ToString(LinkResult result);
+/// Returns a short name for a state ("ready", "estop", ...). Real-time safe.
+const char* ToString(RobotState state);
+/// Returns a short name for a peer state. Real-time safe.
+const char* ToString(PeerState state);
+
+/// Monotonically increasing counters of one link (all since creation).
+struct LinkCounters {
+  std::uint64_t commands_sent = 0;
+  std::uint64_t send_failures = 0;      // SendCommand calls that did not send
+  std::uint64_t statuses_received = 0;  // complete status updates
+  std::uint64_t heartbeats_received = 0;
+  std::uint64_t faults_received = 0;    // EMCY frames / fault_t messages from the driver
+  std::uint64_t bad_frames = 0;         // frames for us that failed to decode (checksum, length)
+  std::uint64_t status_gaps = 0;        // status sequence numbers skipped (lost statuses)
+  std::uint64_t error_frames = 0;       // CAN error frames seen
+  std::uint64_t bus_off_events = 0;     // transitions into bus-off / interface down
+  std::uint64_t rx_overflow_drops = 0;  // frames the kernel dropped because our receive queue was full (SO_RXQ_OVFL)
+  std::uint64_t faults_dropped = 0;     // faults lost because the caller did not take them fast enough
+  std::uint64_t io_errors = 0;
+};
+
+/// Bus state as the link sees it (always kActive for LCM).
+enum class BusState : std::uint8_t { kActive = 0, kWarning, kPassive, kBusOff };
+
+/// The controller side of the robot link.
+class RobotLink {
+ public:
+  virtual ~RobotLink() = default;
+
+  /// Sends one command, numbering it with the next sequence number. Real-time safe (CAN: one non-blocking
+  /// write; LCM: a lock-free hand-off to the publisher thread).
+  virtual LinkResult SendCommand(const VelocityCommand& command, std::int64_t now_us) = 0;
+
+  /// Processes everything that arrived since the last call (non-blocking): statuses, heartbeats, faults, bus
+  /// errors. Call once per control period before the Take* calls. Real-time safe.
+  virtual void Poll(std::int64_t now_us) = 0;
+
+  /// Copies the newest status into `out` if a new one arrived since the last call; kNoData otherwise.
+  /// Real-time safe.
+  virtual LinkResult TakeStatus(RobotStatus& out) = 0;
+
+  /// Takes the oldest pending fault (a small fixed queue; overflow is counted). Real-time safe.
+  virtual LinkResult TakeFault(LinkFault& out) = 0;
+
+  /// The driver's liveness at `now_us` judged by its heartbeats (and, for the driver's NMT state, the last
+  /// heartbeat's content). Real-time safe.
+  virtual PeerState peer_state(std::int64_t now_us) const = 0;
+  virtual NmtState peer_nmt_state() const = 0;
+
+  /// Bus state (CAN error frames, bus-off, interface down). Real-time safe.
+  virtual BusState bus_state() const = 0;
+
+  /// Sequence number of the last command sent (0 before the first). Real-time safe.
+  virtual std::uint32_t last_command_seq() const = 0;
+
+  virtual LinkCounters counters() const = 0;
+};
+
+/// Configuration of a RobotLink.
+struct RobotLinkConfig {
+  int node_id = 1;                              // the robot's CAN node id, 1..127 (also LCM node_id)
+  std::int64_t heartbeat_timeout_us = 300'000;  // peer lost when no heartbeat for this long
+  std::string can_interface;                    // SocketCAN interface ("vcan0"); for MakeSocketCanRobotLink
+  std::string lcm_url;                          // LCM provider URL ("" = LCM's default); for MakeLcmRobotLink
+};
+
+/// Opens a SocketCAN robot link on `config.can_interface`. Not real-time safe.
+/// @throws visco::JobFailed if the socket cannot be opened or bound (the message names the interface and errno).
+/// @throws visco::InputError if the node id is outside 1..127.
+std::unique_ptr<RobotLink> MakeSocketCanRobotLink(const RobotLinkConfig& config);
+
+/// Opens an LCM robot link (publishes VISCO_COMMAND, subscribes VISCO_STATUS, VISCO_HEARTBEAT_DRIVER,
+/// VISCO_FAULT) and starts its I/O thread. Not real-time safe.
+/// @throws visco::JobFailed if LCM cannot be initialised with `config.lcm_url`.
+std::unique_ptr<RobotLink> MakeLcmRobotLink(const RobotLinkConfig& config);
+
+/// CLOCK_MONOTONIC in microseconds. Real-time safe.
+std::int64_t MonotonicMicros();
+/// CLOCK_REALTIME in microseconds since the epoch. Real-time safe.
+std::int64_t WallMicros();
+
+}  // namespace visco::drivers
