@@ -9,6 +9,7 @@
 
 #include "app/spy_command.h"
 #include "common/error.h"
+#include "drivers/commands.h"
 
 #ifndef VISCO_VERSION
 #define VISCO_VERSION "unknown"
@@ -24,6 +25,7 @@ int main(int argc, char** argv) {
   app.fallthrough(false);
 
   visco::app::RegisterSpyCommand(app);
+  visco::drivers::RegisterCommands(app);
 
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
   try {

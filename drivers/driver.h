@@ -1,0 +1,91 @@
+#pragma once
+// The robot driver's logic, independent of the transport (CAN or LCM) and of the robot (simulated or real):
+// sequence and checksum checking, the command watchdog, e-stop and reset, bus faults, status replies, heartbeats and
+// EMCY/fault announcements. `visco driver` runs it; tests drive Update() with their own clock.
+//
+// Safety rules (drivers/README.md):
+// - Only well-formed, in-sequence commands count. Malformed or out-of-sequence commands are ignored and reported
+//   (fault bit + EMCY once per episode); the bit clears with the next valid command.
+// - The watchdog (armed by the first valid command) quick-stops the robot when no valid command arrives within the
+//   watchdog period: state STOPPED, FAULT_WATCHDOG, EMCY 0x8250 "RPDO timeout".
+// - E-stop (command flag or NMT stop): quick stop, state ESTOP, FAULT_ESTOP.
+// - Bus-off or interface down: quick stop, state STOPPED, FAULT_BUS until the bus recovers.
+// - STOPPED and ESTOP are latched: only a reset (command flag, NMT start or reset node) with the faults gone returns
+//   the driver to READY. The reset command's velocity is ignored.
+
+#include <atomic>
+#include <cstdint>
+
+#include "drivers/driver_transport.h"
+#include "drivers/robot_interface.h"
+#include "drivers/robot_link.h"
+
+namespace visco::drivers {
+
+struct DriverConfig {
+  std::int64_t watchdog_us = 100'000;      // command watchdog period
+  std::int64_t period_us = 1'000;          // robot update period
+  std::int64_t status_period_us = 10'000;  // status when no command arrives (a status also follows every command)
+  std::int64_t heartbeat_period_us = 100'000;
+  double max_speed = 1.0;  // m/s, commanded speeds above it are clamped (FAULT_LIMIT)
+};
+
+/// Counts of what the driver saw (for logs and tests).
+struct DriverStats {
+  std::uint64_t commands_applied = 0;
+  std::uint64_t bad_commands = 0;
+  std::uint64_t out_of_sequence = 0;
+  std::uint64_t sequence_gaps = 0;  // command numbers skipped (lost commands)
+  std::uint64_t watchdog_stops = 0;
+  std::uint64_t estops = 0;
+  std::uint64_t resets = 0;
+  std::uint64_t bus_offs = 0;
+  std::uint64_t statuses_sent = 0;
+  std::uint64_t send_failures = 0;
+  std::uint64_t faults_sent = 0;
+};
+
+class Driver {
+ public:
+  /// Not real-time safe. @throws visco::InputError for a non-positive period, watchdog or speed limit.
+  Driver(const DriverConfig& config, DriverTransport& transport, RobotInterface& robot);
+
+  /// Sends the boot-up heartbeat. Call once before the first Update().
+  void Start(std::int64_t now_us);
+  /// One iteration at `now_us` (monotonic): handles every pending event, steps the robot by the time since the
+  /// last call, runs the watchdog, sends the periodic status and heartbeat. No allocation.
+  void Update(std::int64_t now_us);
+  /// Runs Start() and Update() at the configured period until `stop` becomes true.
+  void Run(const std::atomic<bool>& stop);
+
+  RobotState state() const { return state_; }
+  std::uint16_t fault_bits() const { return fault_bits_; }
+  const DriverStats& stats() const { return stats_; }
+
+ private:
+  void OnCommand(const DriverEvent& event, std::int64_t now_us);
+  void OnReset(std::int64_t now_us);
+  void EStop(std::int64_t now_us, const char* why);
+  void StopRobot(RobotState state);
+  void SetFault(std::uint16_t bit, std::uint16_t emcy, std::int32_t code, bool stopped, const char* message);
+  void ClearFault(std::uint16_t bit);
+  void Announce(std::uint16_t emcy, std::int32_t code, bool stopped, bool cleared, const char* message);
+  void SendStatus(std::int64_t now_us);
+
+  const DriverConfig config_;
+  DriverTransport& transport_;
+  RobotInterface& robot_;
+  RobotState state_ = RobotState::kReady;
+  std::uint16_t fault_bits_ = 0;
+  bool bus_off_ = false;
+  bool have_seq_ = false;
+  std::uint32_t last_seq_ = 0;
+  std::int64_t last_valid_us_ = -1;  // -1: watchdog not armed
+  std::int64_t last_update_us_ = -1;
+  std::int64_t next_status_us_ = 0;
+  std::int64_t next_heartbeat_us_ = 0;
+  std::uint32_t status_seq_ = 0;
+  DriverStats stats_;
+};
+
+}  // namespace visco::drivers

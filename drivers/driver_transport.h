@@ -1,0 +1,77 @@
+#pragma once
+// The robot driver's side of the link: receive commands (and NMT / bus events), send status, heartbeats and
+// faults. SocketCAN and LCM implementations; the driver logic (drivers/driver.h) uses only this header.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "drivers/can_protocol.h"
+#include "drivers/robot_link.h"
+
+namespace visco::drivers {
+
+enum class DriverEventKind : std::uint8_t {
+  kCommand = 0,    // a well-formed command (sequence not yet checked)
+  kBadCommand,     // a command frame that failed to decode (see `decode`)
+  kEStop,          // NMT stop addressed to us
+  kResetRequest,   // NMT start / reset node addressed to us
+  kBusOff,         // error frame: bus-off, or the interface went down
+  kBusRestarted,   // error frame: restarted after bus-off, or the interface came back
+  kBusPassive,     // error frame: error passive / warning
+  kBusActive,      // error frame: back to error active
+  kFramesDropped,  // the kernel dropped `count` received frames (SO_RXQ_OVFL)
+};
+const char* ToString(DriverEventKind kind);
+
+struct DriverEvent {
+  DriverEventKind kind = DriverEventKind::kCommand;
+  std::int64_t receive_us = 0;                        // monotonic clock of the driver
+  std::uint32_t seq = 0;                              // kCommand: the command's sequence number
+  VelocityCommand command;                            // kCommand
+  can::DecodeStatus decode = can::DecodeStatus::kOk;  // kBadCommand
+  std::uint32_t count = 0;                            // kFramesDropped
+};
+
+/// A fault the driver announces (CAN: EMCY; LCM: fault_t).
+struct DriverFault {
+  std::uint16_t emcy_code = 0;   // can::kEmcy*
+  std::int32_t code = 0;         // fault_t::CODE_*
+  std::int8_t severity = 0;      // fault_t::SEVERITY_*
+  std::uint16_t fault_bits = 0;  // the driver's fault bits after this event
+  bool robot_stopped = false;
+  bool cleared = false;
+  char message[120] = {};  // the reason in words (LCM only; CAN carries the codes)
+};
+
+class DriverTransport {
+ public:
+  virtual ~DriverTransport() = default;
+  /// Blocks until input may be available or `timeout_us` passed.
+  virtual void Wait(std::int64_t timeout_us) = 0;
+  /// Takes the next event (non-blocking); false when there is none.
+  virtual bool NextEvent(std::int64_t now_us, DriverEvent& out) = 0;
+  virtual LinkResult SendStatus(const RobotStatus& status) = 0;
+  virtual LinkResult SendHeartbeat(NmtState state) = 0;
+  virtual LinkResult SendFault(const DriverFault& fault) = 0;
+  /// Sequence numbers of commands wrap at this modulus (CAN 256, LCM 2^31).
+  virtual std::uint32_t sequence_modulus() const = 0;
+  virtual LinkCounters counters() const = 0;
+};
+
+/// Accepts `seq` after `last` if it is 1..modulus/2-1 ahead (modulo `modulus`): gaps are tolerated, duplicates and
+/// older numbers are not. Real-time safe.
+bool SequenceAdvances(std::uint32_t last, std::uint32_t seq, std::uint32_t modulus);
+
+struct DriverTransportConfig {
+  int node_id = 1;
+  std::string can_interface;  // for MakeSocketCanDriverTransport
+  std::string lcm_url;        // for MakeLcmDriverTransport
+};
+
+/// @throws visco::JobFailed when the CAN socket cannot be opened; visco::InputError for a bad node id.
+std::unique_ptr<DriverTransport> MakeSocketCanDriverTransport(const DriverTransportConfig& config);
+/// @throws visco::JobFailed when LCM cannot be initialised.
+std::unique_ptr<DriverTransport> MakeLcmDriverTransport(const DriverTransportConfig& config);
+
+}  // namespace visco::drivers

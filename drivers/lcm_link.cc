@@ -1,0 +1,394 @@
+// LCM implementations of RobotLink (controller side) and DriverTransport (driver side). LCM's C++ API allocates
+// when it encodes and decodes, so an I/O thread owns the lcm::LCM object; the real-time side hands values over
+// through lock-free queues and wakes the thread with an eventfd write.
+
+#include <poll.h>
+#include <sys/eventfd.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cstring>
+#include <functional>
+#include <lcm/lcm-cpp.hpp>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "common/error.h"
+#include "drivers/driver_transport.h"
+#include "drivers/ring.h"
+#include "drivers/robot_link.h"
+#include "lcmtypes/channels.h"
+#include "visco/fault_t.hpp"
+#include "visco/heartbeat_t.hpp"
+#include "visco/robot_status_t.hpp"
+#include "visco/velocity_command_t.hpp"
+
+namespace visco::drivers {
+namespace {
+
+constexpr std::uint32_t kLcmSeqModulus = 0x80000000U;
+
+// Owns an lcm::LCM, an eventfd and the thread that serves both.
+class LcmIo {
+ public:
+  explicit LcmIo(const std::string& url) : lcm_(url) {
+    if (!lcm_.good()) throw JobFailed("LCM: cannot initialise provider '" + (url.empty() ? "default" : url) + "'");
+    wake_ = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+    if (wake_ < 0) throw JobFailed("LCM: eventfd failed");
+  }
+  ~LcmIo() { Stop(); }
+
+  void Start(std::function<void()> on_wake) {
+    on_wake_ = std::move(on_wake);
+    thread_ = std::thread([this] { Run(); });
+  }
+  void Stop() {
+    if (thread_.joinable()) {
+      stop_.store(true);
+      Wake();
+      thread_.join();
+    }
+    if (wake_ >= 0) {
+      close(wake_);
+      wake_ = -1;
+    }
+  }
+  // Real-time safe: one non-blocking write(2).
+  void Wake() {
+    const std::uint64_t one = 1;
+    [[maybe_unused]] const ssize_t n = write(wake_, &one, sizeof(one));
+  }
+  lcm::LCM& lcm() { return lcm_; }
+
+ private:
+  void Run() {
+    pollfd fds[2] = {{lcm_.getFileno(), POLLIN, 0}, {wake_, POLLIN, 0}};
+    while (!stop_.load()) {
+      on_wake_();  // flush outgoing first, then wait
+      if (poll(fds, 2, 20) <= 0) continue;
+      if (fds[1].revents & POLLIN) {
+        std::uint64_t count = 0;
+        [[maybe_unused]] const ssize_t n = read(wake_, &count, sizeof(count));
+      }
+      if (fds[0].revents & POLLIN) lcm_.handleTimeout(0);
+    }
+    on_wake_();
+  }
+  lcm::LCM lcm_;
+  int wake_ = -1;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+  std::function<void()> on_wake_;
+};
+
+// ---------------------------------------------------------------------------------------------------------------
+class LcmRobotLink final : public RobotLink {
+ public:
+  explicit LcmRobotLink(const RobotLinkConfig& config)
+      : node_(config.node_id), heartbeat_timeout_us_(config.heartbeat_timeout_us), io_(config.lcm_url) {
+    io_.lcm().subscribe(channels::kStatus, &LcmRobotLink::OnStatus, this);
+    io_.lcm().subscribe(channels::kHeartbeatDriver, &LcmRobotLink::OnHeartbeat, this);
+    io_.lcm().subscribe(channels::kFault, &LcmRobotLink::OnFault, this);
+    io_.Start([this] { Flush(); });
+  }
+  ~LcmRobotLink() override { io_.Stop(); }
+
+  LinkResult SendCommand(const VelocityCommand& command, std::int64_t /*now_us*/) override {
+    for (double v : command.velocity) {
+      if (!(v > -1e6 && v < 1e6)) {
+        ++counters_.send_failures;
+        return LinkResult::kOutOfRange;
+      }
+    }
+    Outgoing out;
+    out.command = command;
+    out.seq = (seq_ + 1) % kLcmSeqModulus;
+    out.utime = WallMicros();
+    if (!outgoing_.Push(out)) {
+      ++counters_.send_failures;
+      return LinkResult::kBufferFull;
+    }
+    seq_ = out.seq;
+    ++counters_.commands_sent;
+    io_.Wake();
+    return LinkResult::kOk;
+  }
+
+  void Poll(std::int64_t now_us) override {
+    RobotStatus s;
+    while (statuses_.Pop(s)) {
+      if (have_status_ever_) {
+        const std::uint32_t gap = (s.seq - status_.seq - 1) % kLcmSeqModulus;
+        if (gap < kLcmSeqModulus / 2) counters_.status_gaps += gap;
+      }
+      have_status_ever_ = true;
+      s.receive_us = now_us;
+      status_ = s;
+      fresh_status_ = true;
+      ++counters_.statuses_received;
+    }
+    const std::uint64_t beats = heartbeats_.load(std::memory_order_acquire);
+    if (beats != beats_seen_) {
+      counters_.heartbeats_received += beats - beats_seen_;
+      beats_seen_ = beats;
+      last_heartbeat_us_ = now_us;
+    }
+    LinkFault f;
+    while (incoming_faults_.Pop(f)) {
+      f.receive_us = now_us;
+      ++counters_.faults_received;
+      if (!faults_.Push(f)) ++counters_.faults_dropped;
+    }
+    counters_.bad_frames = bad_messages_.load(std::memory_order_relaxed);
+  }
+
+  LinkResult TakeStatus(RobotStatus& out) override {
+    if (!fresh_status_) return LinkResult::kNoData;
+    out = status_;
+    fresh_status_ = false;
+    return LinkResult::kOk;
+  }
+  LinkResult TakeFault(LinkFault& out) override { return faults_.Pop(out) ? LinkResult::kOk : LinkResult::kNoData; }
+  PeerState peer_state(std::int64_t now_us) const override {
+    if (last_heartbeat_us_ < 0) return PeerState::kUnknown;
+    return now_us - last_heartbeat_us_ <= heartbeat_timeout_us_ ? PeerState::kAlive : PeerState::kLost;
+  }
+  NmtState peer_nmt_state() const override { return static_cast<NmtState>(nmt_state_.load(std::memory_order_relaxed)); }
+  BusState bus_state() const override { return BusState::kActive; }
+  std::uint32_t last_command_seq() const override { return seq_; }
+  LinkCounters counters() const override { return counters_; }
+
+ private:
+  struct Outgoing {
+    VelocityCommand command;
+    std::uint32_t seq = 0;
+    std::int64_t utime = 0;
+  };
+
+  // I/O thread.
+  void Flush() {
+    Outgoing out;
+    while (outgoing_.Pop(out)) {
+      velocity_command_t msg{};
+      msg.utime = out.utime;
+      msg.node_id = node_;
+      msg.seq = static_cast<std::int32_t>(out.seq);
+      msg.velocity[0] = out.command.velocity[0];
+      msg.velocity[1] = out.command.velocity[1];
+      msg.estop = out.command.estop;
+      msg.reset = out.command.reset;
+      io_.lcm().publish(channels::kCommand, &msg);
+    }
+  }
+  void OnStatus(const lcm::ReceiveBuffer*, const std::string&, const robot_status_t* msg) {
+    if (msg->node_id != node_) return;
+    if (msg->state < 0 || msg->state > static_cast<int>(RobotState::kEStop)) {
+      bad_messages_.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    RobotStatus s;
+    s.utime = msg->utime;
+    s.seq = static_cast<std::uint32_t>(msg->seq);
+    s.command_seq = static_cast<std::uint32_t>(msg->command_seq);
+    for (int i = 0; i < 2; ++i) {
+      s.position[i] = msg->position[i];
+      s.velocity[i] = msg->velocity[i];
+      s.contact_force[i] = msg->contact_force[i];
+    }
+    s.contact = msg->contact;
+    s.state = static_cast<RobotState>(msg->state);
+    s.fault_bits = static_cast<std::uint16_t>(msg->fault_bits & fault_bits::kAll);
+    statuses_.Push(s);
+  }
+  void OnHeartbeat(const lcm::ReceiveBuffer*, const std::string&, const heartbeat_t* msg) {
+    if (msg->node_id != node_) return;
+    nmt_state_.store(static_cast<std::uint8_t>(msg->state), std::memory_order_relaxed);
+    heartbeats_.fetch_add(1, std::memory_order_release);
+  }
+  void OnFault(const lcm::ReceiveBuffer*, const std::string&, const fault_t* msg) {
+    if (msg->source != "driver") return;
+    LinkFault f;
+    f.code = msg->code;
+    f.robot_stopped = msg->robot_stopped;
+    f.cleared = msg->cleared;
+    incoming_faults_.Push(f);
+  }
+
+  const int node_;
+  const std::int64_t heartbeat_timeout_us_;
+  SpscQueue<Outgoing, 256> outgoing_;
+  SpscQueue<RobotStatus, 64> statuses_;
+  SpscQueue<LinkFault, 64> incoming_faults_;
+  std::atomic<std::uint64_t> heartbeats_{0};
+  std::atomic<std::uint8_t> nmt_state_{0};
+  std::atomic<std::uint64_t> bad_messages_{0};
+  // Real-time side only.
+  std::uint32_t seq_ = 0;
+  std::uint64_t beats_seen_ = 0;
+  bool have_status_ever_ = false;
+  RobotStatus status_;
+  bool fresh_status_ = false;
+  std::int64_t last_heartbeat_us_ = -1;
+  FixedQueue<LinkFault, 64> faults_;
+  LinkCounters counters_;
+  LcmIo io_;  // last: its thread stops before the queues go away
+};
+
+// ---------------------------------------------------------------------------------------------------------------
+class LcmDriverTransport final : public DriverTransport {
+ public:
+  explicit LcmDriverTransport(const DriverTransportConfig& config) : node_(config.node_id), io_(config.lcm_url) {
+    rx_ready_ = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+    if (rx_ready_ < 0) throw JobFailed("LCM: eventfd failed");
+    io_.lcm().subscribe(channels::kCommand, &LcmDriverTransport::OnCommand, this);
+    io_.Start([this] { Flush(); });
+  }
+  ~LcmDriverTransport() override {
+    io_.Stop();
+    close(rx_ready_);
+  }
+
+  void Wait(std::int64_t timeout_us) override {
+    pollfd p{rx_ready_, POLLIN, 0};
+    timespec ts{static_cast<time_t>(timeout_us / 1'000'000), static_cast<long>((timeout_us % 1'000'000) * 1000)};
+    if (ppoll(&p, 1, &ts, nullptr) > 0) {
+      std::uint64_t count = 0;
+      [[maybe_unused]] const ssize_t n = read(rx_ready_, &count, sizeof(count));
+    }
+  }
+  bool NextEvent(std::int64_t now_us, DriverEvent& out) override {
+    if (!events_.Pop(out)) return false;
+    out.receive_us = now_us;
+    if (out.kind == DriverEventKind::kCommand) ++counters_.commands_sent;  // here: commands received
+    if (out.kind == DriverEventKind::kBadCommand) ++counters_.bad_frames;
+    return true;
+  }
+  LinkResult SendStatus(const RobotStatus& status) override {
+    Out out;
+    out.kind = Out::kStatus;
+    out.status = status;
+    out.utime = WallMicros();
+    return Queue(out);
+  }
+  LinkResult SendHeartbeat(NmtState state) override {
+    Out out;
+    out.kind = Out::kHeartbeat;
+    out.nmt = state;
+    out.utime = WallMicros();
+    return Queue(out);
+  }
+  LinkResult SendFault(const DriverFault& fault) override {
+    Out out;
+    out.kind = Out::kFault;
+    out.fault = fault;
+    out.utime = WallMicros();
+    return Queue(out);
+  }
+  std::uint32_t sequence_modulus() const override { return kLcmSeqModulus; }
+  LinkCounters counters() const override { return counters_; }
+
+ private:
+  struct Out {
+    enum Kind : std::uint8_t { kStatus, kHeartbeat, kFault } kind = kStatus;
+    RobotStatus status;
+    NmtState nmt = NmtState::kBootUp;
+    DriverFault fault;
+    std::int64_t utime = 0;
+  };
+
+  LinkResult Queue(const Out& out) {
+    if (!outgoing_.Push(out)) return LinkResult::kBufferFull;
+    io_.Wake();
+    return LinkResult::kOk;
+  }
+
+  void Flush() {
+    Out out;
+    while (outgoing_.Pop(out)) {
+      switch (out.kind) {
+        case Out::kStatus: {
+          robot_status_t msg{};
+          msg.utime = out.utime;
+          msg.node_id = node_;
+          msg.seq = static_cast<std::int32_t>(out.status.seq);
+          msg.command_seq = static_cast<std::int32_t>(out.status.command_seq);
+          for (int i = 0; i < 2; ++i) {
+            msg.position[i] = out.status.position[i];
+            msg.velocity[i] = out.status.velocity[i];
+            msg.contact_force[i] = out.status.contact_force[i];
+          }
+          msg.contact = out.status.contact;
+          msg.state = static_cast<std::int32_t>(out.status.state);
+          msg.fault_bits = out.status.fault_bits;
+          io_.lcm().publish(channels::kStatus, &msg);
+          break;
+        }
+        case Out::kHeartbeat: {
+          heartbeat_t msg{};
+          msg.utime = out.utime;
+          msg.sender = "driver";
+          msg.node_id = node_;
+          msg.counter = heartbeat_counter_++;
+          msg.state = static_cast<std::int8_t>(out.nmt);
+          io_.lcm().publish(channels::kHeartbeatDriver, &msg);
+          break;
+        }
+        case Out::kFault: {
+          fault_t msg{};
+          msg.utime = out.utime;
+          msg.source = "driver";
+          msg.code = out.fault.code;
+          msg.severity = out.fault.severity;
+          msg.robot_stopped = out.fault.robot_stopped;
+          msg.cleared = out.fault.cleared;
+          msg.message = out.fault.message;
+          io_.lcm().publish(channels::kFault, &msg);
+          break;
+        }
+      }
+    }
+  }
+
+  void OnCommand(const lcm::ReceiveBuffer*, const std::string&, const velocity_command_t* msg) {
+    if (msg->node_id != node_) return;
+    DriverEvent event;
+    const bool finite =
+        msg->velocity[0] > -1e6 && msg->velocity[0] < 1e6 && msg->velocity[1] > -1e6 && msg->velocity[1] < 1e6;
+    if (!finite || msg->seq < 0) {
+      event.kind = DriverEventKind::kBadCommand;
+      event.decode = can::DecodeStatus::kBadReserved;
+    } else {
+      event.kind = DriverEventKind::kCommand;
+      event.seq = static_cast<std::uint32_t>(msg->seq);
+      event.command.velocity[0] = msg->velocity[0];
+      event.command.velocity[1] = msg->velocity[1];
+      event.command.estop = msg->estop;
+      event.command.reset = msg->reset;
+    }
+    if (events_.Push(event)) {
+      const std::uint64_t one = 1;
+      [[maybe_unused]] const ssize_t n = write(rx_ready_, &one, sizeof(one));
+    }
+  }
+
+  const int node_;
+  int rx_ready_ = -1;
+  std::int32_t heartbeat_counter_ = 0;  // I/O thread only
+  SpscQueue<DriverEvent, 256> events_;
+  SpscQueue<Out, 256> outgoing_;
+  LinkCounters counters_;
+  LcmIo io_;  // last: its thread stops before the queues go away
+};
+
+}  // namespace
+
+std::unique_ptr<RobotLink> MakeLcmRobotLink(const RobotLinkConfig& config) {
+  return std::make_unique<LcmRobotLink>(config);
+}
+
+std::unique_ptr<DriverTransport> MakeLcmDriverTransport(const DriverTransportConfig& config) {
+  return std::make_unique<LcmDriverTransport>(config);
+}
+
+}  // namespace visco::drivers

@@ -1,0 +1,546 @@
+// SocketCAN implementations of RobotLink (controller side) and DriverTransport (driver side).
+
+#include <cstdio>
+#include <memory>
+
+#include "common/error.h"
+#include "drivers/can_protocol.h"
+#include "drivers/driver_transport.h"
+#include "drivers/ring.h"
+#include "drivers/robot_link.h"
+#include "drivers/socketcan.h"
+#include "visco/fault_t.hpp"
+
+namespace visco::drivers {
+namespace {
+
+constexpr std::uint32_t kStdDataMask = can::kSffMask | can::kEffFlag | can::kRtrFlag;
+constexpr int kMaxFramesPerPoll = 512;  // bounds the time one Poll() can take
+
+void CheckNode(int node) {
+  if (node < can::kMinNode || node > can::kMaxNode) {
+    throw InputError("command line", "--node", "CAN node id " + std::to_string(node) + " is outside 1..127");
+  }
+}
+
+CanFilter Exact(std::uint32_t id) { return CanFilter{id, kStdDataMask}; }
+
+// Tracks the bus from error frames and from ENETDOWN; shared by both sides.
+class BusTracker {
+ public:
+  // Applies an error frame; returns the transition it caused (or none).
+  enum class Change { kNone, kOff, kRestarted, kPassive, kActive };
+  Change OnErrorFrame(const can::ErrorFrameInfo& info) {
+    if (info.bus_off) return Set(BusState::kBusOff) ? Change::kOff : Change::kNone;
+    if (info.restarted) return Set(BusState::kActive) ? Change::kRestarted : Change::kNone;
+    if (info.error_passive) return Set(BusState::kPassive) ? Change::kPassive : Change::kNone;
+    if (info.error_warning && state_ == BusState::kActive) {
+      return Set(BusState::kWarning) ? Change::kPassive : Change::kNone;
+    }
+    if (info.back_to_active && state_ != BusState::kBusOff) {
+      return Set(BusState::kActive) ? Change::kActive : Change::kNone;
+    }
+    return Change::kNone;
+  }
+  // The interface is down (ENETDOWN on read or write).
+  Change OnNetDown() {
+    net_down_ = true;
+    return Set(BusState::kBusOff) ? Change::kOff : Change::kNone;
+  }
+  // A write succeeded or a data frame arrived: an interface that was down is up again.
+  Change OnTraffic() {
+    if (!net_down_) return Change::kNone;
+    net_down_ = false;
+    return Set(BusState::kActive) ? Change::kRestarted : Change::kNone;
+  }
+  BusState state() const { return state_; }
+
+ private:
+  bool Set(BusState s) {
+    if (s == state_) return false;
+    state_ = s;
+    return true;
+  }
+  BusState state_ = BusState::kActive;
+  bool net_down_ = false;
+};
+
+// ---------------------------------------------------------------------------------------------------------------
+class SocketCanRobotLink final : public RobotLink {
+ public:
+  explicit SocketCanRobotLink(const RobotLinkConfig& config)
+      : node_(config.node_id),
+        heartbeat_timeout_us_(config.heartbeat_timeout_us),
+        rx_(RxOptions(config)),
+        tx_(CanSocketOptions{config.can_interface, false, {}, 0, 0}) {}
+
+  LinkResult SendCommand(const VelocityCommand& command, std::int64_t now_us) override {
+    can::CommandFrame wire;
+    wire.seq = static_cast<std::uint8_t>(seq_ + 1);
+    wire.estop = command.estop;
+    wire.reset = command.reset;
+    wire.velocity[0] = command.velocity[0];
+    wire.velocity[1] = command.velocity[1];
+    can::Frame frame;
+    if (can::EncodeCommand(node_, wire, frame) != can::EncodeStatus::kOk) {
+      ++counters_.send_failures;
+      return LinkResult::kOutOfRange;
+    }
+    const CanIo io = tx_.Write(frame);
+    switch (io) {
+      case CanIo::kOk:
+        seq_ = wire.seq;
+        ++counters_.commands_sent;
+        Note(bus_.OnTraffic(), now_us);
+        return LinkResult::kOk;
+      case CanIo::kWouldBlock:
+        ++counters_.send_failures;
+        return LinkResult::kBufferFull;
+      case CanIo::kNetDown:
+        ++counters_.send_failures;
+        Note(bus_.OnNetDown(), now_us);
+        return LinkResult::kBusOff;
+      case CanIo::kError:
+        break;
+    }
+    ++counters_.send_failures;
+    ++counters_.io_errors;
+    return LinkResult::kError;
+  }
+
+  void Poll(std::int64_t now_us) override {
+    ReceivedFrame in;
+    for (int i = 0; i < kMaxFramesPerPoll; ++i) {
+      const CanIo io = rx_.Read(in);
+      if (io == CanIo::kWouldBlock) break;
+      if (io == CanIo::kNetDown) {
+        Note(bus_.OnNetDown(), now_us);
+        break;
+      }
+      if (io == CanIo::kError) {
+        ++counters_.io_errors;
+        break;
+      }
+      Handle(in, now_us);
+    }
+    if (rx_.dropped() != dropped_seen_) {
+      counters_.rx_overflow_drops += static_cast<std::uint32_t>(rx_.dropped() - dropped_seen_);
+      dropped_seen_ = rx_.dropped();
+      PushLocal(now_us, can::kEmcyCanOverrun, false);
+    }
+  }
+
+  LinkResult TakeStatus(RobotStatus& out) override {
+    if (!fresh_status_) return LinkResult::kNoData;
+    out = status_;
+    fresh_status_ = false;
+    return LinkResult::kOk;
+  }
+
+  LinkResult TakeFault(LinkFault& out) override { return faults_.Pop(out) ? LinkResult::kOk : LinkResult::kNoData; }
+
+  PeerState peer_state(std::int64_t now_us) const override {
+    if (last_heartbeat_us_ < 0) return PeerState::kUnknown;
+    return now_us - last_heartbeat_us_ <= heartbeat_timeout_us_ ? PeerState::kAlive : PeerState::kLost;
+  }
+  NmtState peer_nmt_state() const override { return nmt_; }
+  BusState bus_state() const override { return bus_.state(); }
+  std::uint32_t last_command_seq() const override { return seq_; }
+  LinkCounters counters() const override { return counters_; }
+
+ private:
+  static CanSocketOptions RxOptions(const RobotLinkConfig& config) {
+    CheckNode(config.node_id);
+    const auto n = static_cast<std::uint32_t>(config.node_id);
+    CanSocketOptions options;
+    options.interface = config.can_interface;
+    options.filters = {Exact(can::kStatusBase + n), Exact(can::kPositionBase + n), Exact(can::kForceBase + n),
+                       Exact(can::kHeartbeatBase + n), Exact(can::kEmcyBase + n)};
+    options.error_mask = DefaultErrorMask();
+    return options;
+  }
+
+  void Handle(const ReceivedFrame& in, std::int64_t now_us) {
+    const can::Frame& frame = in.frame;
+    const can::FrameKind kind = can::Classify(frame, node_);
+    if (kind == can::FrameKind::kError) {
+      ++counters_.error_frames;
+      can::ErrorFrameInfo info;
+      can::DecodeErrorFrame(frame, info);
+      Note(bus_.OnErrorFrame(info), now_us);
+      if (info.rx_overflow) PushLocal(now_us, can::kEmcyCanOverrun, false);
+      return;
+    }
+    Note(bus_.OnTraffic(), now_us);
+    can::DecodeStatus result = can::DecodeStatus::kWrongId;
+    switch (kind) {
+      case can::FrameKind::kStatus:
+        result = can::DecodeStatusFrame(node_, frame, partial_);
+        if (result == can::DecodeStatus::kOk) {
+          have_ = 1;
+          partial_seq_ = partial_.seq;
+          partial_utime_ = in.utime;
+        }
+        break;
+      case can::FrameKind::kPosition: {
+        can::StatusFrames p;
+        result = can::DecodePositionFrame(node_, frame, p);
+        if (result == can::DecodeStatus::kOk && (have_ & 1) && p.seq == partial_seq_) {
+          partial_.position[0] = p.position[0];
+          partial_.position[1] = p.position[1];
+          have_ |= 2;
+        }
+        break;
+      }
+      case can::FrameKind::kForce: {
+        can::StatusFrames f;
+        result = can::DecodeForceFrame(node_, frame, f);
+        if (result == can::DecodeStatus::kOk && (have_ & 3) == 3 && f.seq == partial_seq_) {
+          partial_.contact_force[0] = f.contact_force[0];
+          partial_.contact_force[1] = f.contact_force[1];
+          partial_.fault_bits = f.fault_bits;
+          Complete(now_us);
+        }
+        break;
+      }
+      case can::FrameKind::kHeartbeat:
+        result = can::DecodeHeartbeat(node_, frame, nmt_);
+        if (result == can::DecodeStatus::kOk) {
+          last_heartbeat_us_ = now_us;
+          ++counters_.heartbeats_received;
+        }
+        break;
+      case can::FrameKind::kEmcy: {
+        can::EmcyFrame emcy;
+        result = can::DecodeEmcy(node_, frame, emcy);
+        if (result == can::DecodeStatus::kOk) {
+          ++counters_.faults_received;
+          LinkFault fault;
+          fault.receive_us = now_us;
+          fault.emcy_code = emcy.error_code;
+          fault.code = emcy.code;
+          fault.fault_bits = emcy.fault_bits;
+          fault.robot_stopped = emcy.robot_stopped;
+          fault.cleared = emcy.cleared || emcy.error_code == can::kEmcyNoError;
+          Push(fault);
+        }
+        break;
+      }
+      default:
+        return;  // the kernel filters should not let anything else through
+    }
+    if (result != can::DecodeStatus::kOk) ++counters_.bad_frames;
+  }
+
+  void Complete(std::int64_t now_us) {
+    if (have_status_ever_) {
+      const auto gap = static_cast<std::uint8_t>(partial_.seq - static_cast<std::uint8_t>(status_.seq) - 1);
+      if (gap < 128) counters_.status_gaps += gap;
+    }
+    have_status_ever_ = true;
+    have_ = 0;
+    status_.utime = partial_utime_;
+    status_.receive_us = now_us;
+    status_.seq = partial_.seq;
+    status_.command_seq = partial_.command_seq;
+    for (int i = 0; i < 2; ++i) {
+      status_.position[i] = partial_.position[i];
+      status_.velocity[i] = partial_.velocity[i];
+      status_.contact_force[i] = partial_.contact_force[i];
+    }
+    status_.contact = partial_.contact;
+    status_.state = partial_.state;
+    status_.fault_bits = partial_.fault_bits;
+    fresh_status_ = true;
+    ++counters_.statuses_received;
+  }
+
+  void Note(BusTracker::Change change, std::int64_t now_us) {
+    switch (change) {
+      case BusTracker::Change::kNone:
+        return;
+      case BusTracker::Change::kOff:
+        ++counters_.bus_off_events;
+        PushLocal(now_us, can::kEmcyCanPassive, false);
+        return;
+      case BusTracker::Change::kPassive:
+        PushLocal(now_us, can::kEmcyCanPassive, false);
+        return;
+      case BusTracker::Change::kRestarted:
+        PushLocal(now_us, can::kEmcyBusOffRecovered, true);
+        return;
+      case BusTracker::Change::kActive:
+        PushLocal(now_us, can::kEmcyNoError, true);
+        return;
+    }
+  }
+
+  void PushLocal(std::int64_t now_us, std::uint16_t emcy_code, bool cleared) {
+    LinkFault fault;
+    fault.receive_us = now_us;
+    fault.emcy_code = emcy_code;
+    fault.code = fault_t::CODE_CAN_ERROR;
+    fault.fault_bits = fault_bits::kBus;
+    fault.cleared = cleared;
+    fault.local = true;
+    Push(fault);
+  }
+  void Push(const LinkFault& fault) {
+    if (!faults_.Push(fault)) ++counters_.faults_dropped;
+  }
+
+  const int node_;
+  const std::int64_t heartbeat_timeout_us_;
+  CanSocket rx_;
+  CanSocket tx_;
+  BusTracker bus_;
+  std::uint8_t seq_ = 0;
+  std::uint32_t dropped_seen_ = 0;
+  can::StatusFrames partial_;
+  std::uint8_t partial_seq_ = 0;
+  std::int64_t partial_utime_ = 0;
+  int have_ = 0;  // bit 0 status, bit 1 position
+  bool have_status_ever_ = false;
+  RobotStatus status_;
+  bool fresh_status_ = false;
+  std::int64_t last_heartbeat_us_ = -1;
+  NmtState nmt_ = NmtState::kBootUp;
+  FixedQueue<LinkFault, 64> faults_;
+  LinkCounters counters_;
+};
+
+// ---------------------------------------------------------------------------------------------------------------
+class SocketCanDriverTransport final : public DriverTransport {
+ public:
+  explicit SocketCanDriverTransport(const DriverTransportConfig& config)
+      : node_(config.node_id), rx_(RxOptions(config)), tx_(CanSocketOptions{config.can_interface, false, {}, 0, 0}) {}
+
+  void Wait(std::int64_t timeout_us) override { rx_.WaitReadable(timeout_us); }
+
+  bool NextEvent(std::int64_t now_us, DriverEvent& out) override {
+    if (pending_.Pop(out)) return true;
+    if (rx_.dropped() != dropped_seen_) {
+      out = DriverEvent{};
+      out.kind = DriverEventKind::kFramesDropped;
+      out.receive_us = now_us;
+      out.count = rx_.dropped() - dropped_seen_;
+      counters_.rx_overflow_drops += out.count;
+      dropped_seen_ = rx_.dropped();
+      return true;
+    }
+    ReceivedFrame in;
+    for (int i = 0; i < kMaxFramesPerPoll; ++i) {
+      const CanIo io = rx_.Read(in);
+      if (io == CanIo::kWouldBlock) return false;
+      if (io == CanIo::kNetDown) return BusEvent(bus_.OnNetDown(), now_us, out);
+      if (io == CanIo::kError) {
+        ++counters_.io_errors;
+        return false;
+      }
+      if (Handle(in.frame, now_us, out)) return true;
+    }
+    return false;
+  }
+
+  LinkResult SendStatus(const RobotStatus& status) override {
+    can::StatusFrames wire;
+    wire.seq = static_cast<std::uint8_t>(status.seq);
+    wire.command_seq = static_cast<std::uint8_t>(status.command_seq);
+    for (int i = 0; i < 2; ++i) {
+      wire.velocity[i] = status.velocity[i];
+      wire.position[i] = status.position[i];
+      wire.contact_force[i] = status.contact_force[i];
+    }
+    wire.state = status.state;
+    wire.contact = status.contact;
+    wire.fault_bits = status.fault_bits;
+    can::Frame frames[3];
+    can::EncodeStatusFrames(node_, wire, frames);
+    for (const can::Frame& f : frames) {
+      const LinkResult r = Write(f);
+      if (r != LinkResult::kOk) return r;
+    }
+    ++counters_.statuses_received;  // here: statuses sent
+    return LinkResult::kOk;
+  }
+
+  LinkResult SendHeartbeat(NmtState state) override {
+    can::Frame frame;
+    can::EncodeHeartbeat(node_, state, frame);
+    return Write(frame);
+  }
+
+  LinkResult SendFault(const DriverFault& fault) override {
+    can::EmcyFrame emcy;
+    emcy.error_code = fault.cleared ? can::kEmcyNoError : fault.emcy_code;
+    // CiA 301 error register: bit 0 generic error, bit 4 communication error.
+    const bool comm = fault.code == fault_t::CODE_CAN_ERROR || fault.code == fault_t::CODE_BAD_MESSAGE ||
+                      fault.code == fault_t::CODE_PEER_TIMEOUT;
+    emcy.error_register = fault.cleared ? 0 : static_cast<std::uint8_t>(0x01 | (comm ? 0x10 : 0));
+    emcy.code = static_cast<std::uint8_t>(fault.code);
+    emcy.fault_bits = fault.fault_bits;
+    emcy.robot_stopped = fault.robot_stopped;
+    emcy.cleared = fault.cleared;
+    emcy.counter = emcy_counter_++;
+    can::Frame frame;
+    can::EncodeEmcy(node_, emcy, frame);
+    return Write(frame);
+  }
+
+  std::uint32_t sequence_modulus() const override { return 256; }
+  LinkCounters counters() const override { return counters_; }
+
+ private:
+  static CanSocketOptions RxOptions(const DriverTransportConfig& config) {
+    CheckNode(config.node_id);
+    CanSocketOptions options;
+    options.interface = config.can_interface;
+    options.filters = {Exact(can::kCommandBase + static_cast<std::uint32_t>(config.node_id)), Exact(can::kNmtId)};
+    options.error_mask = DefaultErrorMask();
+    return options;
+  }
+
+  LinkResult Write(const can::Frame& frame) {
+    switch (tx_.Write(frame)) {
+      case CanIo::kOk: {
+        DriverEvent event;
+        if (BusEvent(bus_.OnTraffic(), 0, event)) pending_.Push(event);
+        return LinkResult::kOk;
+      }
+      case CanIo::kWouldBlock:
+        return LinkResult::kBufferFull;
+      case CanIo::kNetDown: {
+        DriverEvent event;
+        if (BusEvent(bus_.OnNetDown(), 0, event)) pending_.Push(event);
+        return LinkResult::kBusOff;
+      }
+      case CanIo::kError:
+        break;
+    }
+    ++counters_.io_errors;
+    return LinkResult::kError;
+  }
+
+  bool BusEvent(BusTracker::Change change, std::int64_t now_us, DriverEvent& out) {
+    out = DriverEvent{};
+    out.receive_us = now_us;
+    switch (change) {
+      case BusTracker::Change::kNone:
+        return false;
+      case BusTracker::Change::kOff:
+        ++counters_.bus_off_events;
+        out.kind = DriverEventKind::kBusOff;
+        return true;
+      case BusTracker::Change::kRestarted:
+        out.kind = DriverEventKind::kBusRestarted;
+        return true;
+      case BusTracker::Change::kPassive:
+        out.kind = DriverEventKind::kBusPassive;
+        return true;
+      case BusTracker::Change::kActive:
+        out.kind = DriverEventKind::kBusActive;
+        return true;
+    }
+    return false;
+  }
+
+  // Turns one received frame into an event; false if it carries none.
+  bool Handle(const can::Frame& frame, std::int64_t now_us, DriverEvent& out) {
+    switch (can::Classify(frame, node_)) {
+      case can::FrameKind::kError: {
+        ++counters_.error_frames;
+        can::ErrorFrameInfo info;
+        can::DecodeErrorFrame(frame, info);
+        return BusEvent(bus_.OnErrorFrame(info), now_us, out);
+      }
+      case can::FrameKind::kCommand: {
+        DriverEvent traffic;
+        if (BusEvent(bus_.OnTraffic(), now_us, traffic)) pending_.Push(traffic);
+        can::CommandFrame wire;
+        out = DriverEvent{};
+        out.receive_us = now_us;
+        out.decode = can::DecodeCommand(node_, frame, wire);
+        if (out.decode != can::DecodeStatus::kOk) {
+          ++counters_.bad_frames;
+          out.kind = DriverEventKind::kBadCommand;
+          return true;
+        }
+        out.kind = DriverEventKind::kCommand;
+        out.seq = wire.seq;
+        out.command.velocity[0] = wire.velocity[0];
+        out.command.velocity[1] = wire.velocity[1];
+        out.command.estop = wire.estop;
+        out.command.reset = wire.reset;
+        ++counters_.commands_sent;  // here: commands received
+        return true;
+      }
+      case can::FrameKind::kNmt: {
+        std::uint8_t command = 0;
+        if (can::DecodeNmt(node_, frame, command) != can::DecodeStatus::kOk) return false;
+        out = DriverEvent{};
+        out.receive_us = now_us;
+        if (command == can::kNmtStop) {
+          out.kind = DriverEventKind::kEStop;
+          return true;
+        }
+        if (command == can::kNmtStart || command == can::kNmtResetNode) {
+          out.kind = DriverEventKind::kResetRequest;
+          return true;
+        }
+        return false;
+      }
+      default:
+        return false;
+    }
+  }
+
+  const int node_;
+  CanSocket rx_;
+  CanSocket tx_;
+  BusTracker bus_;
+  std::uint32_t dropped_seen_ = 0;
+  std::uint8_t emcy_counter_ = 0;
+  FixedQueue<DriverEvent, 16> pending_;
+  LinkCounters counters_;
+};
+
+}  // namespace
+
+std::unique_ptr<RobotLink> MakeSocketCanRobotLink(const RobotLinkConfig& config) {
+  return std::make_unique<SocketCanRobotLink>(config);
+}
+
+std::unique_ptr<DriverTransport> MakeSocketCanDriverTransport(const DriverTransportConfig& config) {
+  return std::make_unique<SocketCanDriverTransport>(config);
+}
+
+bool SequenceAdvances(std::uint32_t last, std::uint32_t seq, std::uint32_t modulus) {
+  const std::uint64_t ahead = (static_cast<std::uint64_t>(seq) + modulus - (last % modulus)) % modulus;
+  return ahead >= 1 && ahead < modulus / 2;
+}
+
+const char* ToString(DriverEventKind kind) {
+  switch (kind) {
+    case DriverEventKind::kCommand:
+      return "command";
+    case DriverEventKind::kBadCommand:
+      return "bad command";
+    case DriverEventKind::kEStop:
+      return "NMT stop (e-stop)";
+    case DriverEventKind::kResetRequest:
+      return "NMT reset request";
+    case DriverEventKind::kBusOff:
+      return "bus-off";
+    case DriverEventKind::kBusRestarted:
+      return "bus restarted";
+    case DriverEventKind::kBusPassive:
+      return "bus error passive";
+    case DriverEventKind::kBusActive:
+      return "bus error active";
+    case DriverEventKind::kFramesDropped:
+      return "frames dropped";
+  }
+  return "?";
+}
+
+}  // namespace visco::drivers
