@@ -10,6 +10,7 @@
 #include "app/spy_command.h"
 #include "common/error.h"
 #include "drivers/commands.h"
+#include "vision/commands.h"
 
 #ifndef VISCO_VERSION
 #define VISCO_VERSION "unknown"
@@ -26,6 +27,7 @@ int main(int argc, char** argv) {
 
   visco::app::RegisterSpyCommand(app);
   visco::drivers::RegisterCommands(app);
+  visco::vision::RegisterCommands(app);
 
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
   try {

@@ -1,0 +1,297 @@
+#include "vision/tag_detector.h"
+
+#include <apriltag/apriltag.h>
+#include <apriltag/tag16h5.h>
+#include <apriltag/tag25h9.h>
+#include <apriltag/tag36h11.h>
+#include <apriltag/tagCircle21h7.h>
+#include <apriltag/tagStandard41h12.h>
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+
+#include "common/error.h"
+
+namespace visco::vision {
+namespace {
+
+struct FamilyEntry {
+  const char* name;
+  apriltag_family_t* (*create)();
+  void (*destroy)(apriltag_family_t*);
+};
+
+constexpr FamilyEntry kFamilies[] = {
+    {"tag36h11", tag36h11_create, tag36h11_destroy},
+    {"tag25h9", tag25h9_create, tag25h9_destroy},
+    {"tag16h5", tag16h5_create, tag16h5_destroy},
+    {"tagStandard41h12", tagStandard41h12_create, tagStandard41h12_destroy},
+    {"tagCircle21h7", tagCircle21h7_create, tagCircle21h7_destroy},
+};
+
+const FamilyEntry* FindFamily(const std::string& name) {
+  for (const auto& f : kFamilies) {
+    if (name == f.name) return &f;
+  }
+  return nullptr;
+}
+
+Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
+  Eigen::Matrix3d m;
+  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
+  return m;
+}
+
+Eigen::Matrix3d ExpSo3(const Eigen::Vector3d& w) {
+  const double a = w.norm();
+  if (a < 1e-12) return Eigen::Matrix3d::Identity() + Skew(w);
+  return Eigen::AngleAxisd(a, w / a).toRotationMatrix();
+}
+
+using Vec8 = Eigen::Matrix<double, 8, 1>;
+using Mat86 = Eigen::Matrix<double, 8, 6>;
+
+// Residuals (projected minus observed, ideal pixels) and their Jacobian for a left perturbation (dw, dt).
+void Residuals(const CameraModel& cam, const std::array<Eigen::Vector3d, 4>& obj,
+               const std::array<Eigen::Vector2d, 4>& ideal, const Eigen::Isometry3d& cMo, Vec8& r, Mat86* jac) {
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d rx = cMo.linear() * obj[i];
+    const Eigen::Vector3d p = rx + cMo.translation();
+    const double iz = 1.0 / p.z();
+    r(2 * i) = cam.u0 + cam.px * p.x() * iz - ideal[i].x();
+    r(2 * i + 1) = cam.v0 + cam.py * p.y() * iz - ideal[i].y();
+    if (jac != nullptr) {
+      Eigen::Matrix<double, 2, 3> dproj;
+      dproj << cam.px * iz, 0, -cam.px * p.x() * iz * iz, 0, cam.py * iz, -cam.py * p.y() * iz * iz;
+      Eigen::Matrix<double, 3, 6> dp;
+      dp.leftCols<3>() = -Skew(rx);
+      dp.rightCols<3>() = Eigen::Matrix3d::Identity();
+      jac->block<2, 6>(2 * i, 0) = dproj * dp;
+    }
+  }
+}
+
+// Levenberg-Marquardt on the reprojection error; returns the RMS error in pixels.
+double Refine(const CameraModel& cam, const std::array<Eigen::Vector3d, 4>& obj,
+              const std::array<Eigen::Vector2d, 4>& ideal, Eigen::Isometry3d& cMo) {
+  Vec8 r;
+  Mat86 j;
+  Residuals(cam, obj, ideal, cMo, r, &j);
+  double cost = r.squaredNorm();
+  double lambda = 1e-3;
+  for (int it = 0; it < 50; ++it) {
+    const Eigen::Matrix<double, 6, 6> jtj = j.transpose() * j;
+    const Eigen::Matrix<double, 6, 1> g = j.transpose() * r;
+    Eigen::Matrix<double, 6, 6> a = jtj;
+    a.diagonal() += lambda * jtj.diagonal().cwiseMax(1e-12);
+    const Eigen::Matrix<double, 6, 1> step = -a.ldlt().solve(g);
+    Eigen::Isometry3d next = cMo;
+    next.linear() = ExpSo3(step.head<3>()) * cMo.linear();
+    next.translation() += step.tail<3>();
+    Vec8 rn;
+    Residuals(cam, obj, ideal, next, rn, nullptr);
+    const double next_cost = rn.squaredNorm();
+    if (next_cost < cost && std::isfinite(next_cost) && next.translation().z() > 0) {
+      const double gain = cost - next_cost;
+      cMo = next;
+      cost = next_cost;
+      Residuals(cam, obj, ideal, cMo, r, &j);
+      lambda = std::max(lambda * 0.3, 1e-9);
+      if (gain < 1e-14 * (1 + cost) || step.norm() < 1e-13) break;
+    } else {
+      lambda *= 10;
+      if (lambda > 1e8) break;
+    }
+  }
+  // Re-orthonormalise the rotation (exp keeps it orthonormal, this removes accumulated rounding).
+  Eigen::Quaterniond q(cMo.linear());
+  cMo.linear() = q.normalized().toRotationMatrix();
+  return std::sqrt(cost / 4);
+}
+
+double RotationDistance(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
+  return Eigen::AngleAxisd(a.transpose() * b).angle();
+}
+
+}  // namespace
+
+void CheckFamilyName(const std::string& family) {
+  if (FindFamily(family) == nullptr) {
+    std::string names;
+    for (const auto& f : kFamilies) names += std::string(names.empty() ? "" : ", ") + f.name;
+    throw InputError("command line", "--family", "unknown tag family '" + family + "' (known: " + names + ")");
+  }
+}
+
+struct TagDetector::Impl {
+  const FamilyEntry* entry = nullptr;
+  apriltag_family_t* family = nullptr;
+  apriltag_detector_t* detector = nullptr;
+  int rejected = 0;
+  ~Impl() {
+    if (detector != nullptr) apriltag_detector_destroy(detector);
+    if (family != nullptr) entry->destroy(family);
+  }
+};
+
+TagDetector::TagDetector(const DetectorOptions& options) : options_(options), impl_(std::make_unique<Impl>()) {
+  CheckFamilyName(options.family);
+  if (options.quad_decimate < 1.0f) throw InputError("command line", "quad_decimate", "must be >= 1");
+  if (options.threads < 1) throw InputError("command line", "threads", "must be >= 1");
+  impl_->entry = FindFamily(options.family);
+  impl_->family = impl_->entry->create();
+  impl_->detector = apriltag_detector_create();
+  // Hamming corrections beyond max_hamming are rejected anyway; decoding fewer bits also saves memory and time.
+  apriltag_detector_add_family_bits(impl_->detector, impl_->family, std::max(0, std::min(options.max_hamming, 2)));
+  impl_->detector->quad_decimate = options.quad_decimate;
+  impl_->detector->quad_sigma = options.quad_sigma;
+  impl_->detector->nthreads = options.threads;
+  impl_->detector->decode_sharpening = options.decode_sharpening;
+  impl_->detector->refine_edges = true;
+}
+
+TagDetector::~TagDetector() = default;
+
+int TagDetector::rejected_last() const { return impl_->rejected; }
+
+std::vector<TagObservation> TagDetector::Detect(const GrayImageView& image) {
+  return DetectInRegion(image, 0, 0, image.width, image.height);
+}
+
+std::vector<TagObservation> TagDetector::DetectInRegion(const GrayImageView& image, int x0, int y0, int w, int h) {
+  impl_->rejected = 0;
+  std::vector<TagObservation> out;
+  if (image.empty()) return out;
+  const int xa = std::clamp(x0, 0, image.width), ya = std::clamp(y0, 0, image.height);
+  const int xb = std::clamp(x0 + w, 0, image.width), yb = std::clamp(y0 + h, 0, image.height);
+  if (xb - xa < 8 || yb - ya < 8) return out;
+  // Zero-copy wrap of the region (the detector only reads its input).
+  image_u8_t im{xb - xa, yb - ya, image.stride,
+                const_cast<std::uint8_t*>(image.data) + static_cast<std::ptrdiff_t>(ya) * image.stride + xa};
+  zarray_t* dets = apriltag_detector_detect(impl_->detector, &im);
+  for (int i = 0; i < zarray_size(dets); ++i) {
+    apriltag_detection_t* d = nullptr;
+    zarray_get(dets, i, &d);
+    if (d->decision_margin < options_.min_decision_margin || d->hamming > options_.max_hamming) {
+      ++impl_->rejected;
+      continue;
+    }
+    TagObservation o;
+    o.family = options_.family;
+    o.id = d->id;
+    o.decision_margin = d->decision_margin;
+    o.hamming = d->hamming;
+    for (int k = 0; k < 4; ++k) o.corners[k] = {d->p[k][0] + xa, d->p[k][1] + ya};
+    out.push_back(std::move(o));
+  }
+  apriltag_detections_destroy(dets);
+  std::sort(out.begin(), out.end(), [](const TagObservation& a, const TagObservation& b) { return a.id < b.id; });
+  return out;
+}
+
+std::array<Eigen::Vector3d, 4> TagCornersInTagFrame(double s) {
+  const double h = s / 2;
+  return {Eigen::Vector3d(-h, -h, 0), Eigen::Vector3d(h, -h, 0), Eigen::Vector3d(h, h, 0), Eigen::Vector3d(-h, h, 0)};
+}
+
+double ReprojectionRms(const CameraModel& camera, const Corners& corners, double tag_size,
+                       const Eigen::Isometry3d& cMo) {
+  std::array<Eigen::Vector2d, 4> ideal;
+  for (int i = 0; i < 4; ++i) ideal[i] = camera.NormalizedToIdealPixel(camera.PixelToNormalized(corners[i]));
+  Vec8 r;
+  Residuals(camera, TagCornersInTagFrame(tag_size), ideal, cMo, r, nullptr);
+  return std::sqrt(r.squaredNorm() / 4);
+}
+
+std::optional<TagPose> EstimateTagPose(const CameraModel& camera, const Corners& corners, double tag_size,
+                                       const PoseOptions& options, const std::optional<Eigen::Isometry3d>& prior_cMo,
+                                       const std::optional<Eigen::Vector3d>& expected_normal_c) {
+  if (!(tag_size > 0)) return std::nullopt;
+  std::array<Eigen::Vector2d, 4> ideal;
+  for (int i = 0; i < 4; ++i) {
+    if (!corners[i].allFinite()) return std::nullopt;
+    ideal[i] = camera.NormalizedToIdealPixel(camera.PixelToNormalized(corners[i]));
+  }
+  // Degenerate quad (collinear or tiny): no pose.
+  double area = 0;
+  for (int i = 0; i < 4; ++i) {
+    const auto& a = ideal[i];
+    const auto& b = ideal[(i + 1) % 4];
+    area += a.x() * b.y() - a.y() * b.x();
+  }
+  if (std::abs(area) / 2 < 4.0) return std::nullopt;
+
+  // IPPE for squares wants the points in its own order and frame: (-h, h), (h, h), (h, -h), (-h, -h), which is the
+  // AprilTag library's tag frame (y down, z into the tag). ViSP's frame is that frame turned by Rx(pi).
+  const double h = tag_size / 2;
+  const std::vector<cv::Point3d> obj{{-h, h, 0}, {h, h, 0}, {h, -h, 0}, {-h, -h, 0}};
+  std::vector<cv::Point2d> img;
+  for (const auto& p : ideal) img.emplace_back(p.x(), p.y());
+  const cv::Matx33d k(camera.px, 0, camera.u0, 0, camera.py, camera.v0, 0, 0, 1);
+  std::vector<cv::Mat> rvecs, tvecs;
+  try {
+    cv::solvePnPGeneric(obj, img, k, cv::noArray(), rvecs, tvecs, false, cv::SOLVEPNP_IPPE_SQUARE);
+  } catch (const cv::Exception&) {
+    return std::nullopt;
+  }
+  const auto obj_visp = TagCornersInTagFrame(tag_size);
+  Eigen::Matrix3d rx_pi = Eigen::Matrix3d::Identity();
+  rx_pi(1, 1) = rx_pi(2, 2) = -1;
+  std::vector<PoseCandidate> cands;
+  for (std::size_t s = 0; s < rvecs.size(); ++s) {
+    cv::Matx33d rcv;
+    cv::Rodrigues(rvecs[s], rcv);
+    Eigen::Isometry3d cMo = Eigen::Isometry3d::Identity();
+    for (int a = 0; a < 3; ++a) {
+      for (int b = 0; b < 3; ++b) cMo.linear()(a, b) = rcv(a, b);
+      cMo.translation()[a] = tvecs[s].at<double>(a);
+    }
+    cMo.linear() = cMo.linear() * rx_pi;
+    if (!cMo.matrix().allFinite() || cMo.translation().z() <= 0) continue;
+    PoseCandidate c;
+    c.cMo = cMo;
+    c.rms_error_px = Refine(camera, obj_visp, ideal, c.cMo);
+    // Both starts may converge to the same minimum: keep distinct solutions only.
+    bool same = false;
+    for (const auto& o : cands) {
+      same = same || (RotationDistance(o.cMo.linear(), c.cMo.linear()) < 1e-6 &&
+                      (o.cMo.translation() - c.cMo.translation()).norm() < 1e-9);
+    }
+    if (!same) cands.push_back(c);
+  }
+  if (cands.empty()) return std::nullopt;
+  std::sort(cands.begin(), cands.end(),
+            [](const PoseCandidate& a, const PoseCandidate& b) { return a.rms_error_px < b.rms_error_px; });
+  if (cands[0].rms_error_px > options.max_rms_error_px) return std::nullopt;
+
+  std::size_t chosen = 0;
+  TagPose out;
+  if (cands.size() > 1) {
+    const bool ambiguous =
+        cands[1].rms_error_px - cands[0].rms_error_px < options.ambiguity_sigmas * options.corner_noise_px;
+    out.ambiguous = ambiguous;
+    if (ambiguous && prior_cMo) {
+      chosen = RotationDistance(cands[1].cMo.linear(), prior_cMo->linear()) <
+                       RotationDistance(cands[0].cMo.linear(), prior_cMo->linear())
+                   ? 1
+                   : 0;
+    } else if (ambiguous && expected_normal_c) {
+      const Eigen::Vector3d n = expected_normal_c->normalized();
+      chosen = cands[1].cMo.linear().col(2).dot(n) > cands[0].cMo.linear().col(2).dot(n) ? 1 : 0;
+    }
+    out.alternative = cands[1 - chosen];
+  }
+  out.cMo = cands[chosen].cMo;
+  out.rms_error_px = cands[chosen].rms_error_px;
+  Vec8 r;
+  Mat86 j;
+  Residuals(camera, obj_visp, ideal, out.cMo, r, &j);
+  const Eigen::Matrix<double, 6, 6> jtj = j.transpose() * j;
+  out.unit_covariance = jtj.ldlt().solve(Eigen::Matrix<double, 6, 6>::Identity());
+  return out;
+}
+
+}  // namespace visco::vision

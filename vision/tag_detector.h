@@ -1,0 +1,114 @@
+#pragma once
+// AprilTag detection (the AprilTag C library, hidden behind a PIMPL) and tag pose estimation with the planar
+// ambiguity handled explicitly. Poses follow ViSP's convention (CONTRACT.md): cMo is the tag frame in the camera
+// frame, tag x right and y up as printed, z out of the tag face, the tag size being the black border's outer edge.
+// Corners are in the AprilTag library's own order and pixel convention: corner 0 is the bottom-left of the printed
+// tag, then counter-clockwise (as printed).
+
+#include <Eigen/Geometry>
+#include <array>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "vision/camera.h"
+#include "vision/image.h"
+
+namespace visco::vision {
+
+using Corners = std::array<Eigen::Vector2d, 4>;
+
+/// One decoded tag in one image.
+struct TagObservation {
+  std::string family;          ///< e.g. "tag36h11"
+  int id = -1;                 ///< id within the family
+  Corners corners;             ///< pixels, AprilTag order (see file comment)
+  double decision_margin = 0;  ///< AprilTag decision margin (higher is more certain); 0 for tracked corners
+  int hamming = 0;             ///< bits corrected
+};
+
+/// Detector settings. Rejection thresholds apply in Detect(); the pose thresholds in EstimateTagPose().
+struct DetectorOptions {
+  std::string family = "tag36h11";  ///< tag36h11, tag25h9, tag16h5, tagStandard41h12, tagCircle21h7
+  float quad_decimate = 1.0f;       ///< 1 keeps full-resolution quads (best corners); 2 is ~3x faster
+  float quad_sigma = 0.0f;          ///< Gaussian blur (pixels) before segmentation; 0.8 helps very noisy images
+  int threads = 1;
+  double decode_sharpening = 0.25;
+  double min_decision_margin = 15;  ///< reject decodes below this margin (false positives sit well below 15)
+  int max_hamming = 1;              ///< reject decodes that needed more bit corrections
+};
+
+/// Throws InputError("command line", "--family", ...) for an unknown family name.
+void CheckFamilyName(const std::string& family);
+
+/// AprilTag detector. Not thread-safe: one instance per thread. Not real-time safe (allocates).
+class TagDetector {
+ public:
+  /// @throws InputError if the family is unknown.
+  explicit TagDetector(const DetectorOptions& options = {});
+  ~TagDetector();
+  TagDetector(const TagDetector&) = delete;
+  TagDetector& operator=(const TagDetector&) = delete;
+
+  /// Detects all tags of the family in `image`, dropping decodes below the margin / above the hamming limits.
+  /// Sorted by id.
+  std::vector<TagObservation> Detect(const GrayImageView& image);
+  /// Detects in the rectangle [x0, x0 + w) x [y0, y0 + h) only (clipped to the image; zero-copy); corners are in
+  /// full-image pixels.
+  std::vector<TagObservation> DetectInRegion(const GrayImageView& image, int x0, int y0, int w, int h);
+  /// Number of decodes rejected by margin / hamming in the last call.
+  int rejected_last() const;
+  const DetectorOptions& options() const { return options_; }
+
+ private:
+  struct Impl;
+  DetectorOptions options_;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// One of the two solutions of the planar pose problem, refined to minimise the reprojection error.
+struct PoseCandidate {
+  Eigen::Isometry3d cMo = Eigen::Isometry3d::Identity();
+  double rms_error_px = 0;  ///< RMS reprojection error over the four corners, ideal (undistorted) pixels
+};
+
+/// A tag pose with its diagnostics.
+struct TagPose {
+  Eigen::Isometry3d cMo = Eigen::Isometry3d::Identity();  ///< chosen solution (ViSP convention)
+  double rms_error_px = 0;                                ///< of the chosen solution
+  std::optional<PoseCandidate> alternative;               ///< the other planar solution, if one exists
+  bool ambiguous = false;  ///< both solutions fit within the noise; the choice used the prior or the table plane
+  /// Covariance of the pose (6x6: rotation vector perturbation applied on the left in the camera frame, then
+  /// translation in metres) for an isotropic corner noise of 1 pixel; scale by sigma^2.
+  Eigen::Matrix<double, 6, 6> unit_covariance = Eigen::Matrix<double, 6, 6>::Identity();
+};
+
+/// Pose-estimation settings and rejection rules.
+struct PoseOptions {
+  double max_rms_error_px = 2.0;  ///< reject poses whose best reprojection error exceeds this (bad corners)
+  /// The two planar solutions are told apart by their errors when the worse one exceeds the better one by more than
+  /// this many times the corner noise (below it the data cannot decide: the pose is ambiguous).
+  double corner_noise_px = 0.3;
+  double ambiguity_sigmas = 3.0;
+};
+
+/// Estimates the pose of a square tag of side `tag_size` (metres) from its corners: both planar solutions (IPPE),
+/// each refined with Levenberg-Marquardt on the reprojection error in undistorted pixels. Choice: the solution with
+/// the clearly smaller error; when the errors do not differ beyond the noise, the one closest in rotation to
+/// `prior_cMo` if given, else the one whose z axis (tag normal) is closest to `expected_normal_c` (e.g. the table
+/// normal in the camera frame) if given, else the smaller error. Returns nullopt if the corners are degenerate or
+/// the error exceeds options.max_rms_error_px.
+std::optional<TagPose> EstimateTagPose(const CameraModel& camera, const Corners& corners, double tag_size,
+                                       const PoseOptions& options = {},
+                                       const std::optional<Eigen::Isometry3d>& prior_cMo = std::nullopt,
+                                       const std::optional<Eigen::Vector3d>& expected_normal_c = std::nullopt);
+
+/// The tag's corners in its own frame (ViSP convention, AprilTag order), metres.
+std::array<Eigen::Vector3d, 4> TagCornersInTagFrame(double tag_size);
+
+/// RMS reprojection error (ideal pixels) of `cMo` for observed `corners`.
+double ReprojectionRms(const CameraModel& camera, const Corners& corners, double tag_size,
+                       const Eigen::Isometry3d& cMo);
+
+}  // namespace visco::vision
