@@ -1,0 +1,126 @@
+#pragma once
+// The planner's immutable scene model (CONTRACT.md "Scene file", SEMANTICS.md "Frames and units") and its loader.
+//
+// A Scene is plain data, built and validated once by LoadScene / ParseScene and then only read (pass it as
+// `const Scene&`). Polygons are normalised: counter-clockwise, repeated consecutive vertices dropped; the
+// `source_index` of each polygon maps a normalised vertex back to its 0-based position in the file, which is what
+// outputs report (CONTRACT.md "Indices in outputs"). Angles are radians, lengths metres.
+
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "planning/geometry.h"
+
+namespace visco::planning {
+
+/// A polygon as read from a scene file, normalised to counter-clockwise order.
+struct ScenePolygon {
+  /// Simple, counter-clockwise, no repeated consecutive vertices.
+  Polygon polygon;
+  /// source_index[i] is the 0-based position in the file of polygon.vertices[i].
+  std::vector<int> source_index;
+};
+
+/// A workspace obstacle.
+struct Obstacle {
+  /// Unique, non-empty id from the file (used in ray ids and edge refs).
+  std::string id;
+  ScenePolygon shape;
+};
+
+/// The rectangle of allowed configurations (reference-point positions); min < max componentwise.
+struct Bounds {
+  Point min;
+  Point max;
+  /// Whether q lies in the closed rectangle.
+  bool Contains(const Point& q) const {
+    return q.x() >= min.x() && q.x() <= max.x() && q.y() >= min.y() && q.y() <= max.y();
+  }
+};
+
+/// A calibrated pinhole camera in 3D (ViSP conventions): pixel (u, v) sees the ray x = (u - u0) / px,
+/// y = (v - v0) / py, z = 1 in the camera frame (x right, y down, z forward); wMc takes camera coordinates to world
+/// coordinates (world z up, motion plane z = 0).
+struct PinholeCamera {
+  double px = 0;
+  double py = 0;
+  double u0 = 0;
+  double v0 = 0;
+  int width = 0;   // pixels
+  int height = 0;  // pixels
+  Eigen::Matrix4d wMc = Eigen::Matrix4d::Identity();
+};
+
+/// The planner's camera (Fox & Hutchinson §III-A): a projection centre in the plane and a field of view of two
+/// extreme directions; the field of view is the closed sector swept counter-clockwise from `fov_first` to
+/// `fov_second`, strictly between 0 and 180 degrees wide.
+struct Camera {
+  Point center;
+  /// Extreme viewing directions (unit vectors, as doubles; predicates treat them as exact).
+  Vector fov_first;
+  Vector fov_second;
+  /// The same directions as angles (radians, counter-clockwise from +x); fov_second - fov_first in (0, pi).
+  double fov_first_rad = 0;
+  double fov_second_rad = 0;
+  /// Set when the scene gave a 3D pinhole camera; center and the field of view are then derived from it
+  /// (DerivePlanarCamera).
+  std::optional<PinholeCamera> pinhole;
+
+  /// Whether the direction from the centre to p lies in the closed field of view (false for p == center). Exact.
+  bool Sees(const Point& p) const;
+};
+
+/// Control and sensing uncertainty.
+struct Uncertainty {
+  /// Half-angle of the control uncertainty cone, radians, in [0, pi/2).
+  double velocity_cone_rad = 0;
+  /// Radius of the position-sensing disc, metres, >= 0.
+  double position = 0;
+};
+
+/// A planning scene (CONTRACT.md). Treat as immutable after loading.
+struct Scene {
+  std::string name;
+  /// Where it came from (file path, or a label such as "<embedded slot.json>"), for messages.
+  std::string source;
+  Bounds bounds;
+  /// The robot in its own frame; the reference point is the origin.
+  ScenePolygon robot;
+  std::vector<Obstacle> obstacles;
+  /// Goal region in C (reference-point positions).
+  ScenePolygon goal;
+  std::optional<ScenePolygon> start;
+  std::optional<Camera> camera;
+  Uncertainty uncertainty;
+  /// Half-angle of the friction cone, radians, in [0, pi/2).
+  double friction_cone_rad = 0;
+};
+
+/// Reads and validates a scene file. Not real-time safe.
+/// @throws visco::InputError naming the file, the object (e.g. "obstacles[1] (left).polygon") and what is wrong:
+///   unreadable file, invalid JSON, unknown or missing fields, non-finite numbers, polygons with fewer than 3
+///   distinct vertices or self-intersections, overlapping obstacles, a goal or start region entirely inside the
+///   C-obstacles, a camera centre inside an obstacle, an empty or reflex field of view, negative uncertainty, cone
+///   or friction angles outside [0, 90) degrees, bounds with min >= max.
+Scene LoadScene(const std::string& path);
+
+/// As LoadScene, from JSON text; `source` names it in messages.
+Scene ParseScene(std::string_view json_text, const std::string& source);
+
+/// The default demo scene (data/scenes/slot.json, compiled into the program) as JSON text.
+std::string_view DefaultSceneJson();
+
+/// Loads the default demo scene. @throws visco::InputError only if the embedded file is broken (a build bug).
+Scene DefaultScene();
+
+/// Derives the planar camera model from a pinhole camera (SEMANTICS.md "Real cameras", docs/planning_cspace.md):
+/// the projection centre is the camera centre's foot point on the motion plane z = 0, the field of view is the
+/// angular extent, seen from that foot point, of the image's footprint on the motion plane.
+/// @throws visco::InputError(source, object, ...) if the camera centre is not above the plane, the image sees no
+///   part of the plane, or the footprint's angular extent is not strictly between 0 and 180 degrees (e.g. a camera
+///   looking straight down sees its own foot point).
+Camera DerivePlanarCamera(const PinholeCamera& pinhole, const std::string& source, const std::string& object);
+
+}  // namespace visco::planning
