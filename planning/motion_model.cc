@@ -79,7 +79,8 @@ double PathSegment(const Vector2d& p, const Vector2d& m, const Vector2d& a, cons
 }  // namespace
 
 MotionModel::MotionModel(MotionWorld world) : world_(std::move(world)) {
-  for (size_t i = 0; i < world_.obstacles.size(); ++i) world_.obstacles[i] = Normalise(world_.obstacles[i], "obstacle", i);
+  for (size_t i = 0; i < world_.obstacles.size(); ++i)
+    world_.obstacles[i] = Normalise(world_.obstacles[i], "obstacle", i);
   for (size_t i = 0; i < world_.goal.size(); ++i) world_.goal[i] = Normalise(world_.goal[i], "goal", i);
   if (!(world_.bounds_max.x() > world_.bounds_min.x() && world_.bounds_max.y() > world_.bounds_min.y())) {
     throw std::invalid_argument("motion model: bounds are empty");
@@ -171,8 +172,10 @@ bool MotionModel::PointsIntoObstacle(const Vector2d& p, const Vector2d& d, const
   // A direction along an edge runs into C-obstacle space if both sides of it are obstacle (two C-obstacles touching
   // along an edge leave no crack in their union).
   constexpr double kTurn = 1e-9;
-  const Vector2d left(d.x() * std::cos(kTurn) - d.y() * std::sin(kTurn), d.x() * std::sin(kTurn) + d.y() * std::cos(kTurn));
-  const Vector2d right(d.x() * std::cos(kTurn) + d.y() * std::sin(kTurn), -d.x() * std::sin(kTurn) + d.y() * std::cos(kTurn));
+  const Vector2d left(d.x() * std::cos(kTurn) - d.y() * std::sin(kTurn),
+                      d.x() * std::sin(kTurn) + d.y() * std::cos(kTurn));
+  const Vector2d right(d.x() * std::cos(kTurn) + d.y() * std::sin(kTurn),
+                       -d.x() * std::sin(kTurn) + d.y() * std::cos(kTurn));
   return StrictlyIntoObstacle(p, left, inc, skip_obstacle) && StrictlyIntoObstacle(p, right, inc, skip_obstacle);
 }
 

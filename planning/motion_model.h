@@ -66,8 +66,8 @@ struct EdgeId {
 struct MotionState {
   Eigen::Vector2d position{0.0, 0.0};
   MotionMode mode = MotionMode::kFree;
-  EdgeId edge;     ///< valid when mode == kSliding
-  int ray = -1;    ///< valid when mode == kOnRay
+  EdgeId edge;                          ///< valid when mode == kSliding
+  int ray = -1;                         ///< valid when mode == kOnRay
   Eigen::Vector2d direction{0.0, 0.0};  ///< unit direction of the current motion (sliding/ray), else zero
 };
 
@@ -153,7 +153,7 @@ class MotionModel {
 
 /// The direction chosen by an adversary: an offset from θ in [−ε_v, ε_v] and how long to keep it.
 struct AdversaryChoice {
-  double offset = 0.0;                                     ///< radians, clamped to the cone by Simulate
+  double offset = 0.0;                                    ///< radians, clamped to the cone by Simulate
   double hold = std::numeric_limits<double>::infinity();  ///< seconds (at unit speed = metres); ∞: until an event
 };
 
@@ -179,7 +179,8 @@ class FixedAdversary : public Adversary {
 /// offset: an extreme of the cone with probability 1/2, otherwise uniform in the cone.
 class RandomAdversary : public Adversary {
  public:
-  RandomAdversary(std::uint64_t seed, double mean_hold) : state_(seed ? seed : 0x9e3779b97f4a7c15ULL), mean_hold_(mean_hold) {}
+  RandomAdversary(std::uint64_t seed, double mean_hold)
+      : state_(seed ? seed : 0x9e3779b97f4a7c15ULL), mean_hold_(mean_hold) {}
   AdversaryChoice Choose(const MotionModel& model, const MotionState& state, double theta,
                          double velocity_cone) override;
 

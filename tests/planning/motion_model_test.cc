@@ -41,9 +41,9 @@ TEST(MotionModel, StickingIsInclusiveAtTheFrictionAngle) {
   EXPECT_TRUE(MotionModel::Sticks(Vector2d(-std::sin(phi), -std::cos(phi)), n, phi));
   const Vector2d beyond(std::sin(phi + 1e-9), -std::cos(phi + 1e-9));
   EXPECT_FALSE(MotionModel::Sticks(beyond, n, phi));
-  EXPECT_FALSE(MotionModel::Sticks(Vector2d(1, 0), n, phi));   // tangential: does not push
-  EXPECT_FALSE(MotionModel::Sticks(Vector2d(0, 1), n, phi));   // pulls away
-  EXPECT_TRUE(MotionModel::Sticks(Vector2d(0, -1), n, 0.0));   // φ = 0: only the normal sticks
+  EXPECT_FALSE(MotionModel::Sticks(Vector2d(1, 0), n, phi));  // tangential: does not push
+  EXPECT_FALSE(MotionModel::Sticks(Vector2d(0, 1), n, phi));  // pulls away
+  EXPECT_TRUE(MotionModel::Sticks(Vector2d(0, -1), n, 0.0));  // φ = 0: only the normal sticks
   // Sticking edge for a cone: angle between θ and −n at most ε_v + φ, inclusive.
   EXPECT_TRUE(MotionModel::IsStickingEdge(n, kDown + 25 * kDeg, 5 * kDeg, 20 * kDeg));
   EXPECT_FALSE(MotionModel::IsStickingEdge(n, kDown + 25 * kDeg + 1e-9, 5 * kDeg, 20 * kDeg));
@@ -75,7 +75,8 @@ TEST(MotionModel, StickingOnAFloorIsFailureAndSlidingOnARampReachesGoal) {
   {
     // 45° ramp, φ = 20°, ε = 5°: the angle to the normal is 45° ± 5° > 20°: slides down to the goal at its foot.
     const MotionModel m(World({ramp, floor}, {Rect(6, 2, 7, 2.5)}, 20));
-    for (double off : {-5.0, 0.0, 5.0}) EXPECT_EQ(RunFixed(m, {3, 8}, kDown, 5 * kDeg, off * kDeg), Outcome::kReachedGoal);
+    for (double off : {-5.0, 0.0, 5.0})
+      EXPECT_EQ(RunFixed(m, {3, 8}, kDown, 5 * kDeg, off * kDeg), Outcome::kReachedGoal);
     // With φ = 45° exactly, the central direction sticks (inclusive).
     const MotionModel sticky(World({ramp, floor}, {Rect(6, 2, 7, 2.5)}, 45));
     EXPECT_EQ(RunFixed(sticky, {3, 8}, kDown, 5 * kDeg, 0.0), Outcome::kStopped);
@@ -175,7 +176,8 @@ TEST(MotionModel, ActiveRayGuidesIntoTheGoal) {
   EXPECT_EQ(RunFixed(without, {3, 9}, kDown, 5 * kDeg, 0.0), Outcome::kStopped);
   w.active_rays.push_back({Vector2d(1, 8.5), Vector2d(7.5, 2)});
   const MotionModel with(w);
-  for (double off : {-5.0, 0.0, 5.0}) EXPECT_EQ(RunFixed(with, {3, 9}, kDown, 5 * kDeg, off * kDeg), Outcome::kReachedGoal);
+  for (double off : {-5.0, 0.0, 5.0})
+    EXPECT_EQ(RunFixed(with, {3, 9}, kDown, 5 * kDeg, off * kDeg), Outcome::kReachedGoal);
   RandomAdversary rnd(7, 0.2);
   EXPECT_EQ(Simulate(with, Vector2d(3, 9), kDown, 5 * kDeg, rnd).outcome, Outcome::kReachedGoal);
   // A start on the other side of the ray (right of it) never meets it and sticks on the floor.
@@ -209,7 +211,7 @@ TEST(MotionModel, RayIsClimbedFromAnEdgeOnlyWhenItsProjectionPointsAway) {
 
 TEST(MotionModel, CrossingActiveRaysSwitchToTheRayJustReached) {
   MotionWorld w = World({}, {Rect(0, 0, 1, 1)}, 10);
-  w.active_rays.push_back({Vector2d(2, 9), Vector2d(8, 3)});  // down-right
+  w.active_rays.push_back({Vector2d(2, 9), Vector2d(8, 3)});      // down-right
   w.active_rays.push_back({Vector2d(7, 7), Vector2d(0.5, 0.5)});  // down-left, crosses the first at (5.5, 5.5)
   const MotionModel m(w);
   FixedAdversary a(0);

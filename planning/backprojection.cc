@@ -1,0 +1,1150 @@
+// Directional backprojections by a plane sweep against the commanded velocity (Donald–Canny, Fox & Hutchinson
+// §IV-C and §V), in exact arithmetic.
+//
+// Frame: the input is rotated so that the commanded velocity points straight down (−y); the sweep goes up, events
+// in (y, x) lexicographic order. The static geometry (C-obstacle, goal and bounds edges, active CVC ray segments) is
+// overlaid first with CGAL's arrangement (which merges overlapping C-obstacles and splits crossing edges); every
+// face gets a static label (outside the bounds, inside CB, goal, free). The sweep then refines free regions into
+// good (in the backprojection) and bad, erecting free edges (rays of the inverted velocity cone) where the local
+// rules below say so.
+//
+// Local rule at an event point p (a vertex of the overlay or a point where a free edge meets another curve). Curves
+// through p are rays from p: lower rays (already swept, with known labels on both sides) and upper rays. For a point
+// q just above p in a free upper sector S, its forward cone can reach (SEMANTICS.md's motion model):
+//   * S's clockwise side iff q's direction from p is below 90° + ε (sweep frame angles),
+//   * S's counter-clockwise side iff it is above 90° − ε,
+//   * p itself iff it is within [90° − ε, 90° + ε].
+// A side is good if it is a goal edge, a non-sticking C-obstacle edge (the motion slides down it to p) or an active
+// ray (it complies down it to p) and p is good, or the swept region below when S straddles the sweep line. p is
+// good if it is in the closed goal or, for every velocity the adversary may pick there, the motion model's contact,
+// vertex and ray rules lead into a good region (evaluated at every critical direction and between them). So every
+// free upper sector splits into at most three zones at 90° ∓ ε, whose labels differ only across free edges, which
+// are erected there. Points on free edges count as bad (a trajectory can run down a free edge to its bad origin).
+// Between events a region's label does not change (Donald's locality argument), so the sweep is O((n + k) log n)
+// with k the free-edge events.
+
+#include "planning/backprojection.h"
+
+#include <CGAL/Arr_consolidated_curve_data_traits_2.h>
+#include <CGAL/Arr_extended_dcel.h>
+#include <CGAL/Arr_segment_traits_2.h>
+#include <CGAL/Arrangement_2.h>
+#include <CGAL/Boolean_set_operations_2.h>
+#include <CGAL/Exact_predicates_exact_constructions_kernel.h>
+#include <CGAL/Polygon_set_2.h>
+#include <CGAL/Polygon_with_holes_2.h>
+#include <CGAL/convex_hull_2.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <map>
+#include <queue>
+#include <set>
+#include <stdexcept>
+#include <unordered_map>
+#include <utility>
+
+#include "planning/motion_model.h"
+
+namespace visco::planning {
+namespace {
+
+using K = CGAL::Exact_predicates_exact_constructions_kernel;
+using FT = K::FT;
+using P2 = K::Point_2;
+using V2 = K::Vector_2;
+using Seg = K::Segment_2;
+using SegTraits = CGAL::Arr_segment_traits_2<K>;
+using Traits = CGAL::Arr_consolidated_curve_data_traits_2<SegTraits, int>;
+using Dcel = CGAL::Arr_face_extended_dcel<Traits, int>;
+using Arr = CGAL::Arrangement_2<Traits, Dcel>;
+using Polygon = CGAL::Polygon_2<K>;
+using PolygonWithHoles = CGAL::Polygon_with_holes_2<K>;
+using PolygonSet = CGAL::Polygon_set_2<K>;
+
+using Eigen::Vector2d;
+
+// Region labels. Static labels use kOutside, kObstacle, kGoal and kGood (meaning "free", refined by the sweep).
+enum class Label : std::uint8_t { kOutside, kObstacle, kGoal, kGood, kBad };
+bool IsGood(Label l) { return l == Label::kGoal || l == Label::kGood; }
+bool IsFree(Label l) { return l == Label::kGood || l == Label::kBad; }
+Label Status(bool good) { return good ? Label::kGood : Label::kBad; }
+
+struct LessYX {
+  bool operator()(const P2& a, const P2& b) const { return CGAL::compare_yx(a, b) == CGAL::SMALLER; }
+};
+
+// An input edge in the sweep frame, directed with its polygon's interior on the left (bounds: the inside).
+struct Source {
+  P2 a, b;
+  EdgeKind kind = EdgeKind::kObstacle;
+  int name = -1;
+  bool sticking = false;
+  Vector2d sweep_normal{0, 0};  // outward unit normal in the sweep frame (obstacles), inward (bounds)
+};
+
+struct Rotation {
+  double c = 1, s = 0;
+  Vector2d Apply(const Vector2d& p) const { return {c * p.x() - s * p.y(), s * p.x() + c * p.y()}; }
+  Vector2d Invert(const Vector2d& p) const { return {c * p.x() + s * p.y(), -s * p.x() + c * p.y()}; }
+};
+
+Vector2d ToD(const P2& p) { return {CGAL::to_double(p.x()), CGAL::to_double(p.y())}; }
+Vector2d ToD(const V2& v) { return {CGAL::to_double(v.x()), CGAL::to_double(v.y())}; }
+
+double SignedAreaD(const std::vector<Vector2d>& poly) {
+  double a = 0.0;
+  for (size_t i = 0; i < poly.size(); ++i) {
+    const Vector2d& p = poly[i];
+    const Vector2d& q = poly[(i + 1) % poly.size()];
+    a += p.x() * q.y() - p.y() * q.x();
+  }
+  return 0.5 * a;
+}
+
+// A curve on the sweep line.
+struct Curve {
+  P2 lo, hi;
+  V2 dir;  // hi - lo
+  EdgeKind kind = EdgeKind::kFree;
+  int src = -1;   // source index (static curves)
+  int name = -1;  // ref index
+  Label left = Label::kBad, right = Label::kBad;
+  Label track = Label::kBad;  // active rays: where complying down the ray leads
+  bool sticking = false;
+  Vector2d n_free{0, 0};  // obstacle/bounds: unit normal into the free side (sweep frame)
+  int id = 0;
+};
+
+// A static curve waiting for its lower endpoint's event.
+struct StaticCurve {
+  P2 lo, hi;
+  EdgeKind kind;
+  int src;
+  Label left, right;  // static labels
+  Vector2d n_free;
+  bool sticking;
+};
+
+struct Piece {
+  P2 a, b;
+  EdgeKind kind;
+  int name;
+};
+
+// The result of one sweep in the sweep frame: rings (outer counter-clockwise, holes clockwise) with provenance.
+struct ExactRing {
+  std::vector<P2> vertices;
+  std::vector<std::pair<EdgeKind, int>> edges;
+  FT area2;  // twice the signed area
+};
+
+class Sweep {
+ public:
+  Sweep(const BackprojectionProblem& problem, const std::vector<int>& active_rays);
+  void Run();
+  std::vector<ExactRing> Assemble() const;
+  Region ToRegion(const std::vector<ExactRing>& rings) const;
+
+ private:
+  struct Probe {};
+  struct StatusLess {
+    using is_transparent = void;
+    const P2* p = nullptr;
+    int Side(const Curve* c) const {  // -1: the curve passes left of p, 0: through p, +1: right of p
+      switch (CGAL::orientation(c->lo, c->hi, *p)) {
+        case CGAL::RIGHT_TURN:
+          return -1;
+        case CGAL::LEFT_TURN:
+          return 1;
+        default:
+          return 0;
+      }
+    }
+    bool operator()(const Curve* a, const Curve* b) const {
+      const bool as = a->lo == *p;
+      const bool bs = b->lo == *p;
+      if (as && bs) {
+        const auto o = CGAL::orientation(b->dir, a->dir);
+        if (o != CGAL::COLLINEAR) return o == CGAL::LEFT_TURN;  // a counter-clockwise of b: a is left
+        return a->id < b->id;
+      }
+      if (bs) return Side(a) < 0;
+      if (as) return Side(b) > 0;
+      return a->id < b->id;  // not reached: the set only compares a new curve with existing ones
+    }
+    bool operator()(const Curve* a, Probe) const { return Side(a) < 0; }
+    bool operator()(Probe, const Curve* a) const { return Side(a) > 0; }
+  };
+
+  struct LRay {
+    const Curve* curve = nullptr;  // lower rays
+    int upper_index = -1;          // upper rays: index into the upper list
+    bool upper = false;
+    double angle = 0;  // radians in (-π, π], sweep frame, direction from p
+    EdgeKind kind = EdgeKind::kFree;
+    Label ccw = Label::kBad, cw = Label::kBad;  // labels of the sectors on either side (upper: static)
+    Label track = Label::kBad;
+    bool sticking = false;
+    Vector2d n_free{0, 0};
+    Vector2d dir{0, 0};
+  };
+
+  void Process(const P2& p, const std::vector<StaticCurve>& uppers);
+  Label StatusAtPoint(const std::vector<LRay>& rays, Label below) const;
+  bool OutcomeAt(double w, const std::vector<LRay>& rays, Label below) const;
+  void CheckIntersection(const Curve* a, const Curve* b, const P2& p);
+  int VertexName(const P2& p, const std::vector<Curve*>& through);
+  int AddName(std::string name);
+
+  const BackprojectionProblem& problem_;
+  Rotation rot_;
+  double eps_ = 0, phi_ = 0;
+  V2 free_right_, free_left_;  // directions 90° − ε and 90° + ε
+  FT top_;
+  std::vector<Source> sources_;
+  std::vector<std::string> names_;
+  std::map<P2, int, LessYX> vertex_names_;
+  std::vector<std::pair<P2, std::vector<StaticCurve>>> static_events_;
+  std::priority_queue<P2, std::vector<P2>, std::function<bool(const P2&, const P2&)>> dynamic_{
+      [](const P2& a, const P2& b) { return CGAL::compare_yx(a, b) == CGAL::LARGER; }};
+  StatusLess less_;
+  std::set<Curve*, StatusLess> status_{less_};
+  std::vector<std::unique_ptr<Curve>> curves_;
+  std::vector<Piece> pieces_;
+  P2 current_;
+};
+
+int Sweep::AddName(std::string name) {
+  names_.push_back(std::move(name));
+  return static_cast<int>(names_.size()) - 1;
+}
+
+Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_rays) : problem_(pr) {
+  if (!(pr.bounds_max.x() > pr.bounds_min.x() && pr.bounds_max.y() > pr.bounds_min.y())) {
+    throw std::invalid_argument("backprojection: bounds are empty");
+  }
+  if (!(pr.velocity_cone > 0.0 && pr.velocity_cone < M_PI / 2)) {
+    throw std::invalid_argument("backprojection: the velocity cone must be in (0, 90) degrees");
+  }
+  if (!(pr.friction_cone >= 0.0 && pr.friction_cone < M_PI / 2)) {
+    throw std::invalid_argument("backprojection: the friction cone must be in [0, 90) degrees");
+  }
+  eps_ = pr.velocity_cone;
+  phi_ = pr.friction_cone;
+  const double rot = -M_PI / 2 - pr.theta;
+  rot_.c = std::cos(rot);
+  rot_.s = std::sin(rot);
+  free_right_ = V2(std::sin(eps_), std::cos(eps_));
+  free_left_ = V2(-std::sin(eps_), std::cos(eps_));
+  less_.p = &current_;
+  status_ = std::set<Curve*, StatusLess>(less_);
+
+  auto to_exact = [&](const Vector2d& w) {
+    const Vector2d s = rot_.Apply(w);
+    return P2(s.x(), s.y());
+  };
+  auto add_polygon = [&](const NamedPolygon& poly, EdgeKind kind, const std::string& prefix, size_t index) {
+    std::vector<Vector2d> v = poly.vertices;
+    std::vector<std::string> vref = poly.vertex_refs, eref = poly.edge_refs;
+    const size_t n = v.size();
+    if (n < 3) {
+      throw std::invalid_argument("backprojection: " + prefix + "[" + std::to_string(index) + "] has fewer than 3 vertices");
+    }
+    vref.resize(n);
+    eref.resize(n);
+    for (size_t k = 0; k < n; ++k) {
+      if (vref[k].empty()) vref[k] = prefix + "[" + std::to_string(index) + "].v[" + std::to_string(k) + "]";
+      if (eref[k].empty()) eref[k] = prefix + "[" + std::to_string(index) + "].e[" + std::to_string(k) + "]";
+    }
+    const bool ccw = SignedAreaD(v) > 0.0;
+    for (size_t k = 0; k < n; ++k) {
+      const Vector2d& wa = v[k];
+      const Vector2d& wb = v[(k + 1) % n];
+      if (wa == wb) continue;
+      Source s;
+      s.a = to_exact(ccw ? wa : wb);
+      s.b = to_exact(ccw ? wb : wa);
+      s.kind = kind;
+      s.name = AddName(eref[k]);
+      const Vector2d d = (ccw ? (wb - wa) : (wa - wb)).normalized();
+      const Vector2d n_world(d.y(), -d.x());  // outward
+      s.sticking = kind == EdgeKind::kObstacle &&
+                   MotionModel::IsStickingEdge(n_world, pr.theta, pr.velocity_cone, pr.friction_cone);
+      s.sweep_normal = rot_.Apply(n_world);
+      sources_.push_back(s);
+      vertex_names_.emplace(to_exact(v[k]), AddName(vref[k]));
+    }
+  };
+  for (size_t i = 0; i < pr.obstacles.size(); ++i) add_polygon(pr.obstacles[i], EdgeKind::kObstacle, "cobstacle", i);
+  for (size_t i = 0; i < pr.goal.size(); ++i) add_polygon(pr.goal[i], EdgeKind::kGoal, "goal", i);
+  {
+    const Vector2d lo = pr.bounds_min, hi = pr.bounds_max;
+    const Vector2d corners[4] = {{lo.x(), lo.y()}, {hi.x(), lo.y()}, {hi.x(), hi.y()}, {lo.x(), hi.y()}};
+    const char* sides[4] = {"ymin", "xmax", "ymax", "xmin"};
+    const char* corner_names[4] = {"bounds.corner[xmin,ymin]", "bounds.corner[xmax,ymin]",
+                                   "bounds.corner[xmax,ymax]", "bounds.corner[xmin,ymax]"};
+    for (int k = 0; k < 4; ++k) {
+      Source s;
+      s.a = to_exact(corners[k]);
+      s.b = to_exact(corners[(k + 1) % 4]);
+      s.kind = EdgeKind::kBounds;
+      s.name = AddName(sides[k]);
+      const Vector2d d = (corners[(k + 1) % 4] - corners[k]).normalized();
+      s.sweep_normal = rot_.Apply(Vector2d(-d.y(), d.x()));  // inward
+      sources_.push_back(s);
+      vertex_names_.emplace(to_exact(corners[k]), AddName(corner_names[k]));
+    }
+    double top = -1e300;
+    for (const auto& c : corners) top = std::max(top, rot_.Apply(c).y());
+    top_ = FT(top + 1.0 + std::abs(top));
+  }
+  for (int r : active_rays) {
+    const CvcRayInput& ray = pr.rays.at(r);
+    for (const auto& seg : ray.segments) {
+      if (seg[0] == seg[1]) continue;
+      Source s;
+      s.a = to_exact(seg[0]);
+      s.b = to_exact(seg[1]);
+      s.kind = EdgeKind::kVc;
+      s.name = AddName(ray.id);
+      sources_.push_back(s);
+    }
+  }
+
+  // Overlay.
+  Arr arr;
+  {
+    std::vector<Traits::Curve_2> cv;
+    cv.reserve(sources_.size());
+    for (size_t i = 0; i < sources_.size(); ++i) cv.emplace_back(Seg(sources_[i].a, sources_[i].b), static_cast<int>(i));
+    CGAL::insert(arr, cv.begin(), cv.end());
+  }
+  // Face labels by a traversal from the unbounded face, counting how many bounds/obstacle/goal polygons contain
+  // each face.
+  struct Counts {
+    int bounds = 0, obstacle = 0, goal = 0;
+  };
+  std::vector<Counts> counts;
+  for (auto f = arr.faces_begin(); f != arr.faces_end(); ++f) f->set_data(-1);
+  auto label_of = [&](int idx) {
+    const Counts& c = counts[idx];
+    if (c.bounds <= 0) return Label::kOutside;
+    if (c.obstacle > 0) return Label::kObstacle;
+    if (c.goal > 0) return Label::kGoal;
+    return Label::kGood;
+  };
+  {
+    std::vector<Arr::Face_handle> queue;
+    Arr::Face_handle uf = arr.unbounded_face();
+    uf->set_data(0);
+    counts.push_back({});
+    queue.push_back(uf);
+    auto visit = [&](Arr::Halfedge_handle he, Arr::Face_handle f) {
+      Arr::Face_handle g = he->twin()->face();
+      if (g->data() != -1) return;
+      Counts c = counts[f->data()];
+      const V2 hd = he->target()->point() - he->source()->point();
+      for (auto it = he->curve().data().begin(); it != he->curve().data().end(); ++it) {
+        const Source& s = sources_[*it];
+        const bool same = CGAL::sign(hd * (s.b - s.a)) == CGAL::POSITIVE;
+        const int delta = same ? -1 : 1;  // leaving the polygon whose interior is on the left of s
+        if (s.kind == EdgeKind::kBounds) c.bounds += delta;
+        if (s.kind == EdgeKind::kObstacle) c.obstacle += delta;
+        if (s.kind == EdgeKind::kGoal) c.goal += delta;
+      }
+      g->set_data(static_cast<int>(counts.size()));
+      counts.push_back(c);
+      queue.push_back(g);
+    };
+    for (size_t qi = 0; qi < queue.size(); ++qi) {
+      Arr::Face_handle f = queue[qi];
+      if (!f->is_unbounded()) {
+        auto circ = f->outer_ccb();
+        auto start = circ;
+        do {
+          visit(circ, f);
+        } while (++circ != start);
+      }
+      for (auto hole = f->holes_begin(); hole != f->holes_end(); ++hole) {
+        auto circ = *hole;
+        auto start = circ;
+        do {
+          visit(circ, f);
+        } while (++circ != start);
+      }
+    }
+  }
+
+  // Static curves grouped by lower endpoint.
+  std::map<P2, std::vector<StaticCurve>, LessYX> events;
+  for (auto e = arr.edges_begin(); e != arr.edges_end(); ++e) {
+    Arr::Halfedge_handle he = e;
+    P2 s = he->source()->point(), t = he->target()->point();
+    const bool up = CGAL::compare_yx(s, t) == CGAL::SMALLER;
+    const P2 lo = up ? s : t;
+    const P2 hi = up ? t : s;
+    // The face of a halfedge lies on its left.
+    const Label left = label_of(up ? he->face()->data() : he->twin()->face()->data());
+    const Label right = label_of(up ? he->twin()->face()->data() : he->face()->data());
+    int vc = -1, bounds = -1, goal = -1, obstacle = -1;
+    for (auto it = he->curve().data().begin(); it != he->curve().data().end(); ++it) {
+      const int i = *it;
+      const Source& src = sources_[i];
+      if (src.kind == EdgeKind::kVc && (vc < 0 || i < vc)) vc = i;
+      if (src.kind == EdgeKind::kBounds && (bounds < 0 || i < bounds)) bounds = i;
+      if (src.kind == EdgeKind::kGoal && (goal < 0 || i < goal)) goal = i;
+      if (src.kind == EdgeKind::kObstacle) {
+        // Prefer the obstacle edge whose interior is the obstacle side.
+        const bool same = CGAL::sign((hi - lo) * (src.b - src.a)) == CGAL::POSITIVE;
+        const bool interior_left = same;  // the source's interior is on the left of lo->hi
+        const Label inside = interior_left ? left : right;
+        if (inside == Label::kObstacle && (obstacle < 0 || i < obstacle)) obstacle = i;
+        if (obstacle < 0) obstacle = i;
+      }
+    }
+    StaticCurve c{lo, hi, EdgeKind::kObstacle, -1, left, right, Vector2d::Zero(), false};
+    if (left == right) {
+      if (!(IsFree(left) && vc >= 0)) continue;
+      c.kind = EdgeKind::kVc;
+      c.src = vc;
+    } else if (left == Label::kOutside || right == Label::kOutside) {
+      c.kind = EdgeKind::kBounds;
+      c.src = bounds >= 0 ? bounds : (obstacle >= 0 ? obstacle : goal);
+    } else if (left == Label::kObstacle || right == Label::kObstacle) {
+      const Label other = left == Label::kObstacle ? right : left;
+      if (other == Label::kGoal && goal >= 0) {
+        c.kind = EdgeKind::kGoal;
+        c.src = goal;
+      } else {
+        c.kind = EdgeKind::kObstacle;
+        c.src = obstacle >= 0 ? obstacle : goal;
+      }
+    } else {
+      c.kind = EdgeKind::kGoal;
+      c.src = goal >= 0 ? goal : (vc >= 0 ? vc : obstacle);
+    }
+    if (c.src < 0) continue;
+    const Source& src = sources_[c.src];
+    if (c.kind == EdgeKind::kObstacle && src.kind == EdgeKind::kObstacle) {
+      c.sticking = src.sticking;
+      c.n_free = src.sweep_normal;
+    } else if (c.kind == EdgeKind::kBounds && src.kind == EdgeKind::kBounds) {
+      c.n_free = src.sweep_normal;
+    }
+    // Where the normal must point into the free side, make sure it does.
+    if (c.kind == EdgeKind::kObstacle || c.kind == EdgeKind::kBounds) {
+      const Vector2d d = ToD(hi - lo);
+      const Vector2d left_normal(-d.y(), d.x());
+      const bool free_left = IsFree(left) || left == Label::kGoal;
+      if ((left_normal.dot(c.n_free) > 0) != free_left) c.n_free = -c.n_free;
+      if (c.n_free.norm() == 0.0) c.n_free = (free_left ? left_normal : Vector2d(-left_normal)).normalized();
+    }
+    events[lo].push_back(c);
+    events.try_emplace(hi);
+  }
+  static_events_.assign(events.begin(), events.end());
+}
+
+int Sweep::VertexName(const P2& p, const std::vector<Curve*>& through) {
+  auto it = vertex_names_.find(p);
+  if (it != vertex_names_.end()) return it->second;
+  std::vector<std::string> parts;
+  for (const Curve* c : through) parts.push_back(names_[c->name]);
+  std::sort(parts.begin(), parts.end());
+  parts.erase(std::unique(parts.begin(), parts.end()), parts.end());
+  std::string s = "x(";
+  for (size_t i = 0; i < parts.size(); ++i) s += (i ? "," : "") + parts[i];
+  s += ")";
+  const int id = AddName(s);
+  vertex_names_.emplace(p, id);
+  return id;
+}
+
+void Sweep::Run() {
+  size_t si = 0;
+  const std::vector<StaticCurve> none;
+  while (si < static_events_.size() || !dynamic_.empty()) {
+    bool from_static;
+    if (si >= static_events_.size()) {
+      from_static = false;
+    } else if (dynamic_.empty()) {
+      from_static = true;
+    } else {
+      from_static = CGAL::compare_yx(static_events_[si].first, dynamic_.top()) != CGAL::LARGER;
+    }
+    const P2 p = from_static ? static_events_[si].first : dynamic_.top();
+    while (!dynamic_.empty() && dynamic_.top() == p) dynamic_.pop();
+    if (from_static) {
+      Process(p, static_events_[si].second);
+      ++si;
+    } else {
+      Process(p, none);
+    }
+  }
+}
+
+// Is the motion arriving at p (by free motion, sliding or complying) good when the adversary picks direction w?
+bool Sweep::OutcomeAt(double w, const std::vector<LRay>& rays, Label below) const {
+  // Active rays going down from p are engaged (their projection points down for a reliable ray).
+  bool any_vc = false;
+  for (const LRay& r : rays) {
+    if (!r.upper && r.kind == EdgeKind::kVc) {
+      any_vc = true;
+      if (!IsGood(r.track)) return false;
+    }
+  }
+  if (any_vc) return true;
+  const Vector2d wd(std::cos(w), std::sin(w));
+  // Along a ray?
+  for (const LRay& r : rays) {
+    if (std::abs(std::remainder(r.angle - w, 2 * M_PI)) > 1e-12) continue;
+    if (r.kind == EdgeKind::kFree) return false;
+    if (r.kind == EdgeKind::kGoal) return true;
+    // Tangent to an edge: moves along it; good only if every free region beside it is good.
+    bool any_free = false;
+    for (Label l : {r.ccw, r.cw}) {
+      if (IsFree(l)) {
+        any_free = true;
+        if (!IsGood(l)) return false;
+      }
+      if (l == Label::kGoal) return true;
+    }
+    if (any_free) return true;
+    break;  // blocked on both sides: contact rules below
+  }
+  // The sector containing w: the region below when there are no lower rays, else between lower rays.
+  Label sector = below;
+  {
+    // rays are in counter-clockwise order from angle 0; find the last ray with angle < w (circularly).
+    const LRay* cw_ray = nullptr;
+    const LRay* ccw_ray = nullptr;
+    double best_cw = 1e9, best_ccw = 1e9;
+    for (const LRay& r : rays) {
+      const double d_cw = std::fmod(w - r.angle + 4 * M_PI, 2 * M_PI);   // how far clockwise r is from w
+      const double d_ccw = std::fmod(r.angle - w + 4 * M_PI, 2 * M_PI);  // how far counter-clockwise
+      if (d_cw > 0 && d_cw < best_cw) {
+        best_cw = d_cw;
+        cw_ray = &r;
+      }
+      if (d_ccw > 0 && d_ccw < best_ccw) {
+        best_ccw = d_ccw;
+        ccw_ray = &r;
+      }
+    }
+    if (cw_ray && !cw_ray->upper) {
+      sector = cw_ray->ccw;
+    } else if (ccw_ray && !ccw_ray->upper) {
+      sector = ccw_ray->cw;
+    } else if (cw_ray) {
+      sector = cw_ray->ccw;  // no lower ray: a static upper label (the region below p)
+      if (IsFree(sector)) sector = below;
+    }
+  }
+  if (IsGood(sector)) return true;
+  if (sector == Label::kBad || sector == Label::kOutside) return false;
+  // Pushing into CB: contact rules (SEMANTICS.md vertex rule).
+  const LRay* best = nullptr;
+  double best_comp = 0.0;
+  for (const LRay& r : rays) {
+    if (r.kind != EdgeKind::kObstacle) continue;
+    if (!(wd.dot(r.n_free) < -1e-14)) continue;
+    if (MotionModel::Sticks(wd, r.n_free, phi_)) continue;
+    const double comp = wd.dot(r.dir);
+    if (comp <= 1e-14) continue;
+    if (comp > best_comp) {
+      best_comp = comp;
+      best = &r;
+    }
+  }
+  if (!best) return false;  // stops
+  if (best->upper || best->sticking) return false;
+  for (Label l : {best->ccw, best->cw}) {
+    if (l == Label::kGoal) return true;
+    if (IsFree(l)) return IsGood(l);
+  }
+  return false;
+}
+
+Label Sweep::StatusAtPoint(const std::vector<LRay>& rays, Label below) const {
+  for (const LRay& r : rays) {
+    if (r.kind == EdgeKind::kGoal || r.ccw == Label::kGoal || r.cw == Label::kGoal) return Label::kGood;
+  }
+  if (below == Label::kGoal) return Label::kGood;
+  const double w0 = -M_PI / 2 - eps_, w1 = -M_PI / 2 + eps_;
+  std::vector<double> crit = {w0, w1};
+  auto add = [&](double a) {
+    a = std::remainder(a, 2 * M_PI);
+    if (a > w0 && a < w1) crit.push_back(a);
+  };
+  for (const LRay& r : rays) {
+    add(r.angle);
+    if (r.kind == EdgeKind::kObstacle) {
+      const double inward = std::atan2(-r.n_free.y(), -r.n_free.x());
+      add(inward + phi_);
+      add(inward - phi_);
+    }
+  }
+  std::sort(crit.begin(), crit.end());
+  const size_t n = crit.size();
+  for (size_t i = 0; i + 1 < n; ++i) crit.push_back(0.5 * (crit[i] + crit[i + 1]));
+  for (double w : crit) {
+    if (!OutcomeAt(w, rays, below)) return Label::kBad;
+  }
+  return Label::kGood;
+}
+
+void Sweep::CheckIntersection(const Curve* a, const Curve* b, const P2& p) {
+  if (!a || !b) return;
+  if (a->kind != EdgeKind::kFree && b->kind != EdgeKind::kFree) return;
+  const auto res = CGAL::intersection(Seg(a->lo, a->hi), Seg(b->lo, b->hi));
+  if (!res) return;
+  if (const P2* q = boost::get<P2>(&*res)) {
+    if (CGAL::compare_yx(*q, p) == CGAL::LARGER) dynamic_.push(*q);
+  } else if (const Seg* s = boost::get<Seg>(&*res)) {
+    const P2 low = CGAL::compare_yx(s->source(), s->target()) == CGAL::SMALLER ? s->source() : s->target();
+    if (CGAL::compare_yx(low, p) == CGAL::LARGER) dynamic_.push(low);
+  }
+}
+
+void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) {
+  current_ = p;
+  auto [first, last] = status_.equal_range(Probe{});
+  std::vector<Curve*> through(first, last);
+  if (through.empty() && static_uppers.empty()) return;
+  if (static_uppers.empty()) {
+    int ending = 0;
+    for (const Curve* c : through) ending += c->hi == p;
+    if (ending == 0 && through.size() < 2) return;  // a stale intersection event
+  }
+  Curve* left_neighbour = first == status_.begin() ? nullptr : *std::prev(first);
+  Curve* right_neighbour = last == status_.end() ? nullptr : *last;
+  const Label l_left = left_neighbour ? left_neighbour->right : Label::kOutside;
+  const Label l_right = through.empty() ? l_left : through.back()->right;
+
+  // Upper static rays: new ones and continuations of static curves passing through p.
+  std::vector<StaticCurve> uppers = static_uppers;
+  for (const Curve* c : through) {
+    if (c->hi == p || c->kind == EdgeKind::kFree) continue;
+    const Label sl = IsFree(c->left) ? Label::kGood : c->left;
+    const Label sr = IsFree(c->right) ? Label::kGood : c->right;
+    uppers.push_back({p, c->hi, c->kind, c->src, sl, sr, c->n_free, c->sticking});
+  }
+  // Left to right: counter-clockwise directions first.
+  std::sort(uppers.begin(), uppers.end(), [](const StaticCurve& a, const StaticCurve& b) {
+    return CGAL::orientation(b.hi - b.lo, a.hi - a.lo) == CGAL::LEFT_TURN;
+  });
+
+  // Rays in counter-clockwise order from angle 0: upper rays right to left, then lower rays left to right.
+  std::vector<LRay> rays;
+  for (size_t i = uppers.size(); i-- > 0;) {
+    LRay r;
+    r.upper = true;
+    r.upper_index = static_cast<int>(i);
+    r.dir = ToD(uppers[i].hi - p).normalized();
+    r.angle = std::atan2(r.dir.y(), r.dir.x());
+    r.kind = uppers[i].kind;
+    r.ccw = uppers[i].left;
+    r.cw = uppers[i].right;
+    r.sticking = uppers[i].sticking;
+    r.n_free = uppers[i].n_free;
+    rays.push_back(r);
+  }
+  for (const Curve* c : through) {
+    LRay r;
+    r.curve = c;
+    r.dir = ToD(c->lo - p).normalized();
+    r.angle = std::atan2(r.dir.y(), r.dir.x());
+    r.kind = c->kind;
+    r.ccw = c->right;
+    r.cw = c->left;
+    r.track = c->track;
+    r.sticking = c->sticking;
+    r.n_free = c->n_free;
+    rays.push_back(r);
+  }
+  const Label below = l_left;
+  bool status_p_known = false;
+  Label status_p = Label::kBad;
+  auto point_status = [&]() {
+    if (!status_p_known) {
+      status_p = StatusAtPoint(rays, below);
+      status_p_known = true;
+    }
+    return status_p;
+  };
+
+  // Upper sectors S_0 .. S_k and their zones.
+  const size_t k = uppers.size();
+  struct NewCurve {
+    bool is_static;
+    size_t index;  // into uppers
+    V2 dir;        // free curves
+    Label left, right;
+    bool right_free;  // free curve at 90° - ε
+  };
+  std::vector<std::vector<NewCurve>> per_sector(k + 1);
+  std::vector<Label> sector_low(k + 1), sector_high(k + 1);
+  auto side_status = [&](int upper_index, Label lower) -> bool {
+    if (upper_index < 0) return IsGood(lower);
+    const StaticCurve& u = uppers[upper_index];
+    switch (u.kind) {
+      case EdgeKind::kGoal:
+        return true;
+      case EdgeKind::kBounds:
+        return false;
+      case EdgeKind::kObstacle:
+        return !u.sticking && IsGood(point_status());
+      case EdgeKind::kVc:
+        return IsGood(point_status());
+      case EdgeKind::kFree:
+        return false;
+    }
+    return false;
+  };
+  for (size_t i = 0; i <= k; ++i) {
+    const int ccw_upper = i == 0 ? -1 : static_cast<int>(i) - 1;
+    const int cw_upper = i == k ? -1 : static_cast<int>(i);
+    Label stat;
+    if (i == 0) {
+      stat = k > 0 ? uppers[0].left : (IsFree(l_left) ? Label::kGood : l_left);
+    } else {
+      stat = uppers[i - 1].right;
+    }
+    if (!IsFree(stat)) {
+      sector_low[i] = sector_high[i] = stat;
+      continue;
+    }
+    const bool cw_good = side_status(cw_upper, l_right);
+    const bool ccw_good = side_status(ccw_upper, l_left);
+    const Label zr = Status(cw_good);
+    const Label zl = Status(ccw_good);
+    Label zm = Label::kBad;
+    if (cw_good && ccw_good) zm = point_status();
+    // Position of the free directions relative to the sector's bounding rays.
+    auto strictly_inside = [&](const V2& f) {
+      if (cw_upper >= 0 && CGAL::orientation(uppers[cw_upper].hi - p, f) != CGAL::LEFT_TURN) return false;
+      if (ccw_upper >= 0 && CGAL::orientation(f, uppers[ccw_upper].hi - p) != CGAL::LEFT_TURN) return false;
+      return true;
+    };
+    // Label just counter-clockwise of the clockwise ray, and just clockwise of the counter-clockwise ray.
+    if (cw_upper < 0) {
+      sector_low[i] = zr;
+    } else {
+      const V2 d = uppers[cw_upper].hi - p;
+      if (CGAL::orientation(d, free_right_) == CGAL::LEFT_TURN) {
+        sector_low[i] = zr;
+      } else if (CGAL::orientation(d, free_left_) == CGAL::LEFT_TURN) {
+        sector_low[i] = zm;
+      } else {
+        sector_low[i] = zl;
+      }
+    }
+    if (ccw_upper < 0) {
+      sector_high[i] = zl;
+    } else {
+      const V2 d = uppers[ccw_upper].hi - p;
+      if (CGAL::orientation(free_left_, d) == CGAL::LEFT_TURN) {
+        sector_high[i] = zl;
+      } else if (CGAL::orientation(free_right_, d) == CGAL::LEFT_TURN) {
+        sector_high[i] = zm;
+      } else {
+        sector_high[i] = zr;
+      }
+    }
+    // Free edges inside this sector, left to right (90° + ε first).
+    if (strictly_inside(free_left_) && zm != zl) per_sector[i].push_back({false, 0, free_left_, zl, zm, false});
+    if (strictly_inside(free_right_) && zr != zm) per_sector[i].push_back({false, 0, free_right_, zm, zr, true});
+  }
+  std::vector<NewCurve> out;
+  for (size_t i = 0; i <= k; ++i) {
+    for (const NewCurve& c : per_sector[i]) out.push_back(c);
+    if (i < k) out.push_back({true, i, V2(), sector_low[i], sector_high[i + 1], false});
+  }
+
+  // Output pieces of the curves ending (or split) at p, then replace them.
+  for (Curve* c : through) {
+    if (IsGood(c->left) != IsGood(c->right)) {
+      if (IsGood(c->left)) {
+        pieces_.push_back({c->lo, p, c->kind, c->name});
+      } else {
+        pieces_.push_back({p, c->lo, c->kind, c->name});
+      }
+    }
+  }
+  status_.erase(first, last);
+
+  std::vector<Curve*> inserted;
+  int point_name = -1;
+  for (const NewCurve& nc : out) {
+    auto c = std::make_unique<Curve>();
+    c->id = static_cast<int>(curves_.size());
+    c->lo = p;
+    c->left = nc.left;
+    c->right = nc.right;
+    if (nc.is_static) {
+      const StaticCurve& u = uppers[nc.index];
+      c->hi = u.hi;
+      c->kind = u.kind;
+      c->src = u.src;
+      c->name = sources_[u.src].name;
+      c->sticking = u.sticking;
+      c->n_free = u.n_free;
+      if (u.kind == EdgeKind::kVc) c->track = point_status();
+      // Static labels of non-free sides stay as they are.
+      if (!IsFree(u.left)) c->left = u.left;
+      if (!IsFree(u.right)) c->right = u.right;
+    } else {
+      c->kind = EdgeKind::kFree;
+      c->hi = p + nc.dir * ((top_ - p.y()) / nc.dir.y());
+      // Keep the ref of a free edge that continues through p.
+      int name = -1;
+      for (const Curve* t : through) {
+        if (t->kind == EdgeKind::kFree && CGAL::orientation(t->dir, nc.dir) == CGAL::COLLINEAR &&
+            CGAL::sign(t->dir * nc.dir) == CGAL::POSITIVE) {
+          name = t->name;
+        }
+      }
+      if (name < 0) {
+        if (point_name < 0) point_name = VertexName(p, through);
+        name = AddName(names_[point_name] + (nc.right_free ? "/-eps" : "/+eps"));
+      }
+      c->name = name;
+    }
+    c->dir = c->hi - c->lo;
+    Curve* raw = c.get();
+    curves_.push_back(std::move(c));
+    status_.insert(raw);
+    inserted.push_back(raw);
+  }
+  if (inserted.empty()) {
+    CheckIntersection(left_neighbour, right_neighbour, p);
+  } else {
+    CheckIntersection(left_neighbour, inserted.front(), p);
+    CheckIntersection(inserted.back(), right_neighbour, p);
+  }
+}
+
+std::vector<ExactRing> Sweep::Assemble() const {
+  std::map<P2, std::vector<int>, LessYX> starts;
+  for (size_t i = 0; i < pieces_.size(); ++i) starts[pieces_[i].a].push_back(static_cast<int>(i));
+  std::vector<char> used(pieces_.size(), 0);
+  std::vector<ExactRing> rings;
+  for (size_t i0 = 0; i0 < pieces_.size(); ++i0) {
+    if (used[i0]) continue;
+    std::vector<int> ring;
+    int cur = static_cast<int>(i0);
+    while (true) {
+      used[cur] = 1;
+      ring.push_back(cur);
+      const Piece& pc = pieces_[cur];
+      if (pc.b == pieces_[i0].a) break;
+      auto it = starts.find(pc.b);
+      if (it == starts.end()) break;  // open chain (should not happen)
+      const Vector2d din = ToD(pc.b - pc.a);
+      const double back = std::atan2(-din.y(), -din.x());
+      int next = -1;
+      double best = 1e9;
+      for (int cand : it->second) {
+        if (used[cand]) continue;
+        const Vector2d d = ToD(pieces_[cand].b - pieces_[cand].a);
+        double cw = std::fmod(back - std::atan2(d.y(), d.x()) + 4 * M_PI, 2 * M_PI);
+        if (cw <= 1e-15) cw += 2 * M_PI;
+        if (cw < best) {
+          best = cw;
+          next = cand;
+        }
+      }
+      if (next < 0) break;
+      cur = next;
+    }
+    // Merge collinear consecutive pieces with the same provenance.
+    ExactRing r;
+    for (int idx : ring) {
+      const Piece& pc = pieces_[idx];
+      if (!r.vertices.empty() && r.edges.back() == std::make_pair(pc.kind, pc.name) &&
+          CGAL::orientation(r.vertices.back(), pc.a, pc.b) == CGAL::COLLINEAR) {
+        continue;  // extends the previous edge: its start stays
+      }
+      r.vertices.push_back(pc.a);
+      r.edges.emplace_back(pc.kind, pc.name);
+    }
+    if (r.vertices.size() >= 2 && r.edges.back() == r.edges.front() &&
+        CGAL::orientation(r.vertices.back(), r.vertices.front(), r.vertices[1]) == CGAL::COLLINEAR) {
+      r.vertices.erase(r.vertices.begin());
+      r.edges.erase(r.edges.begin());
+    }
+    if (r.vertices.size() < 3) continue;
+    FT a2 = 0;
+    for (size_t i = 0; i < r.vertices.size(); ++i) {
+      const P2& p = r.vertices[i];
+      const P2& q = r.vertices[(i + 1) % r.vertices.size()];
+      a2 += p.x() * q.y() - p.y() * q.x();
+    }
+    r.area2 = a2;
+    if (CGAL::sign(a2) == CGAL::ZERO) continue;
+    rings.push_back(std::move(r));
+  }
+  return rings;
+}
+
+bool PointInRing(const Vector2d& p, const std::vector<Vector2d>& poly) {
+  bool inside = false;
+  for (size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
+    const Vector2d& a = poly[i];
+    const Vector2d& b = poly[j];
+    if ((a.y() > p.y()) != (b.y() > p.y())) {
+      const double x = a.x() + (p.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
+      if (p.x() < x) inside = !inside;
+    }
+  }
+  return inside;
+}
+
+Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
+  Region region;
+  FT total = 0;
+  std::vector<const ExactRing*> outers, holes;
+  for (const auto& r : rings) {
+    total += r.area2;
+    (CGAL::sign(r.area2) == CGAL::POSITIVE ? outers : holes).push_back(&r);
+  }
+  region.area = CGAL::to_double(total) / 2.0;
+  auto convert = [&](const ExactRing& r) {
+    RegionRing out;
+    for (size_t i = 0; i < r.vertices.size(); ++i) {
+      out.vertices.push_back(rot_.Invert(ToD(r.vertices[i])));
+      out.edges.push_back({r.edges[i].first, names_[r.edges[i].second]});
+    }
+    return out;
+  };
+  // Deterministic order: outer rings by their lowest-leftmost vertex in the sweep frame.
+  std::sort(outers.begin(), outers.end(), [](const ExactRing* a, const ExactRing* b) {
+    auto lo = [](const ExactRing* r) {
+      return *std::min_element(r->vertices.begin(), r->vertices.end(), LessYX());
+    };
+    return LessYX()(lo(a), lo(b));
+  });
+  std::vector<std::vector<Vector2d>> outer_d;
+  for (const ExactRing* o : outers) {
+    region.polygons.push_back({convert(*o), {}});
+    outer_d.push_back(region.polygons.back().outer.vertices);
+  }
+  for (const ExactRing* h : holes) {
+    RegionRing ring = convert(*h);
+    // The smallest outer ring containing the hole (test a point just inside the hole's first edge... use the
+    // centroid of its first three vertices' edge midpoint nudged inwards).
+    const Vector2d a = ring.vertices[0], b = ring.vertices[1];
+    const Vector2d mid = 0.5 * (a + b);
+    const Vector2d d = (b - a).normalized();
+    const Vector2d probe = mid + 1e-7 * (b - a).norm() * Vector2d(d.y(), -d.x());  // right of a clockwise edge: outside the hole
+    int best = -1;
+    double best_area = 1e300;
+    for (size_t i = 0; i < outer_d.size(); ++i) {
+      if (!PointInRing(probe, outer_d[i])) continue;
+      const double ar = std::abs(SignedAreaD(outer_d[i]));
+      if (ar < best_area) {
+        best_area = ar;
+        best = static_cast<int>(i);
+      }
+    }
+    if (best >= 0) region.polygons[best].holes.push_back(std::move(ring));
+  }
+  return region;
+}
+
+struct SweepResult {
+  std::vector<ExactRing> rings;
+  Region region;
+};
+
+SweepResult RunSweep(const BackprojectionProblem& problem, const std::vector<int>& active) {
+  Sweep sweep(problem, active);
+  sweep.Run();
+  SweepResult r;
+  r.rings = sweep.Assemble();
+  r.region = sweep.ToRegion(r.rings);
+  return r;
+}
+
+PolygonSet ToPolygonSet(const std::vector<ExactRing>& rings) {
+  PolygonSet set;
+  std::vector<Polygon> outers, holes;
+  for (const auto& r : rings) {
+    Polygon poly(r.vertices.begin(), r.vertices.end());
+    (CGAL::sign(r.area2) == CGAL::POSITIVE ? outers : holes).push_back(poly);
+  }
+  for (const auto& o : outers) set.join(o);
+  for (auto h : holes) {
+    h.reverse_orientation();
+    set.difference(h);
+  }
+  return set;
+}
+
+}  // namespace
+
+const char* EdgeKindName(EdgeKind kind) {
+  switch (kind) {
+    case EdgeKind::kObstacle:
+      return "obstacle";
+    case EdgeKind::kGoal:
+      return "goal";
+    case EdgeKind::kFree:
+      return "free";
+    case EdgeKind::kVc:
+      return "vc";
+    case EdgeKind::kBounds:
+      return "bounds";
+  }
+  return "?";
+}
+
+bool Region::Contains(const Vector2d& p) const {
+  for (const auto& poly : polygons) {
+    if (!PointInRing(p, poly.outer.vertices)) continue;
+    bool in_hole = false;
+    for (const auto& h : poly.holes) in_hole |= PointInRing(p, h.vertices);
+    if (!in_hole) return true;
+  }
+  return false;
+}
+
+double Region::BoundaryDistance(const Vector2d& p) const {
+  double best = std::numeric_limits<double>::infinity();
+  auto ring_distance = [&](const RegionRing& r) {
+    for (size_t i = 0; i < r.vertices.size(); ++i) {
+      const Vector2d& a = r.vertices[i];
+      const Vector2d& b = r.vertices[(i + 1) % r.vertices.size()];
+      const Vector2d ab = b - a;
+      const double s = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+      best = std::min(best, (p - (a + s * ab)).norm());
+    }
+  };
+  for (const auto& poly : polygons) {
+    ring_distance(poly.outer);
+    for (const auto& h : poly.holes) ring_distance(h);
+  }
+  return best;
+}
+
+bool IsReliableRay(const Vector2d& a, const Vector2d& b, double theta, double velocity_cone) {
+  const double line = std::atan2(b.y() - a.y(), b.x() - a.x());
+  const double delta = std::abs(std::remainder(line - theta, M_PI));  // angle between the line and v*, [0, π/2]
+  return delta + velocity_cone < M_PI / 2 - 1e-9;
+}
+
+Region ClassicBackprojection(const BackprojectionProblem& problem) { return RunSweep(problem, {}).region; }
+
+Region BackprojectionWithActiveRays(const BackprojectionProblem& problem, const std::vector<std::string>& active) {
+  std::vector<int> idx;
+  for (const auto& id : active) {
+    auto it = std::find_if(problem.rays.begin(), problem.rays.end(), [&](const CvcRayInput& r) { return r.id == id; });
+    if (it == problem.rays.end()) throw std::invalid_argument("backprojection: unknown CVC ray '" + id + "'");
+    idx.push_back(static_cast<int>(it - problem.rays.begin()));
+  }
+  return RunSweep(problem, idx).region;
+}
+
+VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem) {
+  VcBackprojection out;
+  std::vector<int> candidates;
+  for (size_t i = 0; i < problem.rays.size(); ++i) {
+    bool reliable = !problem.rays[i].segments.empty();
+    for (const auto& s : problem.rays[i].segments) {
+      reliable = reliable && IsReliableRay(s[0], s[1], problem.theta, problem.velocity_cone);
+    }
+    if (reliable) {
+      candidates.push_back(static_cast<int>(i));
+    } else {
+      out.unreliable_rays.push_back(problem.rays[i].id);
+    }
+  }
+  std::sort(candidates.begin(), candidates.end(),
+            [&](int a, int b) { return problem.rays[a].id < problem.rays[b].id; });
+  std::vector<int> active;
+  SweepResult current = RunSweep(problem, active);
+  PolygonSet current_set = ToPolygonSet(current.rings);
+  auto try_add = [&](const std::vector<int>& add) {
+    std::vector<int> trial_set = active;
+    trial_set.insert(trial_set.end(), add.begin(), add.end());
+    SweepResult trial = RunSweep(problem, trial_set);
+    if (!(trial.region.area > current.region.area * (1 + 1e-12) + 1e-15)) return false;
+    // The new region must contain the old one (B_θ ⊆ B_vcθ, and every earlier claim stays valid).
+    PolygonSet diff = current_set;
+    diff.difference(ToPolygonSet(trial.rings));
+    if (!diff.is_empty()) return false;
+    active = trial_set;
+    current = std::move(trial);
+    current_set = ToPolygonSet(current.rings);
+    return true;
+  };
+  std::vector<int> rejected;
+  for (int c : candidates) {
+    if (!try_add({c})) rejected.push_back(c);
+  }
+  // Some enlargements need two rays together (e.g. a ray and its sibling): try pairs of rejected rays.
+  if (rejected.size() <= 12) {
+    for (size_t i = 0; i < rejected.size(); ++i) {
+      for (size_t j = i + 1; j < rejected.size(); ++j) {
+        if (rejected[i] < 0 || rejected[j] < 0) continue;
+        if (try_add({rejected[i], rejected[j]})) rejected[i] = rejected[j] = -1;
+      }
+    }
+  }
+  for (int r : rejected) {
+    if (r >= 0) out.rejected_rays.push_back(problem.rays[r].id);
+  }
+  out.region = current.region;
+  for (int a : active) out.active_rays.push_back(problem.rays[a].id);
+  std::sort(out.active_rays.begin(), out.active_rays.end());
+  std::sort(out.rejected_rays.begin(), out.rejected_rays.end());
+  return out;
+}
+
+std::vector<NamedPolygon> GoalKernel(const std::vector<NamedPolygon>& goal, double position_uncertainty, int sides) {
+  std::vector<NamedPolygon> out;
+  if (position_uncertainty <= 0.0) return goal;
+  const double r = position_uncertainty / std::cos(M_PI / sides);  // circumscribes the disc
+  for (size_t gi = 0; gi < goal.size(); ++gi) {
+    const auto& g = goal[gi];
+    Polygon poly;
+    for (const auto& v : g.vertices) poly.push_back(P2(v.x(), v.y()));
+    if (poly.is_clockwise_oriented()) poly.reverse_orientation();
+    PolygonSet kernel(poly);
+    for (size_t i = 0; i < g.vertices.size(); ++i) {
+      const Vector2d& a = g.vertices[i];
+      const Vector2d& b = g.vertices[(i + 1) % g.vertices.size()];
+      std::vector<P2> pts;
+      for (int k = 0; k < sides; ++k) {
+        const double ang = 2 * M_PI * k / sides;
+        const Vector2d d(r * std::cos(ang), r * std::sin(ang));
+        pts.emplace_back(a.x() + d.x(), a.y() + d.y());
+        pts.emplace_back(b.x() + d.x(), b.y() + d.y());
+      }
+      std::vector<P2> hull;
+      CGAL::convex_hull_2(pts.begin(), pts.end(), std::back_inserter(hull));
+      kernel.difference(Polygon(hull.begin(), hull.end()));
+    }
+    std::vector<PolygonWithHoles> parts;
+    kernel.polygons_with_holes(std::back_inserter(parts));
+    for (size_t pi = 0; pi < parts.size(); ++pi) {
+      NamedPolygon np;
+      const Polygon& ob = parts[pi].outer_boundary();
+      size_t k = 0;
+      for (auto v = ob.vertices_begin(); v != ob.vertices_end(); ++v, ++k) {
+        np.vertices.emplace_back(CGAL::to_double(v->x()), CGAL::to_double(v->y()));
+        const std::string base = "kernel(goal[" + std::to_string(gi) + "])[" + std::to_string(pi) + "]";
+        np.vertex_refs.push_back(base + ".v[" + std::to_string(k) + "]");
+        np.edge_refs.push_back(base + ".e[" + std::to_string(k) + "]");
+      }
+      out.push_back(std::move(np));
+    }
+  }
+  return out;
+}
+
+}  // namespace visco::planning

@@ -1,0 +1,107 @@
+#pragma once
+// Directional backprojections in C = R² (Fox & Hutchinson §IV–V, SEMANTICS.md "Backprojections"):
+//   * B_θ(G): the classic one (Erdmann; Donald–Canny plane sweep against the commanded velocity);
+//   * B_vcθ(G): the same with a set of active CVC rays (frictionless two-sided walls), and the choice of that set
+//     so that the region stays sound and contains B_θ(G).
+//
+// The sweep runs in exact arithmetic (CGAL's lazy exact kernel, hidden in backprojection.cc) in a frame rotated so
+// that the commanded velocity points straight down; sticking and sliding are decided with the motion model's own
+// predicates (planning/motion_model.h), so planner and simulator agree on ties. Output coordinates are rotated back
+// to the world frame in double precision.
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace visco::planning {
+
+/// A polygon with names for its vertices and edges (edge i runs from vertex i to vertex i + 1, wrapping). Names are
+/// the provenance refs of the output (CONTRACT.md); empty names are filled in as "<prefix>[i].v[k]"/"…e[k]".
+struct NamedPolygon {
+  std::vector<Eigen::Vector2d> vertices;
+  std::vector<std::string> vertex_refs;  ///< optional, one per vertex
+  std::vector<std::string> edge_refs;    ///< optional, one per edge
+};
+
+/// A candidate CVC ray for B_vcθ(G): its free-space segments and its id (CONTRACT.md `cvc_rays[].id`).
+struct CvcRayInput {
+  std::string id;
+  std::string group;  ///< the workspace VC ray it comes from (siblings share it); may be empty
+  std::vector<std::array<Eigen::Vector2d, 2>> segments;
+};
+
+/// Everything a directional backprojection depends on, in C-space (metres, radians).
+struct BackprojectionProblem {
+  std::vector<NamedPolygon> obstacles;  ///< C-obstacles (may overlap; either orientation)
+  std::vector<NamedPolygon> goal;       ///< goal regions (either orientation)
+  Eigen::Vector2d bounds_min{0.0, 0.0};
+  Eigen::Vector2d bounds_max{0.0, 0.0};
+  double theta = 0.0;          ///< commanded direction, counter-clockwise from +x
+  double velocity_cone = 0.0;  ///< ε_v, half-angle, in (0, π/2)
+  double friction_cone = 0.0;  ///< φ, in [0, π/2)
+  std::vector<CvcRayInput> rays;  ///< candidate CVC rays (ignored by the classic backprojection)
+};
+
+enum class EdgeKind : std::uint8_t { kObstacle, kGoal, kFree, kVc, kBounds };
+const char* EdgeKindName(EdgeKind kind);
+
+/// Provenance of one output edge (CONTRACT.md region JSON).
+struct RegionEdge {
+  EdgeKind kind = EdgeKind::kFree;
+  std::string ref;
+};
+
+/// A closed ring: edge i runs from vertices[i] to vertices[i + 1] (wrapping). Outer rings are counter-clockwise,
+/// holes clockwise.
+struct RegionRing {
+  std::vector<Eigen::Vector2d> vertices;
+  std::vector<RegionEdge> edges;
+};
+
+struct RegionPolygon {
+  RegionRing outer;
+  std::vector<RegionRing> holes;
+};
+
+/// A polygonal region with edge provenance.
+struct Region {
+  std::vector<RegionPolygon> polygons;
+  double area = 0.0;  ///< computed exactly in the sweep frame, then rounded
+  /// True if p is inside (interior or within `tolerance` of the boundary counts as inside when `closed`).
+  bool Contains(const Eigen::Vector2d& p) const;
+  /// Distance from p to the region's boundary.
+  double BoundaryDistance(const Eigen::Vector2d& p) const;
+};
+
+/// The VC-enlarged backprojection with the active rays it relies on.
+struct VcBackprojection {
+  Region region;
+  std::vector<std::string> active_rays;  ///< ids of the CVC rays the motion complies to (sorted)
+  std::vector<std::string> rejected_rays;  ///< reliable candidates whose activation did not help or was unsound
+  std::vector<std::string> unreliable_rays;  ///< candidates within 90° ± ε_v of θ (never active, SEMANTICS.md)
+};
+
+/// B_θ(G) by the plane sweep. @throws std::invalid_argument on malformed input (empty bounds, ε_v outside (0, π/2),
+/// φ outside [0, π/2), degenerate polygons).
+Region ClassicBackprojection(const BackprojectionProblem& problem);
+
+/// B_θ(G) with exactly the given rays active (ids from problem.rays); used by VcBackprojection and by tests.
+Region BackprojectionWithActiveRays(const BackprojectionProblem& problem, const std::vector<std::string>& active);
+
+/// B_vcθ(G): chooses the active ray set greedily (each reliable candidate, its sibling pairs, in a deterministic
+/// order), keeping a ray only if the region with it contains the region without it and is strictly larger; the
+/// result therefore always contains B_θ(G).
+VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem);
+
+/// True if a CVC ray segment from a to b can be relied on for commanded direction θ (its line is not within
+/// 90° ± ε_v of θ).
+bool IsReliableRay(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double theta, double velocity_cone);
+
+/// The goal kernel: each goal polygon eroded by the disc of radius ε_p, approximated from inside (the disc is
+/// replaced by a circumscribed regular polygon with `sides` sides, so the result is a subset of the true kernel).
+std::vector<NamedPolygon> GoalKernel(const std::vector<NamedPolygon>& goal, double position_uncertainty,
+                                     int sides = 64);
+
+}  // namespace visco::planning

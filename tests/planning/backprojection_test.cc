@@ -1,0 +1,181 @@
+// Directional backprojections (planning/backprojection.h): closed-form areas, provenance, the goal kernel, and
+// (in backprojection_property_test.cc) soundness against the motion model.
+
+#include "planning/backprojection.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "planning/motion_model.h"
+
+namespace visco::planning {
+namespace {
+
+using Eigen::Vector2d;
+constexpr double kDeg = M_PI / 180.0;
+
+NamedPolygon Rect(double x0, double y0, double x1, double y1) {
+  NamedPolygon p;
+  p.vertices = {{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
+  return p;
+}
+
+BackprojectionProblem Problem(std::vector<NamedPolygon> obstacles, std::vector<NamedPolygon> goal, double theta_deg,
+                              double eps_deg, double phi_deg) {
+  BackprojectionProblem pr;
+  pr.obstacles = std::move(obstacles);
+  pr.goal = std::move(goal);
+  pr.bounds_min = {0, 0};
+  pr.bounds_max = {10, 10};
+  pr.theta = theta_deg * kDeg;
+  pr.velocity_cone = eps_deg * kDeg;
+  pr.friction_cone = phi_deg * kDeg;
+  return pr;
+}
+
+int CountKind(const Region& r, EdgeKind kind) {
+  int n = 0;
+  for (const auto& poly : r.polygons) {
+    for (const auto& e : poly.outer.edges) n += e.kind == kind;
+    for (const auto& h : poly.holes) {
+      for (const auto& e : h.edges) n += e.kind == kind;
+    }
+  }
+  return n;
+}
+
+double RelErr(double a, double b) { return std::abs(a - b) / std::abs(b); }
+
+TEST(Backprojection, GoalOnAFlatFloorIsATriangleOfFreeEdges) {
+  const double eps = 10 * kDeg;
+  const BackprojectionProblem pr = Problem({Rect(0, 0, 10, 2)}, {Rect(4, 2, 6, 2.5)}, -90, 10, 20);
+  const Region b = ClassicBackprojection(pr);
+  const double expected = 2 * 0.5 + 2.0 * 2.0 / (4 * std::tan(eps));
+  EXPECT_LT(RelErr(b.area, expected), 1e-9) << b.area << " vs " << expected;
+  ASSERT_EQ(b.polygons.size(), 1u);
+  EXPECT_TRUE(b.polygons[0].holes.empty());
+  EXPECT_EQ(CountKind(b, EdgeKind::kFree), 2);
+  // Free edges are erected at the goal's top corners (vertex refs of goal[0]), one per side of the cone.
+  std::vector<std::string> free_refs;
+  for (const auto& e : b.polygons[0].outer.edges) {
+    if (e.kind == EdgeKind::kFree) free_refs.push_back(e.ref);
+  }
+  std::sort(free_refs.begin(), free_refs.end());
+  EXPECT_EQ(free_refs, (std::vector<std::string>{"goal[0].v[2]/+eps", "goal[0].v[3]/-eps"}));
+  // Apex above the goal's centre.
+  double top = -1;
+  for (const auto& v : b.polygons[0].outer.vertices) top = std::max(top, v.y());
+  EXPECT_NEAR(top, 2.5 + 1.0 / std::tan(eps), 1e-9);
+  // A goal overlapping the floor gives the same region (the part inside CB is not configuration space).
+  const Region b2 = ClassicBackprojection(Problem({Rect(0, 0, 10, 2)}, {Rect(4, 1, 6, 2.5)}, -90, 10, 20));
+  EXPECT_LT(RelErr(b2.area, expected), 1e-9);
+}
+
+TEST(Backprojection, RotatedSceneGivesTheSameArea) {
+  // The same floor-and-goal scene rotated by 30°, commanded direction rotated with it.
+  const double a = 30 * kDeg;
+  auto rot = [&](Vector2d p) {
+    p -= Vector2d(5, 5);
+    return Vector2d(5 + std::cos(a) * p.x() - std::sin(a) * p.y(), 5 + std::sin(a) * p.x() + std::cos(a) * p.y());
+  };
+  NamedPolygon floor = Rect(1, 1, 9, 3), goal = Rect(4, 3, 6, 3.5);
+  for (auto& v : floor.vertices) v = rot(v);
+  for (auto& v : goal.vertices) v = rot(v);
+  BackprojectionProblem pr = Problem({floor}, {goal}, -90 + 30, 10, 20);
+  pr.bounds_min = {-5, -5};
+  pr.bounds_max = {15, 15};
+  const Region b = ClassicBackprojection(pr);
+  const double expected = 1 + 1.0 / std::tan(10 * kDeg);
+  EXPECT_LT(RelErr(b.area, expected), 1e-9) << b.area;
+}
+
+TEST(Backprojection, FunnelOfSlidingWalls) {
+  // Walls at 45° are sliding edges for ε = 10°, φ = 20°; the funnel leads into the goal at its flat bottom. Above
+  // the funnel's rim, the bounds' sides would let the motion escape: free edges from the rim corners.
+  NamedPolygon valley;
+  valley.vertices = {{0, 0}, {10, 0}, {10, 7}, {6, 3}, {4, 3}, {0, 7}};
+  const BackprojectionProblem pr = Problem({valley}, {Rect(4, 3, 6, 3.5)}, -90, 10, 20);
+  const Region b = ClassicBackprojection(pr);
+  const double expected = 24.0 + 30.0 - 9.0 * std::tan(10 * kDeg);
+  EXPECT_LT(RelErr(b.area, expected), 1e-9) << b.area << " vs " << expected;
+  EXPECT_EQ(CountKind(b, EdgeKind::kFree), 2);
+  EXPECT_GE(CountKind(b, EdgeKind::kObstacle), 2);
+  EXPECT_EQ(CountKind(b, EdgeKind::kBounds), 1);
+  // With walls that stick (φ = 40°: 45° − 10° ≤ 40°) only the goal and the triangle above it remain.
+  const Region sticky = ClassicBackprojection(Problem({valley}, {Rect(4, 3, 6, 3.5)}, -90, 10, 40));
+  EXPECT_LT(sticky.area, 0.5 * b.area);
+}
+
+TEST(Backprojection, StickingLedgeCutsTheRegion) {
+  const double t = std::tan(10 * kDeg);
+  const BackprojectionProblem pr =
+      Problem({Rect(0, 0, 10, 2), Rect(4.8, 5, 5.2, 5.2)}, {Rect(4, 2, 6, 2.5)}, -90, 10, 20);
+  const Region b = ClassicBackprojection(pr);
+  const double triangle = 1 + 1.0 / t;
+  const double w = 2 - 2 * t * 2.7;  // width of the triangle at the ledge's top, y = 5.2
+  const double a = 0.8 - 2.7 * t;    // gap between the triangle's side and the ledge's corner there
+  const double shadow = w * w / (4 * t) - a * a / (2 * t);
+  const double expected = triangle - 0.4 * 0.2 - shadow;
+  EXPECT_LT(RelErr(b.area, expected), 1e-9) << b.area << " vs " << expected;
+  // Points straight above the ledge are out; beside and below it they are in.
+  EXPECT_FALSE(b.Contains({5.0, 5.5}));
+  EXPECT_TRUE(b.Contains({5.0, 4.0}));
+  EXPECT_TRUE(b.Contains({4.7, 5.1}));
+}
+
+TEST(Backprojection, GoalInFreeSpaceAndOutsideBounds) {
+  // A goal floating in free space: B is the goal plus the triangle above it, cut by the top of the bounds (its apex
+  // would be at y = 5 + 1/tan ε > 10); nothing below.
+  const Region b = ClassicBackprojection(Problem({}, {Rect(4, 4, 6, 5)}, -90, 10, 20));
+  const double top_width = 2 - 10 * std::tan(10 * kDeg);
+  EXPECT_LT(RelErr(b.area, 2.0 + 0.5 * (2 + top_width) * 5), 1e-9);
+  EXPECT_FALSE(b.Contains({5, 3.9}));
+  // A goal sticking out of the bounds is clipped.
+  const Region c = ClassicBackprojection(Problem({}, {Rect(-1, 9, 1, 11)}, -90, 10, 20));
+  EXPECT_LT(RelErr(c.area, 1.0), 1e-9);
+}
+
+TEST(Backprojection, ThetaAndOrientationConventions) {
+  // θ = 0 (moving right) with a wall on the right: the goal against the wall, the triangle opens to the left.
+  const Region b = ClassicBackprojection(Problem({Rect(8, 0, 10, 10)}, {Rect(7.5, 4, 8, 6)}, 0, 10, 20));
+  EXPECT_LT(RelErr(b.area, 1.0 + 1.0 / std::tan(10 * kDeg)), 1e-9);
+  EXPECT_TRUE(b.Contains({6.0, 5.0}));
+  EXPECT_FALSE(b.Contains({6.0, 3.0}));
+  // Polygons given clockwise give the same result.
+  NamedPolygon cw = Rect(8, 0, 10, 10);
+  std::reverse(cw.vertices.begin(), cw.vertices.end());
+  const Region c = ClassicBackprojection(Problem({cw}, {Rect(7.5, 4, 8, 6)}, 0, 10, 20));
+  EXPECT_NEAR(c.area, b.area, 1e-12 * b.area);
+}
+
+TEST(Backprojection, RejectsBadInput) {
+  BackprojectionProblem pr = Problem({}, {Rect(4, 4, 6, 5)}, -90, 10, 20);
+  pr.velocity_cone = 0;
+  EXPECT_THROW(ClassicBackprojection(pr), std::invalid_argument);
+  pr = Problem({}, {Rect(4, 4, 6, 5)}, -90, 10, 90);
+  EXPECT_THROW(ClassicBackprojection(pr), std::invalid_argument);
+  pr = Problem({}, {Rect(4, 4, 6, 5)}, -90, 10, 20);
+  pr.bounds_max = {0, 10};
+  EXPECT_THROW(ClassicBackprojection(pr), std::invalid_argument);
+}
+
+TEST(Backprojection, GoalKernelIsInsideTheGoalAndNearlyTheExactErosion) {
+  const std::vector<NamedPolygon> goal = {Rect(2, 2, 6, 4)};
+  const auto kernel = GoalKernel(goal, 0.5, 64);
+  ASSERT_EQ(kernel.size(), 1u);
+  double area = 0;
+  const auto& v = kernel[0].vertices;
+  for (size_t i = 0; i < v.size(); ++i) area += v[i].x() * v[(i + 1) % v.size()].y() - v[i].y() * v[(i + 1) % v.size()].x();
+  area = std::abs(area) / 2;
+  // Exact erosion of a rectangle by a disc: the rectangle shrunk by 0.5 on each side, 3 x 1.
+  EXPECT_LE(area, 3.0 + 1e-12);
+  EXPECT_GT(area, 3.0 * 0.99);
+  for (const auto& p : v) {
+    EXPECT_GE(p.x(), 2.5 - 1e-9);
+    EXPECT_LE(p.x(), 5.5 + 1e-9);
+  }
+}
+
+}  // namespace
+}  // namespace visco::planning

@@ -1,0 +1,93 @@
+#pragma once
+// Seeded random scenes for the planning property tests and benchmarks: convex C-obstacles scattered in a 10 x 10
+// box, a goal in the lower half (sometimes resting on a floor), a commanded direction roughly downwards, random
+// uncertainty and friction, and (optionally) random candidate CVC rays.
+
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "planning/backprojection.h"
+#include "planning/motion_model.h"
+
+namespace visco::planning {
+
+class SceneRng {
+ public:
+  explicit SceneRng(std::uint64_t seed) : rng_(seed) {}
+  double Uniform(double lo, double hi) { return lo + (hi - lo) * static_cast<double>(rng_() >> 11) * (1.0 / 9007199254740992.0); }
+  int Int(int lo, int hi) { return lo + static_cast<int>(rng_() % static_cast<std::uint64_t>(hi - lo + 1)); }
+
+ private:
+  std::mt19937_64 rng_;
+};
+
+inline NamedPolygon RandomConvex(SceneRng& r, double cx, double cy, double radius) {
+  const int n = r.Int(3, 6);
+  std::vector<double> angles;
+  for (int i = 0; i < n; ++i) angles.push_back(r.Uniform(0, 2 * M_PI));
+  std::sort(angles.begin(), angles.end());
+  NamedPolygon p;
+  for (double a : angles) p.vertices.emplace_back(cx + radius * std::cos(a), cy + radius * std::sin(a));
+  return p;
+}
+
+inline BackprojectionProblem RandomScene(std::uint64_t seed, bool with_rays = false) {
+  SceneRng r(seed * 0x9E3779B97F4A7C15ULL + 17);
+  BackprojectionProblem pr;
+  pr.bounds_min = {0, 0};
+  pr.bounds_max = {10, 10};
+  const bool floor = r.Uniform(0, 1) < 0.5;
+  const double gx = r.Uniform(1, 7), gw = r.Uniform(0.5, 2.0);
+  const double gy = floor ? 1.0 : r.Uniform(1, 5), gh = r.Uniform(0.3, 1.0);
+  if (floor) {
+    NamedPolygon f;
+    f.vertices = {{-1, -1}, {11, -1}, {11, 1}, {-1, 1}};
+    pr.obstacles.push_back(f);
+  }
+  NamedPolygon goal;
+  goal.vertices = {{gx, gy}, {gx + gw, gy}, {gx + gw, gy + gh}, {gx, gy + gh}};
+  pr.goal.push_back(goal);
+  const int k = r.Int(2, 5);
+  for (int i = 0; i < k; ++i) {
+    const double cx = r.Uniform(0.5, 9.5), cy = r.Uniform(gy + gh + 0.5, 9.5), rad = r.Uniform(0.3, 1.2);
+    pr.obstacles.push_back(RandomConvex(r, cx, cy, rad));
+  }
+  pr.theta = r.Uniform(-135, -45) * M_PI / 180;
+  pr.velocity_cone = r.Uniform(3, 15) * M_PI / 180;
+  pr.friction_cone = r.Uniform(5, 40) * M_PI / 180;
+  if (with_rays) {
+    const int nr = r.Int(2, 6);
+    for (int i = 0; i < nr; ++i) {
+      CvcRayInput ray;
+      ray.id = "ray" + std::to_string(i);
+      ray.group = "vc" + std::to_string(i / 2);
+      const double ax = r.Uniform(0, 10), ay = r.Uniform(gy, 10);
+      const double ang = r.Uniform(-150, -30) * M_PI / 180, len = r.Uniform(2, 8);
+      ray.segments.push_back({Eigen::Vector2d(ax, ay), Eigen::Vector2d(ax + len * std::cos(ang), ay + len * std::sin(ang))});
+      pr.rays.push_back(ray);
+    }
+  }
+  return pr;
+}
+
+/// The motion model's view of a backprojection problem with the given rays active.
+inline MotionWorld ToMotionWorld(const BackprojectionProblem& pr, const std::vector<std::string>& active) {
+  MotionWorld w;
+  for (const auto& o : pr.obstacles) w.obstacles.push_back(o.vertices);
+  for (const auto& g : pr.goal) w.goal.push_back(g.vertices);
+  w.bounds_min = pr.bounds_min;
+  w.bounds_max = pr.bounds_max;
+  w.friction_cone = pr.friction_cone;
+  for (const auto& id : active) {
+    for (const auto& ray : pr.rays) {
+      if (ray.id != id) continue;
+      for (const auto& s : ray.segments) w.active_rays.push_back(s);
+    }
+  }
+  return w;
+}
+
+}  // namespace visco::planning
