@@ -3,16 +3,17 @@
 
 namespace visco::channels {
 
-inline constexpr char kCameraImage[] = "VISCO_CAMERA_IMAGE";                  // visco::image_t
-inline constexpr char kTagDetections[] = "VISCO_TAG_DETECTIONS";              // visco::tag_detections_t
-inline constexpr char kObjectPoses[] = "VISCO_OBJECT_POSES";                  // visco::object_poses_t
-inline constexpr char kRobotEstimate[] = "VISCO_ROBOT_ESTIMATE";              // visco::robot_estimate_t
-inline constexpr char kVisualEvents[] = "VISCO_VISUAL_EVENTS";                // visco::visual_events_t
-inline constexpr char kStrategy[] = "VISCO_STRATEGY";                         // visco::motion_strategy_t
-inline constexpr char kCommand[] = "VISCO_COMMAND";                           // visco::velocity_command_t
-inline constexpr char kStatus[] = "VISCO_STATUS";                             // visco::robot_status_t
-inline constexpr char kTelemetry[] = "VISCO_TELEMETRY";                       // visco::controller_telemetry_t
-inline constexpr char kFault[] = "VISCO_FAULT";                               // visco::fault_t
+inline constexpr char kCameraImage[] = "VISCO_CAMERA_IMAGE";      // visco::image_t
+inline constexpr char kTagDetections[] = "VISCO_TAG_DETECTIONS";  // visco::tag_detections_t
+inline constexpr char kObjectPoses[] = "VISCO_OBJECT_POSES";      // visco::object_poses_t
+inline constexpr char kRobotEstimate[] = "VISCO_ROBOT_ESTIMATE";  // visco::robot_estimate_t
+inline constexpr char kVisualEvents[] = "VISCO_VISUAL_EVENTS";    // visco::visual_events_t
+inline constexpr char kStrategy[] = "VISCO_STRATEGY";             // visco::motion_strategy_t
+inline constexpr char kCommand[] = "VISCO_COMMAND";               // visco::velocity_command_t
+inline constexpr char kStatus[] = "VISCO_STATUS";                 // visco::robot_status_t
+inline constexpr char kTelemetry[] = "VISCO_TELEMETRY";           // visco::controller_telemetry_t
+inline constexpr char kFault[] = "VISCO_FAULT";                   // visco::fault_t
+inline constexpr char kEstop[] = "VISCO_ESTOP";  // visco::fault_t: an e-stop request (source, message = who, why)
 inline constexpr char kHeartbeatController[] = "VISCO_HEARTBEAT_CONTROLLER";  // visco::heartbeat_t
 inline constexpr char kHeartbeatDriver[] = "VISCO_HEARTBEAT_DRIVER";          // visco::heartbeat_t
 inline constexpr char kHeartbeatVision[] = "VISCO_HEARTBEAT_VISION";          // visco::heartbeat_t

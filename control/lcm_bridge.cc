@@ -1,0 +1,224 @@
+#include "control/lcm_bridge.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <lcm/lcm-cpp.hpp>
+
+#include "lcmtypes/channels.h"
+#include "visco/controller_telemetry_t.hpp"
+#include "visco/fault_t.hpp"
+#include "visco/heartbeat_t.hpp"
+#include "visco/robot_estimate_t.hpp"
+#include "visco/robot_status_t.hpp"
+#include "visco/velocity_command_t.hpp"
+#include "visco/visual_events_t.hpp"
+
+namespace visco::control {
+
+std::int64_t CaptureToMonotonic(std::int64_t capture_utime, std::int64_t receive_ns, std::int64_t receive_utime) {
+  const std::int64_t age_us = std::max<std::int64_t>(0, receive_utime - capture_utime);
+  return receive_ns - age_us * 1000;
+}
+
+class ControllerBridge::Handlers {
+ public:
+  explicit Handlers(ControllerBridge& bridge) : bridge_(bridge) {}
+
+  void Status(const lcm::ReceiveBuffer*, const std::string&, const robot_status_t* m) {
+    if (m->node_id != bridge_.link_.node_id()) return;
+    RobotStatus s;
+    s.receive_ns = MonotonicNs();
+    s.utime = m->utime;
+    s.seq = m->seq;
+    s.command_seq = m->command_seq;
+    s.position = {m->position[0], m->position[1]};
+    s.velocity = {m->velocity[0], m->velocity[1]};
+    s.contact = m->contact;
+    s.contact_force = {m->contact_force[0], m->contact_force[1]};
+    s.state = m->state;
+    s.fault_bits = m->fault_bits;
+    bridge_.link_.PutStatus(s);
+    bridge_.counters_.statuses.fetch_add(1, std::memory_order_relaxed);
+  }
+
+  void Heartbeat(const lcm::ReceiveBuffer*, const std::string&, const heartbeat_t* m) {
+    if (m->node_id >= 0 && m->node_id != bridge_.link_.node_id()) return;
+    bridge_.link_.PutHeartbeat(MonotonicNs());
+  }
+
+  void Events(const lcm::ReceiveBuffer*, const std::string&, const visual_events_t* m) {
+    const std::int64_t now_ns = MonotonicNs();
+    const std::int64_t now_utime = WallUtime();
+    VisualFrame frame;
+    frame.capture_ns = CaptureToMonotonic(m->frame_utime, now_ns, now_utime);
+    frame.frame_seq = m->frame_seq;
+    for (const visual_event_t& e : m->events) {
+      const int ray = bridge_.task_.RayIndex(e.cvc_ray);
+      if (ray < 0) {
+        bridge_.counters_.unknown_rays.fetch_add(1, std::memory_order_relaxed);
+        continue;
+      }
+      if (frame.count >= kMaxVisualObservations) break;
+      VisualObservation& obs = frame.items[frame.count++];
+      obs.ray = ray;
+      obs.state = e.state;
+      obs.crossed = e.crossed;
+      obs.signed_distance_px = e.signed_distance_px;
+      obs.stddev_px = e.distance_stddev_px;
+    }
+    bridge_.frames_.Publish(frame);
+    bridge_.counters_.frames.fetch_add(1, std::memory_order_relaxed);
+  }
+
+  void Estimate(const lcm::ReceiveBuffer*, const std::string&, const robot_estimate_t* m) {
+    PositionEstimate e;
+    e.capture_ns = CaptureToMonotonic(m->utime, MonotonicNs(), WallUtime());
+    e.valid = m->valid;
+    e.position = {m->position[0], m->position[1]};
+    e.stddev = m->position_stddev;
+    bridge_.estimates_.Publish(e);
+    bridge_.counters_.estimates.fetch_add(1, std::memory_order_relaxed);
+  }
+
+  void Estop(const lcm::ReceiveBuffer*, const std::string&, const fault_t* m) {
+    if (m->cleared) return;  // an e-stop is latched; clearing it needs a new run
+    spdlog::error("e-stop requested on {} by {}: {}", channels::kEstop, m->source, m->message);
+    bridge_.estop_.store(true, std::memory_order_release);
+  }
+
+ private:
+  ControllerBridge& bridge_;
+};
+
+ControllerBridge::ControllerBridge(lcm::LCM& lcm, const Task& task, int node_id, Outbox& outbox)
+    : lcm_(lcm), task_(task), outbox_(outbox), link_(node_id), handlers_(std::make_unique<Handlers>(*this)) {
+  lcm_.subscribe(channels::kStatus, &Handlers::Status, handlers_.get());
+  lcm_.subscribe(channels::kHeartbeatDriver, &Handlers::Heartbeat, handlers_.get());
+  lcm_.subscribe(channels::kVisualEvents, &Handlers::Events, handlers_.get());
+  lcm_.subscribe(channels::kRobotEstimate, &Handlers::Estimate, handlers_.get());
+  lcm_.subscribe(channels::kEstop, &Handlers::Estop, handlers_.get());
+}
+
+ControllerBridge::~ControllerBridge() { Stop(); }
+
+void ControllerBridge::Start() {
+  if (running_.exchange(true)) return;
+  receiver_ = std::thread([this] { ReceiveLoop(); });
+  publisher_ = std::thread([this] { PublishLoop(); });
+}
+
+void ControllerBridge::Stop() {
+  if (!running_.exchange(false)) return;
+  outbox_.Notify();
+  if (publisher_.joinable()) publisher_.join();
+  if (receiver_.joinable()) receiver_.join();
+  Drain();
+}
+
+TelemetrySnapshot ControllerBridge::last_telemetry() const {
+  std::lock_guard<std::mutex> lock(telemetry_mutex_);
+  return last_telemetry_;
+}
+
+void ControllerBridge::ReceiveLoop() {
+  while (running_.load(std::memory_order_acquire)) lcm_.handleTimeout(20);
+}
+
+void ControllerBridge::PublishLoop() {
+  while (running_.load(std::memory_order_acquire)) {
+    outbox_.Wait(0.02);
+    Drain();
+  }
+}
+
+void ControllerBridge::Drain() {
+  RobotCommand command;
+  while (link_.TakeCommand(command)) {
+    velocity_command_t m;
+    m.utime = command.utime;
+    m.node_id = link_.node_id();
+    m.seq = command.seq;
+    m.velocity[0] = command.velocity.x;
+    m.velocity[1] = command.velocity.y;
+    m.estop = command.estop;
+    m.reset = command.reset;
+    lcm_.publish(channels::kCommand, &m);
+    counters_.commands.fetch_add(1, std::memory_order_relaxed);
+  }
+  FaultEvent fault;
+  while (outbox_.faults.TryPop(fault)) {
+    fault_t m;
+    m.utime = fault.utime;
+    m.source = "controller";
+    m.code = static_cast<std::int32_t>(fault.code);
+    m.severity = fault.severity;
+    m.robot_stopped = fault.robot_stopped;
+    m.cleared = fault.cleared;
+    m.message = fault.message;
+    lcm_.publish(channels::kFault, &m);
+    counters_.faults.fetch_add(1, std::memory_order_relaxed);
+    const char* what = fault.cleared ? "cleared" : (fault.robot_stopped ? "robot stopped" : "fault");
+    if (fault.severity >= fault_t::SEVERITY_ERROR) {
+      spdlog::error("controller: {} (code {}): {}", what, m.code, fault.message);
+    } else if (fault.severity == fault_t::SEVERITY_WARNING) {
+      spdlog::warn("controller: {} (code {}): {}", what, m.code, fault.message);
+    } else {
+      spdlog::info("controller: {} (code {}): {}", what, m.code, fault.message);
+    }
+  }
+  TelemetrySnapshot t;
+  bool any = false;
+  while (outbox_.telemetry.TryPop(t)) {
+    any = true;
+    controller_telemetry_t m;
+    m.utime = t.utime;
+    m.step_index = t.step_index;
+    m.mode = static_cast<std::int8_t>(t.mode);
+    m.stop_reason = t.stop_reason;
+    m.command[0] = t.command.x;
+    m.command[1] = t.command.y;
+    m.estimate[0] = t.estimate.x;
+    m.estimate[1] = t.estimate.y;
+    m.estimate_age_s = t.estimate_age_s;
+    m.period_s = t.period_s;
+    m.cycles = t.cycles;
+    m.overruns = t.overruns;
+    m.jitter_min_s = t.jitter_min_s;
+    m.jitter_mean_s = t.jitter_mean_s;
+    m.jitter_max_s = t.jitter_max_s;
+    std::copy(std::begin(t.jitter_histogram), std::end(t.jitter_histogram), m.jitter_histogram);
+    lcm_.publish(channels::kTelemetry, &m);
+    counters_.telemetry.fetch_add(1, std::memory_order_relaxed);
+    if (t.mode != logged_mode_ || t.step_index != logged_step_) {
+      if (t.mode == Mode::kDone) {
+        spdlog::info("controller: strategy finished: {}", t.stop_reason);
+      } else if (t.mode != Mode::kStopped) {
+        spdlog::info("controller: step {} mode {}", t.step_index, ToString(t.mode));
+      }
+      logged_mode_ = t.mode;
+      logged_step_ = t.step_index;
+    }
+  }
+  if (any) {
+    std::lock_guard<std::mutex> lock(telemetry_mutex_);
+    last_telemetry_ = t;
+  }
+  // The controller's heartbeat, 10 Hz, only while the loop is cycling (a stuck loop must look dead).
+  const std::int64_t now = MonotonicNs();
+  const std::int64_t cycles = outbox_.cycles.load(std::memory_order_relaxed);
+  if (now - last_heartbeat_ns_ >= 100'000'000 && cycles != heartbeat_cycles_) {
+    last_heartbeat_ns_ = now;
+    heartbeat_cycles_ = cycles;
+    heartbeat_t m;
+    m.utime = WallUtime();
+    m.sender = "controller";
+    m.node_id = -1;
+    m.counter = ++heartbeat_counter_;
+    m.state = (logged_mode_ == Mode::kStopped || logged_mode_ == Mode::kDone) ? heartbeat_t::STATE_STOPPED
+                                                                              : heartbeat_t::STATE_OPERATIONAL;
+    lcm_.publish(channels::kHeartbeatController, &m);
+  }
+}
+
+}  // namespace visco::control

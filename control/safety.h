@@ -1,0 +1,43 @@
+#pragma once
+// Command limits applied to every command before it leaves the controller: speed, acceleration and workspace
+// bounds. Stops do not pass through here: the executor zeroes the command at once (a stop is immediate).
+
+#include <optional>
+
+#include "control/task.h"
+#include "control/types.h"
+
+namespace visco::control {
+
+struct SafetyLimits {
+  double max_speed = 0.2;         // m/s, |v| is clipped to this
+  double max_accel = 2.0;         // m/s^2, |dv/dt| is clipped to this
+  double bounds_margin = 0.005;   // metres: within this of a bound, velocity pointing out of the bounds is removed
+};
+
+/// Outcome of filtering one command.
+enum class SafetyVerdict : std::int8_t {
+  kOk = 0,
+  kClipped,            // speed, acceleration or a bound changed the command
+  kOutsideBounds,      // the position is outside the workspace: stop
+  kNonFinite,          // the nominal command was NaN or infinite: stop
+};
+
+/// Applies the limits. Real-time safe: no allocation, never throws.
+class SafetyFilter {
+ public:
+  SafetyFilter(const SafetyLimits& limits, std::optional<Bounds> bounds) : limits_(limits), bounds_(bounds) {}
+
+  /// Filters `nominal` given the previous command `previous` (m/s), the period `dt` (s) and the position (m) if
+  /// known. Writes the command to send into `out`. On kOutsideBounds / kNonFinite `out` is zero.
+  SafetyVerdict Apply(Vec2 nominal, Vec2 previous, double dt, const Vec2* position, Vec2& out) const;
+
+  const SafetyLimits& limits() const { return limits_; }
+  const std::optional<Bounds>& bounds() const { return bounds_; }
+
+ private:
+  SafetyLimits limits_;
+  std::optional<Bounds> bounds_;
+};
+
+}  // namespace visco::control

@@ -1,0 +1,351 @@
+// The executor's state machine in closed loop with a kinematic plant and a synthetic camera: goal, visual guarded,
+// visual compliant and contact steps; holds on stale vision; stops on heartbeat loss, driver faults, time-outs,
+// e-stop and workspace bounds, each with its reason.
+
+#include "control/executor.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include "common/error.h"
+#include "tests/control/harness.h"
+
+namespace visco::control {
+namespace {
+
+using testing::Harness;
+using testing::MakeRay;
+using testing::Square;
+
+constexpr double kPi = std::numbers::pi;
+
+ExecutorConfig Config() {
+  ExecutorConfig config;
+  config.period_s = 0.002;
+  config.default_speed = 0.05;
+  config.limits.max_speed = 0.2;
+  config.limits.max_accel = 1.0;
+  return config;
+}
+
+Step MakeStep(double theta, TerminateKind kind, int terminate_ray = -1, std::vector<int> active = {}) {
+  Step step;
+  step.theta = theta;
+  step.terminate = kind;
+  step.terminate_ray = terminate_ray;
+  step.active_rays = std::move(active);
+  return step;
+}
+
+bool HasFault(const std::vector<FaultEvent>& faults, FaultCode code, bool cleared) {
+  for (const FaultEvent& f : faults) {
+    if (f.code == code && f.cleared == cleared) return true;
+  }
+  return false;
+}
+
+TEST(Executor, FreeMotionReachesGoalKernel) {
+  Task task;
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kGoal));
+  task.goal = Square({1.5, 1.0}, 0.1);
+  task.position_uncertainty = 0.02;
+  Harness h(task, Config(), {1.0, 1.0});
+  h.Start();
+  EXPECT_EQ(h.Tick().mode, Mode::kFree);  // driver ready at once: step 0 starts
+  h.RunUntilFinished(30.0);
+  ASSERT_EQ(h.executor().mode(), Mode::kDone) << h.executor().stop_reason();
+  // Recognised inside the kernel: at least eps_p inside the goal's left edge (x = 1.4), with at most the motion of
+  // one camera period plus its latency beyond it.
+  EXPECT_GE(h.plant.position.x, 1.4 + 0.02);
+  EXPECT_LE(h.plant.position.x, 1.4 + 0.02 + 0.05 * (1.0 / 30 + 0.02 + 0.01));
+  EXPECT_EQ(h.executor().step_index(), 1);
+  EXPECT_NE(std::string(h.executor().stop_reason()).find("goal recognised"), std::string::npos);
+  // Stopped: the command is zero after the end.
+  EXPECT_EQ(Norm(h.Tick().command.velocity), 0.0);
+}
+
+TEST(Executor, VisualGuardedStopsWhenTheVertexCrossesTheLine) {
+  // A vertical VC ray x = 2 (obstacle vertex (2, 0), camera (2, 5)); the CM vertex is the robot's corner (0.1, 0).
+  Task task;
+  task.rays.push_back(MakeRay("vc0.cm1", {2.0, 0.0}, {2.0, 5.0}, 1, {0.1, 0.0}));
+  testing::IndexRays(task);
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kVisualGuarded, 0));
+  Harness h(task, Config(), {1.5, 1.0});
+  h.Start();
+  h.Tick();
+  EXPECT_EQ(h.executor().mode(), Mode::kVisualGuarded);
+  h.RunUntilFinished(30.0);
+  ASSERT_EQ(h.executor().mode(), Mode::kDone) << h.executor().stop_reason();
+  // The vertex (x + 0.1) crossed x = 2; overshoot bounded by speed * (camera period + latency) + band.
+  const double vertex_x = h.plant.position.x + 0.1;
+  EXPECT_GE(vertex_x, 2.0 - 1.0 * 4.0 / 800.0);
+  EXPECT_LE(vertex_x, 2.0 + 0.05 * (1.0 / 30 + 0.02 + 0.004));
+}
+
+TEST(Executor, VisualCompliantMotionServoesAlongTheRayUntilContact) {
+  // Slanted VC ray from obstacle vertex (2, 0) to the camera (0, 4); a wall y >= 0 (floor) ends the motion.
+  // The robot's CM vertex is its corner (0.1, -0.1); it starts left of the ray and is commanded down-right.
+  Task task;
+  task.rays.push_back(MakeRay("vc0.cm2", {2.0, 0.0}, {0.0, 4.0}, 2, {0.1, -0.1}));
+  testing::IndexRays(task);
+  task.steps.push_back(MakeStep(-kPi / 4, TerminateKind::kContact, -1, {0}));
+  ExecutorConfig config = Config();
+  Harness h(task, config, {1.2, 1.0});
+  h.plant.walls.push_back({{0.0, 0.1}, {0.0, 1.0}});  // reference point y >= 0.1 (vertex on the floor y = 0)
+  h.plant.disturbance = 5.0 * kPi / 180;             // inside the velocity cone
+  h.plant.friction = 80.0 * kPi / 180;               // the floor sticks
+  h.Start();
+  double max_error_px = 0;
+  bool engaged = false;
+  int ticks = 0;
+  for (int total = 0; !h.executor().finished() && total < 30000; ++total) {
+    const ExecutorOutput& out = h.Tick();
+    ++ticks;
+    if (out.mode == Mode::kVisualCompliant && !h.plant.contact) {
+      if (!engaged) ticks = 0;  // count from engagement
+      engaged = true;
+      if (ticks > 500) max_error_px = std::max(max_error_px, std::abs(h.camera().SignedDistance(0, h.plant.position)));
+    }
+  }
+  ASSERT_TRUE(engaged);
+  ASSERT_EQ(h.executor().mode(), Mode::kDone) << h.executor().stop_reason();
+  // After one second of servoing the vertex stays within a few pixels of the line despite the 5 degree disturbance.
+  EXPECT_LT(max_error_px, 3.0);
+  // It slid down the ray to the floor: the vertex ends near the ray's foot (2, 0).
+  EXPECT_NEAR(h.plant.position.x + 0.1, 2.0, 0.02);
+  EXPECT_NEAR(h.plant.position.y, 0.1, 1e-6);
+}
+
+TEST(Executor, ContactStepEndsWhenTheRobotSticks) {
+  Task task;
+  task.steps.push_back(MakeStep(-kPi / 2, TerminateKind::kContact));
+  Harness h(task, Config(), {1.0, 0.3});
+  h.plant.walls.push_back({{0.0, 0.0}, {0.0, 1.0}});
+  h.plant.friction = 0.3;
+  h.Start();
+  h.RunUntilFinished(30.0);
+  ASSERT_EQ(h.executor().mode(), Mode::kDone) << h.executor().stop_reason();
+  EXPECT_NEAR(h.plant.position.y, 0.0, 1e-9);
+  EXPECT_NE(std::string(h.executor().stop_reason()).find("contact"), std::string::npos);
+}
+
+TEST(Executor, MultiStepStrategyRunsEveryStepInOrder) {
+  // Step 0: move right until the vertex crosses x = 2; step 1: move down to the floor (contact); step 2: move right
+  // into the goal.
+  Task task;
+  task.rays.push_back(MakeRay("vc0.cm1", {2.0, 0.0}, {2.0, 5.0}, 1, {0.1, 0.0}));
+  testing::IndexRays(task);
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kVisualGuarded, 0));
+  task.steps.push_back(MakeStep(-kPi / 2, TerminateKind::kContact));
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kGoal));
+  task.goal = Square({2.5, 0.05}, 0.1);
+  task.position_uncertainty = 0.01;
+  Harness h(task, Config(), {1.5, 0.5});
+  h.plant.walls.push_back({{0.0, 0.0}, {0.0, 1.0}});
+  h.plant.friction = 0.3;
+  h.Start();
+  std::vector<int> steps_seen;
+  for (int i = 0; i < 40000 && !h.executor().finished(); ++i) {
+    const int step = h.Tick().step_index;
+    if (steps_seen.empty() || steps_seen.back() != step) steps_seen.push_back(step);
+  }
+  ASSERT_EQ(h.executor().mode(), Mode::kDone) << h.executor().stop_reason();
+  EXPECT_EQ(steps_seen, (std::vector<int>{0, 1, 2, 3}));
+}
+
+TEST(Executor, StaleVisionZeroesTheCommandWithinOnePeriodAndResumes) {
+  Task task;
+  task.rays.push_back(MakeRay("vc0.cm1", {5.0, 0.0}, {5.0, 5.0}, 1, {0.1, 0.0}));
+  testing::IndexRays(task);
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kVisualGuarded, 0));
+  ExecutorConfig config = Config();
+  config.max_vision_age_s = 0.1;
+  Harness h(task, config, {1.0, 1.0});
+  h.Start();
+  for (int i = 0; i < 500; ++i) h.Tick();
+  ASSERT_GT(Norm(h.Tick().command.velocity), 0.04);
+  // The camera stops. The last frame was captured at most one camera period before; the command must be zero in
+  // the very first period in which the newest frame is older than max_vision_age_s.
+  h.camera_on = false;
+  int ticks = 0;
+  while (true) {
+    const ExecutorOutput& out = h.Tick();
+    ++ticks;
+    const double age = static_cast<double>(h.now_ns() - h.input().frame.capture_ns) * 1e-9;
+    if (age > config.max_vision_age_s) {
+      EXPECT_EQ(Norm(out.command.velocity), 0.0) << "age " << age;
+      EXPECT_TRUE(out.holding);
+      EXPECT_NE(std::string(out.stop_reason).find("visual events"), std::string::npos) << out.stop_reason;
+      break;
+    }
+    EXPECT_GT(Norm(out.command.velocity), 0.0);
+    ASSERT_LT(ticks, 1000);
+  }
+  EXPECT_TRUE(HasFault(h.faults, FaultCode::kVisionStale, false));
+  for (int i = 0; i < 100; ++i) EXPECT_EQ(Norm(h.Tick().command.velocity), 0.0);
+  // The camera comes back: the step resumes and the fault is cleared.
+  h.camera_on = true;
+  for (int i = 0; i < 100; ++i) h.Tick();
+  EXPECT_GT(Norm(h.Tick().command.velocity), 0.0);
+  EXPECT_TRUE(HasFault(h.faults, FaultCode::kVisionStale, true));
+  EXPECT_EQ(h.executor().mode(), Mode::kVisualGuarded);
+}
+
+TEST(Executor, VisionLostForTooLongStops) {
+  Task task;
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kGoal));
+  task.goal = Square({5.0, 1.0}, 0.1);
+  ExecutorConfig config = Config();
+  config.max_hold_s = 0.5;
+  Harness h(task, config, {1.0, 1.0});
+  h.Start();
+  for (int i = 0; i < 100; ++i) h.Tick();
+  h.estimate_on = false;
+  h.RunUntilFinished(5.0);
+  EXPECT_EQ(h.executor().mode(), Mode::kStopped);
+  EXPECT_EQ(h.executor().stop_code(), FaultCode::kVisionStale);
+  EXPECT_NE(std::string(h.executor().stop_reason()).find("not restored"), std::string::npos);
+}
+
+TEST(Executor, UnobservedRayHolds) {
+  // The watched ray's vertex is behind the camera: STATE_UNKNOWN.
+  Task task;
+  task.rays.push_back(MakeRay("vc0.cm1", {2.0, 0.0}, {2.0, 5.0}, 1, {0.0, 0.0}));
+  testing::IndexRays(task);
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kVisualGuarded, 0));
+  Harness h(task, Config(), {1.0, 6.0});
+  h.Start();
+  for (int i = 0; i < 200; ++i) EXPECT_EQ(Norm(h.Tick().command.velocity), 0.0);
+  EXPECT_TRUE(HasFault(h.faults, FaultCode::kVisionLost, false));
+}
+
+TEST(Executor, HeartbeatLossStops) {
+  Task task;
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));
+  ExecutorConfig config = Config();
+  config.heartbeat_timeout_s = 0.05;
+  Harness h(task, config, {1.0, 1.0});
+  h.Start();
+  for (int i = 0; i < 100; ++i) h.Tick();
+  h.driver_alive = false;
+  int ticks = 0;
+  while (!h.executor().finished()) {
+    h.Tick();
+    ++ticks;
+  }
+  // Stopped in the first period past the time-out (25 periods of 2 ms), with the reason.
+  EXPECT_EQ(ticks, 26);
+  EXPECT_EQ(h.executor().stop_code(), FaultCode::kPeerTimeout);
+  EXPECT_NE(std::string(h.executor().stop_reason()).find("heartbeat"), std::string::npos);
+  EXPECT_EQ(Norm(h.Tick().command.velocity), 0.0);
+  EXPECT_TRUE(HasFault(h.faults, FaultCode::kPeerTimeout, false));
+}
+
+TEST(Executor, DriverNeverReadyStopsAfterStartupTimeout) {
+  Task task;
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));
+  ExecutorConfig config = Config();
+  config.startup_timeout_s = 0.2;
+  Harness h(task, config, {1.0, 1.0});
+  h.driver_alive = false;
+  h.Start();
+  const ExecutorOutput& out = h.Tick();
+  EXPECT_TRUE(out.command.reset);
+  EXPECT_EQ(out.mode, Mode::kIdle);
+  h.RunUntilFinished(1.0);
+  EXPECT_EQ(h.executor().stop_code(), FaultCode::kPeerTimeout);
+  EXPECT_NE(std::string(h.executor().stop_reason()).find("no heartbeat"), std::string::npos);
+}
+
+TEST(Executor, DriverFaultStopsWithItsNames) {
+  Task task;
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));
+  Harness h(task, Config(), {1.0, 1.0});
+  h.Start();
+  for (int i = 0; i < 10; ++i) h.Tick();
+  h.driver_fault_bits = robot_status_t::FAULT_WATCHDOG;
+  h.Tick();
+  EXPECT_EQ(h.executor().mode(), Mode::kStopped);
+  EXPECT_EQ(h.executor().stop_code(), FaultCode::kPeerTimeout);
+  EXPECT_NE(std::string(h.executor().stop_reason()).find("watchdog"), std::string::npos);
+}
+
+TEST(Executor, StepTimeoutStops) {
+  Task task;
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));
+  task.steps.back().timeout_s = 0.3;
+  Harness h(task, Config(), {1.0, 1.0});
+  h.Start();
+  const int ticks = h.RunUntilFinished(5.0);
+  EXPECT_EQ(h.executor().stop_code(), FaultCode::kStepTimeout);
+  EXPECT_NEAR(ticks * 0.002, 0.3, 0.006);
+}
+
+TEST(Executor, EstopLatchesAndCommandsEstop) {
+  Task task;
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));
+  Harness h(task, Config(), {1.0, 1.0});
+  h.Start();
+  for (int i = 0; i < 100; ++i) h.Tick();
+  h.estop = true;
+  const ExecutorOutput& out = h.Tick();
+  EXPECT_TRUE(out.command.estop);
+  EXPECT_EQ(Norm(out.command.velocity), 0.0);
+  EXPECT_EQ(h.executor().stop_code(), FaultCode::kEstop);
+  h.estop = false;
+  EXPECT_TRUE(h.Tick().command.estop);  // latched
+}
+
+TEST(Executor, LeavingTheWorkspaceStops) {
+  Task task;
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));
+  task.bounds = Bounds{{0.0, 0.0}, {1.2, 2.0}};
+  ExecutorConfig config = Config();
+  Harness h(task, config, {1.0, 1.0});
+  h.plant.disturbance = 0.0;
+  h.Start();
+  // The outward velocity component is removed at the bound: the robot stops at the margin, never outside.
+  for (int i = 0; i < 3000; ++i) h.Tick();
+  EXPECT_LE(h.plant.position.x, 1.2);
+  EXPECT_GE(h.plant.position.x, 1.2 - config.limits.bounds_margin - 0.001);
+  // Pushed outside (e.g. by a collision), the controller stops with CODE_LIMIT.
+  h.plant.position.x = 1.25;
+  h.Tick();
+  EXPECT_EQ(h.executor().stop_code(), FaultCode::kLimit);
+  EXPECT_NE(std::string(h.executor().stop_reason()).find("outside the workspace"), std::string::npos);
+}
+
+TEST(Executor, CommandsRespectSpeedAndAccelerationLimits) {
+  Task task;
+  task.speed = 1.0;  // above the limit
+  task.steps.push_back(MakeStep(0.3, TerminateKind::kContact));
+  ExecutorConfig config = Config();
+  config.limits.max_speed = 0.1;
+  config.limits.max_accel = 0.5;
+  Harness h(task, config, {1.0, 1.0});
+  h.Start();
+  Vec2 previous{};
+  for (int i = 0; i < 1000; ++i) {
+    const Vec2 v = h.Tick().command.velocity;
+    EXPECT_LE(Norm(v), 0.1 + 1e-12);
+    EXPECT_LE(Norm(v - previous), 0.5 * 0.002 + 1e-12);
+    previous = v;
+  }
+  EXPECT_NEAR(Norm(previous), 0.1, 1e-9);
+}
+
+TEST(Executor, RejectsCompliantStepsWithoutRayGeometry) {
+  Task task;
+  CvcRay ray;
+  ray.id = "vc9.cm0";
+  task.rays.push_back(ray);
+  testing::IndexRays(task);
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kContact, -1, {0}));
+  EXPECT_THROW(Executor(task, Config()), InputError);
+}
+
+}  // namespace
+}  // namespace visco::control
