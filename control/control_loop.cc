@@ -194,9 +194,8 @@ void ControlLoop::Run(const std::atomic<bool>& stop, std::int64_t max_cycles, in
         fault.utime = WallUtime();
         fault.code = FaultCode::kOverrun;
         fault.severity = fault_t::SEVERITY_WARNING;
-        VISCO_FORMAT_TEXT(fault.message,
-                      "control loop overran its %.3f ms period (%lld overruns in %lld cycles)", config_.period_s * 1e3,
-                      static_cast<long long>(overruns_), static_cast<long long>(cycles_));
+        VISCO_FORMAT_TEXT(fault.message, "control loop overran its %.3f ms period (%lld overruns in %lld cycles)",
+                          config_.period_s * 1e3, static_cast<long long>(overruns_), static_cast<long long>(cycles_));
         outbox_.faults.TryPush(fault);
       }
     }

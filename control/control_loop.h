@@ -57,11 +57,11 @@ struct Outbox {
 };
 
 struct LoopConfig {
-  double period_s = 0.002;       // s, 500 Hz by default; 0.001 for 1 kHz
-  int telemetry_every = 10;      // cycles between telemetry samples (also sent on every mode change)
-  bool realtime = true;          // try SCHED_FIFO and mlockall
-  int priority = 80;             // SCHED_FIFO priority
-  double overrun_report_s = 1.0; // at most one overrun warning per this many seconds
+  double period_s = 0.002;        // s, 500 Hz by default; 0.001 for 1 kHz
+  int telemetry_every = 10;       // cycles between telemetry samples (also sent on every mode change)
+  bool realtime = true;           // try SCHED_FIFO and mlockall
+  int priority = 80;              // SCHED_FIFO priority
+  double overrun_report_s = 1.0;  // at most one overrun warning per this many seconds
 };
 
 /// What the loop reads besides the driver.
@@ -116,8 +116,8 @@ class ControlLoop {
   VisualFrame frame_scratch_;
   PositionEstimate estimate_scratch_;
   RobotStatus status_scratch_;
-  JitterStats window_jitter_;   // since the last telemetry sample
-  JitterStats total_jitter_;    // since start
+  JitterStats window_jitter_;  // since the last telemetry sample
+  JitterStats total_jitter_;   // since start
   std::int64_t cycles_ = 0;
   std::int64_t overruns_ = 0;
   std::int64_t last_overrun_report_ns_ = 0;

@@ -18,8 +18,10 @@ std::int64_t Nanoseconds(double s) { return static_cast<std::int64_t>(s * kNsPer
 FaultCode CodeForDriverFaults(std::int32_t bits, std::int32_t state) {
   if ((bits & robot_status_t::FAULT_ESTOP) != 0 || state == robot_status_t::STATE_ESTOP) return FaultCode::kEstop;
   if ((bits & robot_status_t::FAULT_BUS) != 0) return FaultCode::kCanError;
-  if ((bits & (int32_t{robot_status_t::FAULT_BAD_FRAME} | int32_t{robot_status_t::FAULT_SEQUENCE})) != 0) return FaultCode::kBadMessage;
-  if ((bits & (int32_t{robot_status_t::FAULT_LIMIT} | int32_t{robot_status_t::FAULT_BOUNDS})) != 0) return FaultCode::kLimit;
+  if ((bits & (int32_t{robot_status_t::FAULT_BAD_FRAME} | int32_t{robot_status_t::FAULT_SEQUENCE})) != 0)
+    return FaultCode::kBadMessage;
+  if ((bits & (int32_t{robot_status_t::FAULT_LIMIT} | int32_t{robot_status_t::FAULT_BOUNDS})) != 0)
+    return FaultCode::kLimit;
   return FaultCode::kPeerTimeout;  // watchdog, or stopped for a reason it did not give
 }
 
@@ -142,8 +144,8 @@ void Executor::Finish(ExecutorOutput& out, const ExecutorInput& in, Vec2 nominal
     if (verdict == SafetyVerdict::kOutsideBounds || verdict == SafetyVerdict::kNonFinite) {
       char message[128];
       if (verdict == SafetyVerdict::kOutsideBounds) {
-        VISCO_FORMAT_TEXT(message, "position (%.4f, %.4f) m is outside the workspace bounds",
-                      in.status.position.x, in.status.position.y);
+        VISCO_FORMAT_TEXT(message, "position (%.4f, %.4f) m is outside the workspace bounds", in.status.position.x,
+                          in.status.position.y);
       } else {
         CopyText(message, "the control law produced a non-finite velocity");
       }
@@ -202,13 +204,12 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
     }
     if (in.now_ns - start_ns_ > Nanoseconds(config_.startup_timeout_s)) {
       if (!alive) {
-        VISCO_FORMAT_TEXT(message, "no heartbeat from the driver within %.1f s of start",
-                      config_.startup_timeout_s);
+        VISCO_FORMAT_TEXT(message, "no heartbeat from the driver within %.1f s of start", config_.startup_timeout_s);
       } else {
         char bits[96];
         FaultBitNames(in.status.fault_bits, bits);
         VISCO_FORMAT_TEXT(message, "driver not ready within %.1f s of start (state %d, faults %s)",
-                      config_.startup_timeout_s, static_cast<int>(state), bits);
+                          config_.startup_timeout_s, static_cast<int>(state), bits);
       }
       Stop(FaultCode::kPeerTimeout, message, out, in);
       return;
@@ -218,15 +219,14 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
   }
   if (!alive) {
     VISCO_FORMAT_TEXT(message, "driver heartbeat lost: silent for %.0f ms (limit %.0f ms)",
-                  life_ns > 0 ? Seconds(in.now_ns - life_ns) * 1e3 : -1.0, config_.heartbeat_timeout_s * 1e3);
+                      life_ns > 0 ? Seconds(in.now_ns - life_ns) * 1e3 : -1.0, config_.heartbeat_timeout_s * 1e3);
     Stop(FaultCode::kPeerTimeout, message, out, in);
     return;
   }
   if (!driver_ok) {
     char bits[96];
     FaultBitNames(in.status.fault_bits, bits);
-    VISCO_FORMAT_TEXT(message, "driver reports a fault: state %d, faults %s", static_cast<int>(state),
-                  bits);
+    VISCO_FORMAT_TEXT(message, "driver reports a fault: state %d, faults %s", static_cast<int>(state), bits);
     Stop(CodeForDriverFaults(in.status.fault_bits, state), message, out, in);
     return;
   }
@@ -235,7 +235,7 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
   const double timeout = step.timeout_s > 0 ? step.timeout_s : config_.default_step_timeout_s;
   if (in.now_ns - step_start_ns_ > Nanoseconds(timeout)) {
     VISCO_FORMAT_TEXT(message, "step %d (terminate %s) did not terminate within %.1f s", step_,
-                  ToString(step.terminate), timeout);
+                      ToString(step.terminate), timeout);
     Stop(FaultCode::kStepTimeout, message, out, in);
     return;
   }
@@ -251,15 +251,15 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
     } else if (in.now_ns - in.frame.capture_ns > max_age) {
       hold = FaultCode::kVisionStale;
       VISCO_FORMAT_TEXT(message, "visual events %.0f ms old (limit %.0f ms)",
-                    Seconds(in.now_ns - in.frame.capture_ns) * 1e3, config_.max_vision_age_s * 1e3);
+                        Seconds(in.now_ns - in.frame.capture_ns) * 1e3, config_.max_vision_age_s * 1e3);
     } else {
       auto check = [&](int ray) {
         const VisualObservation* obs = Find(in.frame, ray);
         if (hold == FaultCode::kNone && (obs == nullptr || obs->state == visual_event_t::STATE_UNKNOWN)) {
           hold = FaultCode::kVisionLost;
           VISCO_FORMAT_TEXT(message, "CVC ray \"%s\" not observed in frame %lld",
-                        task_.rays[static_cast<std::size_t>(ray)].id.c_str(),
-                        static_cast<long long>(in.frame.frame_seq));
+                            task_.rays[static_cast<std::size_t>(ray)].id.c_str(),
+                            static_cast<long long>(in.frame.frame_seq));
         }
       };
       for (int ray : step.active_rays) check(ray);
@@ -273,7 +273,7 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
     } else if (in.now_ns - in.estimate.capture_ns > max_age) {
       hold = FaultCode::kVisionStale;
       VISCO_FORMAT_TEXT(message, "robot position estimate %.0f ms old (limit %.0f ms)",
-                    Seconds(in.now_ns - in.estimate.capture_ns) * 1e3, config_.max_vision_age_s * 1e3);
+                        Seconds(in.now_ns - in.estimate.capture_ns) * 1e3, config_.max_vision_age_s * 1e3);
     } else if (!in.estimate.valid) {
       hold = FaultCode::kVisionLost;
       CopyText(message, "robot not seen by the camera");
@@ -298,7 +298,7 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
   if (holding_) {
     holding_ = false;
     VISCO_FORMAT_TEXT(message, "vision restored after %.0f ms; resuming step %d",
-                  Seconds(in.now_ns - hold_since_ns_) * 1e3, step_);
+                      Seconds(in.now_ns - hold_since_ns_) * 1e3, step_);
     AddFault(out, in, hold_code_, fault_t::SEVERITY_INFO, false, true, message);
   }
 
@@ -318,15 +318,14 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
                           : TrackRay(step.terminate_ray, *obs)) {
         terminated = true;
         VISCO_FORMAT_TEXT(message, "step %d: reached CVC ray \"%s\"", step_,
-                      task_.rays[static_cast<std::size_t>(step.terminate_ray)].id.c_str());
+                          task_.rays[static_cast<std::size_t>(step.terminate_ray)].id.c_str());
       }
     }
   }
   if (step.terminate == TerminateKind::kGoal && task_.goal &&
       InKernel(*task_.goal, task_.position_uncertainty, out.estimate)) {
     terminated = true;
-    VISCO_FORMAT_TEXT(message, "step %d: goal recognised at (%.4f, %.4f) m", step_, out.estimate.x,
-                  out.estimate.y);
+    VISCO_FORMAT_TEXT(message, "step %d: goal recognised at (%.4f, %.4f) m", step_, out.estimate.x, out.estimate.y);
   }
   const bool stopped_in_contact = in.status.contact && Norm(in.status.velocity) < config_.contact_speed;
   if (stopped_in_contact) {
@@ -338,8 +337,8 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
       in.now_ns - contact_since_ns_ >= Nanoseconds(config_.contact_dwell_s) &&
       in.now_ns - step_start_ns_ >= Nanoseconds(config_.contact_min_step_s)) {
     terminated = true;
-    VISCO_FORMAT_TEXT(message, "step %d: stopped in contact at (%.4f, %.4f) m", step_,
-                  in.status.position.x, in.status.position.y);
+    VISCO_FORMAT_TEXT(message, "step %d: stopped in contact at (%.4f, %.4f) m", step_, in.status.position.x,
+                      in.status.position.y);
   }
   if (terminated) {
     if (step_ + 1 >= static_cast<int>(task_.steps.size())) {
@@ -366,8 +365,8 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
     const CvcRay& ray = task_.rays[static_cast<std::size_t>(engaged_ray_)];
     const VisualObservation* obs = Find(in.frame, engaged_ray_);
     const double range = ray.has_cm_offset ? Norm(out.estimate + ray.cm_offset - ray.to) : 0.0;
-    nominal = VisualComplianceLaw(config_.servo, ray.direction, direction, speed_, obs->signed_distance_px, range)
-                  .velocity;
+    nominal =
+        VisualComplianceLaw(config_.servo, ray.direction, direction, speed_, obs->signed_distance_px, range).velocity;
     mode_ = Mode::kVisualCompliant;
   } else {
     mode_ = step.terminate == TerminateKind::kVisualGuarded ? Mode::kVisualGuarded : Mode::kFree;

@@ -23,7 +23,14 @@
 namespace visco::control {
 
 /// Telemetry modes (values equal controller_telemetry_t::MODE_*).
-enum class Mode : std::int8_t { kIdle = 0, kFree = 1, kVisualGuarded = 2, kVisualCompliant = 3, kDone = 4, kStopped = 5 };
+enum class Mode : std::int8_t {
+  kIdle = 0,
+  kFree = 1,
+  kVisualGuarded = 2,
+  kVisualCompliant = 3,
+  kDone = 4,
+  kStopped = 5
+};
 const char* ToString(Mode mode);
 
 /// Fault codes (values equal fault_t::CODE_*).
@@ -45,24 +52,24 @@ enum class FaultCode : std::int32_t {
 struct FaultEvent {
   std::int64_t utime = 0;
   FaultCode code = FaultCode::kNone;
-  std::int8_t severity = 0;     // fault_t::SEVERITY_*
+  std::int8_t severity = 0;  // fault_t::SEVERITY_*
   bool robot_stopped = false;
   bool cleared = false;
   char message[160] = {};
 };
 
 struct ExecutorConfig {
-  double period_s = 0.002;              // s, control period (used for the acceleration limit)
-  double default_speed = 0.05;          // m/s, when the strategy gives none
-  double default_step_timeout_s = 60;   // s, for steps without their own time-out
-  double max_vision_age_s = 0.1;        // s, visual events / estimates older than this are stale
-  double max_hold_s = 2.0;              // s, a hold longer than this stops the robot
-  double heartbeat_timeout_s = 0.1;     // s, driver silent (no heartbeat, no status) longer than this: stop
-  double startup_timeout_s = 5.0;       // s, the driver must report ready within this after Start
-  double contact_speed = 0.002;         // m/s, below this speed in contact the motion has stopped
-  double contact_dwell_s = 0.02;        // s, ... for at least this long (contact termination)
-  double contact_min_step_s = 0.1;      // s, a contact step cannot end before it had time to start moving
-  bool goal_from_odometry = false;      // recognise the goal from the driver's odometry instead of vision
+  double period_s = 0.002;             // s, control period (used for the acceleration limit)
+  double default_speed = 0.05;         // m/s, when the strategy gives none
+  double default_step_timeout_s = 60;  // s, for steps without their own time-out
+  double max_vision_age_s = 0.1;       // s, visual events / estimates older than this are stale
+  double max_hold_s = 2.0;             // s, a hold longer than this stops the robot
+  double heartbeat_timeout_s = 0.1;    // s, driver silent (no heartbeat, no status) longer than this: stop
+  double startup_timeout_s = 5.0;      // s, the driver must report ready within this after Start
+  double contact_speed = 0.002;        // m/s, below this speed in contact the motion has stopped
+  double contact_dwell_s = 0.02;       // s, ... for at least this long (contact termination)
+  double contact_min_step_s = 0.1;     // s, a contact step cannot end before it had time to start moving
+  bool goal_from_odometry = false;     // recognise the goal from the driver's odometry instead of vision
   ServoConfig servo;
   SafetyLimits limits;
 };
@@ -70,8 +77,8 @@ struct ExecutorConfig {
 /// Everything the executor reads in one period. The loop keeps one instance and overwrites fields as new data
 /// arrives (the `have_*` flags say whether any value was ever received).
 struct ExecutorInput {
-  std::int64_t now_ns = 0;      // monotonic
-  std::int64_t now_utime = 0;   // microseconds since the epoch, for stamping
+  std::int64_t now_ns = 0;     // monotonic
+  std::int64_t now_utime = 0;  // microseconds since the epoch, for stamping
   bool have_status = false;
   RobotStatus status;
   std::int64_t heartbeat_ns = 0;  // monotonic time of the driver's last heartbeat (0: none)
@@ -79,7 +86,7 @@ struct ExecutorInput {
   VisualFrame frame;
   bool have_estimate = false;
   PositionEstimate estimate;
-  bool estop = false;           // e-stop requested (latched by the executor)
+  bool estop = false;  // e-stop requested (latched by the executor)
 };
 
 inline constexpr int kMaxFaultsPerUpdate = 4;
@@ -88,10 +95,10 @@ inline constexpr int kMaxFaultsPerUpdate = 4;
 struct ExecutorOutput {
   RobotCommand command;
   Mode mode = Mode::kIdle;
-  std::int32_t step_index = -1;     // -1 before the first step, num_steps when done
+  std::int32_t step_index = -1;  // -1 before the first step, num_steps when done
   bool holding = false;
-  char stop_reason[128] = {};       // empty while running
-  Vec2 estimate;                    // metres, position used for goal recognition / bounds
+  char stop_reason[128] = {};  // empty while running
+  Vec2 estimate;               // metres, position used for goal recognition / bounds
   double estimate_age_s = 0.0;
   std::int32_t num_faults = 0;
   FaultEvent faults[kMaxFaultsPerUpdate];
@@ -140,10 +147,10 @@ class Executor {
   std::int64_t start_ns_ = 0;
   int step_ = -1;
   std::int64_t step_start_ns_ = 0;
-  std::int64_t last_frame_seq_ = -1;    // newest frame already processed
-  std::vector<RayState> rays_;          // per ray, for the current step (sized at construction)
+  std::int64_t last_frame_seq_ = -1;  // newest frame already processed
+  std::vector<RayState> rays_;        // per ray, for the current step (sized at construction)
   int engaged_ray_ = -1;
-  bool contact_latched_ = false;        // contact ended the compliant motion; re-engage only after it clears
+  bool contact_latched_ = false;  // contact ended the compliant motion; re-engage only after it clears
   std::int64_t contact_since_ns_ = -1;
   bool holding_ = false;
   FaultCode hold_code_ = FaultCode::kNone;

@@ -10,17 +10,17 @@
 namespace visco::control {
 
 struct SafetyLimits {
-  double max_speed = 0.2;         // m/s, |v| is clipped to this
-  double max_accel = 2.0;         // m/s^2, |dv/dt| is clipped to this
-  double bounds_margin = 0.005;   // metres: within this of a bound, velocity pointing out of the bounds is removed
+  double max_speed = 0.2;        // m/s, |v| is clipped to this
+  double max_accel = 2.0;        // m/s^2, |dv/dt| is clipped to this
+  double bounds_margin = 0.005;  // metres: within this of a bound, velocity pointing out of the bounds is removed
 };
 
 /// Outcome of filtering one command.
 enum class SafetyVerdict : std::int8_t {
   kOk = 0,
-  kClipped,            // speed, acceleration or a bound changed the command
-  kOutsideBounds,      // the position is outside the workspace: stop
-  kNonFinite,          // the nominal command was NaN or infinite: stop
+  kClipped,        // speed, acceleration or a bound changed the command
+  kOutsideBounds,  // the position is outside the workspace: stop
+  kNonFinite,      // the nominal command was NaN or infinite: stop
 };
 
 /// Applies the limits. Real-time safe: no allocation, never throws.

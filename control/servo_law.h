@@ -29,10 +29,10 @@ struct ServoConfig {
 
 /// Result of one evaluation.
 struct ServoOutput {
-  Vec2 velocity;          // m/s, world frame
-  Vec2 tangential;        // m/s, v_t
-  Vec2 normal;            // m/s, v_n
-  bool saturated = false; // v_n was clipped
+  Vec2 velocity;           // m/s, world frame
+  Vec2 tangential;         // m/s, v_t
+  Vec2 normal;             // m/s, v_n
+  bool saturated = false;  // v_n was clipped
 };
 
 /// The interaction matrix row L (px/m) for a ray of unit direction `direction` at range `range_m`. Real-time safe.

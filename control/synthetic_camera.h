@@ -13,9 +13,9 @@
 namespace visco::control {
 
 struct SyntheticCameraConfig {
-  double focal_px = 800.0;      // pixels
-  double on_line_band_px = 1.0; // |d| within this is STATE_ON_LINE
-  double noise_px = 0.0;        // 1-sigma Gaussian noise added to d
+  double focal_px = 800.0;       // pixels
+  double on_line_band_px = 1.0;  // |d| within this is STATE_ON_LINE
+  double noise_px = 0.0;         // 1-sigma Gaussian noise added to d
 };
 
 /// Computes one frame's events for every ray of `task` that has geometry, from the true reference point `q`.

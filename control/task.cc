@@ -137,7 +137,8 @@ SceneInfo LoadScene(const std::string& path) {
       info.obstacles.push_back(std::move(obstacle));
     }
   }
-  if (scene.contains("goal")) info.goal = ReadPolygon(Member(scene.at("goal"), "polygon", path, "goal"), path, "goal.polygon");
+  if (scene.contains("goal"))
+    info.goal = ReadPolygon(Member(scene.at("goal"), "polygon", path, "goal"), path, "goal.polygon");
   if (scene.contains("start")) {
     info.start = ReadPolygon(Member(scene.at("start"), "polygon", path, "start"), path, "start.polygon");
   }

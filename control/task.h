@@ -22,24 +22,24 @@ const char* ToString(TerminateKind kind);
 
 /// One step: commanded direction, rays to comply to, termination, time-out.
 struct Step {
-  double theta = 0.0;                 // radians, commanded direction, CCW from world +x
-  std::vector<int> active_rays;       // indices into Task::rays
+  double theta = 0.0;            // radians, commanded direction, CCW from world +x
+  std::vector<int> active_rays;  // indices into Task::rays
   TerminateKind terminate = TerminateKind::kGoal;
-  int terminate_ray = -1;             // index into Task::rays for kVisualGuarded, else -1
-  double timeout_s = 0.0;             // seconds, 0 = the executor's default
+  int terminate_ray = -1;  // index into Task::rays for kVisualGuarded, else -1
+  double timeout_s = 0.0;  // seconds, 0 = the executor's default
 };
 
 /// A CVC ray as the executor needs it. The workspace VC ray runs from the obstacle vertex `from` to the camera
 /// centre `to`; the CVC ray is its copy displaced by -(robot vertex cm_vertex) so that the reference point lies
 /// on the CVC ray exactly when the CM vertex lies on the VC ray.
 struct CvcRay {
-  std::string id;         // planner's CVC ray id
-  std::string vc_ray;     // workspace VC ray id
-  int cm_vertex = -1;     // robot polygon vertex index
-  Vec2 from;              // metres, workspace obstacle vertex
-  Vec2 to;                // metres, camera projection centre (foot point)
-  Vec2 direction;         // unit vector from `from` to `to` (the visual_event_t sign convention's ray direction)
-  Vec2 cm_offset;         // metres, robot-frame position of the CM vertex (0 if the scene is not known)
+  std::string id;      // planner's CVC ray id
+  std::string vc_ray;  // workspace VC ray id
+  int cm_vertex = -1;  // robot polygon vertex index
+  Vec2 from;           // metres, workspace obstacle vertex
+  Vec2 to;             // metres, camera projection centre (foot point)
+  Vec2 direction;      // unit vector from `from` to `to` (the visual_event_t sign convention's ray direction)
+  Vec2 cm_offset;      // metres, robot-frame position of the CM vertex (0 if the scene is not known)
   bool has_cm_offset = false;
 };
 
@@ -67,9 +67,9 @@ struct SceneInfo {
   std::optional<Polygon> goal;
   std::optional<Polygon> start;
   std::optional<Vec2> camera_center;
-  double velocity_cone = 0.0;  // radians, half-angle ε_v
+  double velocity_cone = 0.0;         // radians, half-angle ε_v
   double position_uncertainty = 0.0;  // metres, ε_p
-  double friction_cone = 0.0;  // radians, half-angle φ
+  double friction_cone = 0.0;         // radians, half-angle φ
 };
 
 /// Everything the executor runs.

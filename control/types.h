@@ -5,8 +5,8 @@
 // Times are CLOCK_MONOTONIC nanoseconds (`*_ns`) unless named `utime` (microseconds since the epoch).
 
 #include <cmath>
-#include <cstdint>
 #include <cstdarg>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 
@@ -51,10 +51,10 @@ struct RobotStatus {
   std::int64_t utime = 0;       // driver's measurement time, microseconds since the epoch
   std::int32_t seq = 0;
   std::int32_t command_seq = 0;
-  Vec2 position;        // metres, reference point (odometry)
-  Vec2 velocity;        // m/s, actual velocity
+  Vec2 position;  // metres, reference point (odometry)
+  Vec2 velocity;  // m/s, actual velocity
   bool contact = false;
-  Vec2 contact_force;   // newtons
+  Vec2 contact_force;           // newtons
   std::int32_t state = 0;       // robot_status_t::STATE_*
   std::int32_t fault_bits = 0;  // robot_status_t::FAULT_*
 };
@@ -63,7 +63,7 @@ struct RobotStatus {
 struct RobotCommand {
   std::int64_t utime = 0;  // controller time, microseconds since the epoch
   std::int32_t seq = 0;
-  Vec2 velocity;           // m/s, world frame
+  Vec2 velocity;  // m/s, world frame
   bool estop = false;
   bool reset = false;
 };
@@ -72,8 +72,8 @@ struct RobotCommand {
 struct PositionEstimate {
   std::int64_t capture_ns = 0;  // monotonic time of the frame's capture (converted from its utime)
   bool valid = false;
-  Vec2 position;                // metres
-  double stddev = 0.0;          // metres
+  Vec2 position;        // metres
+  double stddev = 0.0;  // metres
 };
 
 /// Capacity of one visual frame; strategies with more CVC rays are rejected at setup.
@@ -82,8 +82,8 @@ inline constexpr int kMaxVisualObservations = 32;
 /// One CM-vertex/VC-line relation in one frame (visual_event_t), with the ray resolved to an index into the
 /// task's ray table.
 struct VisualObservation {
-  std::int32_t ray = -1;            // index into Task::rays
-  std::int8_t state = 0;            // visual_event_t::STATE_*
+  std::int32_t ray = -1;  // index into Task::rays
+  std::int8_t state = 0;  // visual_event_t::STATE_*
   bool crossed = false;
   double signed_distance_px = 0.0;  // pixels, positive on the ray's left-normal side
   double stddev_px = 0.0;

@@ -95,8 +95,8 @@ TEST(Executor, VisualCompliantMotionServoesAlongTheRayUntilContact) {
   ExecutorConfig config = Config();
   Harness h(task, config, {1.2, 1.0});
   h.plant.walls.push_back({{0.0, 0.1}, {0.0, 1.0}});  // reference point y >= 0.1 (vertex on the floor y = 0)
-  h.plant.disturbance = 5.0 * kPi / 180;             // inside the velocity cone
-  h.plant.friction = 80.0 * kPi / 180;               // the floor sticks
+  h.plant.disturbance = 5.0 * kPi / 180;              // inside the velocity cone
+  h.plant.friction = 80.0 * kPi / 180;                // the floor sticks
   h.Start();
   double max_error_px = 0;
   bool engaged = false;

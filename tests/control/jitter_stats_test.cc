@@ -16,7 +16,7 @@ TEST(JitterStats, BinEdges) {
   EXPECT_EQ(JitterBin(2000), 1);
   EXPECT_EQ(JitterBin(3999), 1);
   EXPECT_EQ(JitterBin(4000), 2);
-  EXPECT_EQ(JitterBin(1'000'000), 9);        // 1 ms in [512, 1024) us
+  EXPECT_EQ(JitterBin(1'000'000), 9);  // 1 ms in [512, 1024) us
   EXPECT_EQ(JitterBin(32'767'000), 14);
   EXPECT_EQ(JitterBin(32'768'000), 15);
   EXPECT_EQ(JitterBin(10'000'000'000), 15);  // open-ended
