@@ -1,0 +1,306 @@
+// The loop in real time (1 kHz, clock_nanosleep) against a simulated driver thread and a simulated camera thread,
+// under a RealtimeGuard on the loop thread: a visual compliant motion to contact, a vision drop-out (hold and
+// resume), goal recognition, then a driver whose heartbeat stops. The loop thread must not allocate, free, lock,
+// throw or do I/O in any of it.
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <mutex>
+#include <numbers>
+#include <set>
+#include <thread>
+#include <vector>
+
+#include "common/latest_value.h"
+#include "control/control_loop.h"
+#include "control/loopback_link.h"
+#include "control/synthetic_camera.h"
+#include "tests/control/harness.h"
+#include "tests/control/realtime_guard.h"
+#include "visco/robot_status_t.hpp"
+
+namespace visco::control {
+namespace {
+
+using testing::RealtimeCounts;
+using testing::RealtimeGuard;
+
+TEST(RealtimeGuard, CountsWhatItShould) {
+  FILE* sink = std::fopen("/dev/null", "w");
+  ASSERT_NE(sink, nullptr);
+  RealtimeGuard guard;
+  int* p = new int(3);
+  delete p;
+  std::vector<int> v(10);
+  v.clear();
+  std::mutex m;
+  m.lock();
+  m.unlock();
+  try {
+    throw 1;
+  } catch (int) {
+  }
+  std::fprintf(sink, "%d", 42);
+  const RealtimeCounts c = guard.counts();
+  std::fclose(sink);
+  EXPECT_GE(c.allocations, 2);
+  EXPECT_GE(c.frees, 1);
+  if (testing::FullHooksActive()) {
+    EXPECT_GE(c.locks, 1);
+    EXPECT_GE(c.throws, 1);
+    EXPECT_GE(c.io, 1);
+  }
+}
+
+// A driver thread at 1 kHz (plant, status, heartbeat) and a camera thread at 30 Hz (events, estimate), both fed
+// through the same lock-free hand-offs the real bridge uses.
+class World {
+ public:
+  World(const Task& task, Vec2 start) : camera_(task, {800.0, 1.0, 0.0}, 3) {
+    plant_.position = start;
+    plant_.walls.push_back({{0.0, 0.0}, {0.0, 1.0}});
+    plant_.friction = 0.5;
+  }
+  ~World() { Stop(); }
+
+  void Start() {
+    running_ = true;
+    driver_ = std::thread([this] { DriverLoop(); });
+    camera_thread_ = std::thread([this] { CameraLoop(); });
+  }
+  void Stop() {
+    running_ = false;
+    if (driver_.joinable()) driver_.join();
+    if (camera_thread_.joinable()) camera_thread_.join();
+  }
+
+  LoopbackLink link;
+  LatestValue<VisualFrame> frames;
+  LatestValue<PositionEstimate> estimates;
+  std::atomic<bool> camera_on{true};
+  std::atomic<bool> heartbeat_on{true};
+
+  Vec2 position() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return plant_.position;
+  }
+
+ private:
+  void DriverLoop() {
+    RobotCommand command;
+    std::int32_t seq = 0;
+    auto next = std::chrono::steady_clock::now();
+    while (running_) {
+      next += std::chrono::milliseconds(1);
+      std::this_thread::sleep_until(next);
+      link.RobotTakeCommand(command);
+      RobotStatus status;
+      {
+        std::lock_guard<std::mutex> lock(mutex_);
+        plant_.Step(command.estop ? Vec2{} : command.velocity, 0.001);
+        status.position = plant_.position;
+        status.velocity = plant_.velocity;
+        status.contact = plant_.contact;
+      }
+      if (!heartbeat_on) continue;  // a dead driver: no status, no heartbeat
+      status.receive_ns = MonotonicNs();
+      status.seq = ++seq;
+      status.command_seq = command.seq;
+      status.state = robot_status_t::STATE_READY;
+      link.RobotPublishStatus(status);
+      link.RobotHeartbeat(status.receive_ns);
+    }
+  }
+  void CameraLoop() {
+    std::int64_t seq = 0;
+    auto next = std::chrono::steady_clock::now();
+    while (running_) {
+      next += std::chrono::microseconds(33333);
+      std::this_thread::sleep_until(next);
+      if (!camera_on) continue;
+      const std::int64_t capture = MonotonicNs();
+      const Vec2 q = position();
+      VisualFrame frame;
+      camera_.Observe(q, ++seq, capture, frame);
+      frames.Publish(frame);
+      PositionEstimate estimate;
+      estimate.capture_ns = capture;
+      estimate.valid = true;
+      estimate.position = q;
+      estimates.Publish(estimate);
+    }
+  }
+
+  SyntheticCamera camera_;
+  std::mutex mutex_;  // plant shared by the two simulation threads (never touched by the loop)
+  testing::TestPlant plant_;
+  std::atomic<bool> running_{false};
+  std::thread driver_;
+  std::thread camera_thread_;
+};
+
+Task Scenario() {
+  Task task;
+  // A vertical VC ray x = 1.2 (obstacle vertex on the floor, camera above); the CM vertex is the reference point.
+  task.rays.push_back(testing::MakeRay("vc0.cm0", {1.2, 0.0}, {1.2, 3.0}, 0, {0.0, 0.0}));
+  testing::IndexRays(task);
+  task.speed = 0.2;
+  Step comply;  // down and slightly right: reach the ray, comply down along it to the floor
+  comply.theta = -80.0 * std::numbers::pi / 180;
+  comply.active_rays = {0};
+  comply.terminate = TerminateKind::kContact;
+  task.steps.push_back(comply);
+  Step goal;  // along the floor into the goal
+  goal.theta = 0.0;
+  goal.terminate = TerminateKind::kGoal;
+  task.steps.push_back(goal);
+  task.goal = testing::Square({1.5, 0.05}, 0.1);
+  task.position_uncertainty = 0.01;
+  return task;
+}
+
+struct Collected {
+  std::set<int> modes;
+  std::vector<FaultEvent> faults;
+  TelemetrySnapshot last;
+};
+
+// Drains the outbox on a non-real-time thread while the loop runs.
+void Drain(Outbox& outbox, Collected& collected, std::mutex& mutex) {
+  TelemetrySnapshot t;
+  FaultEvent f;
+  std::lock_guard<std::mutex> lock(mutex);
+  while (outbox.telemetry.TryPop(t)) {
+    collected.modes.insert(static_cast<int>(t.mode));
+    collected.last = t;
+  }
+  while (outbox.faults.TryPop(f)) collected.faults.push_back(f);
+}
+
+TEST(RealtimeLoop, SteadyStateIsAllocationLockExceptionAndIoFree) {
+  const Task task = Scenario();
+  ExecutorConfig config;
+  config.period_s = 0.001;
+  config.limits.max_speed = 0.3;
+  config.limits.max_accel = 4.0;
+  config.heartbeat_timeout_s = 0.05;
+  Executor executor(task, config);
+  World world(task, {1.19, 0.25});
+  Outbox outbox;
+  LoopConfig loop_config;
+  loop_config.period_s = 0.001;
+  loop_config.realtime = false;
+  LoopSources sources{&world.link, &world.frames, &world.estimates, nullptr};
+  ControlLoop loop(executor, sources, loop_config, outbox);
+
+  Collected collected;
+  std::mutex collected_mutex;
+  std::atomic<bool> stop{false};
+  std::atomic<bool> done{false};
+  std::thread consumer([&] {
+    while (!done) {
+      outbox.Wait(0.01);
+      Drain(outbox, collected, collected_mutex);
+    }
+  });
+  // Vision drops out for 200 ms while the robot slides down the ray, then returns.
+  std::thread dropout([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(700));
+    world.camera_on = false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    world.camera_on = true;
+  });
+  world.Start();
+  RealtimeCounts counts;
+  std::thread rt([&] {
+    executor.Start(MonotonicNs());
+    RealtimeGuard guard;
+    loop.Run(stop, 10000);
+    counts = guard.counts();
+  });
+  rt.join();
+  dropout.join();
+  world.Stop();
+  done = true;
+  consumer.join();
+  Drain(outbox, collected, collected_mutex);
+
+  EXPECT_EQ(executor.mode(), Mode::kDone) << executor.stop_reason();
+  EXPECT_TRUE(collected.modes.count(static_cast<int>(Mode::kVisualCompliant)));
+  EXPECT_TRUE(collected.modes.count(static_cast<int>(Mode::kDone)));
+  bool held = false, resumed = false;
+  for (const FaultEvent& f : collected.faults) {
+    held |= f.code == FaultCode::kVisionStale && !f.cleared;
+    resumed |= f.code == FaultCode::kVisionStale && f.cleared;
+  }
+  EXPECT_TRUE(held);
+  EXPECT_TRUE(resumed);
+  EXPECT_GT(loop.cycles(), 1000);
+  EXPECT_EQ(counts.allocations, 0);
+  EXPECT_EQ(counts.frees, 0);
+  EXPECT_EQ(counts.locks, 0);
+  EXPECT_EQ(counts.throws, 0);
+  EXPECT_EQ(counts.io, 0);
+  // The jitter histogram accounts for every cycle.
+  std::int64_t histogram_total = 0;
+  for (int i = 0; i < kJitterBins; ++i) histogram_total += loop.total_jitter().histogram[i];
+  EXPECT_EQ(histogram_total, loop.cycles());
+  RecordProperty("cycles", static_cast<int>(loop.cycles()));
+  RecordProperty("overruns", static_cast<int>(loop.overruns()));
+}
+
+TEST(RealtimeLoop, DriverSilenceStopsWithinTheTimeoutAllocationFree) {
+  Task task;
+  Step step;
+  step.terminate = TerminateKind::kContact;
+  task.steps.push_back(step);
+  task.speed = 0.05;
+  ExecutorConfig config;
+  config.period_s = 0.001;
+  config.heartbeat_timeout_s = 0.05;
+  Executor executor(task, config);
+  World world(task, {1.0, 0.5});
+  Outbox outbox;
+  LoopConfig loop_config;
+  loop_config.period_s = 0.001;
+  loop_config.realtime = false;
+  LoopSources sources{&world.link, &world.frames, &world.estimates, nullptr};
+  ControlLoop loop(executor, sources, loop_config, outbox);
+  world.Start();
+  std::atomic<bool> stop{false};
+  std::int64_t silent_since = 0;
+  std::thread killer([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    silent_since = MonotonicNs();
+    world.heartbeat_on = false;
+  });
+  RealtimeCounts counts;
+  std::int64_t stopped_at = 0;
+  std::thread rt([&] {
+    executor.Start(MonotonicNs());
+    RealtimeGuard guard;
+    loop.Run(stop, 5000, 0);
+    stopped_at = MonotonicNs();
+    counts = guard.counts();
+  });
+  rt.join();
+  killer.join();
+  world.Stop();
+  EXPECT_EQ(executor.stop_code(), FaultCode::kPeerTimeout) << executor.stop_reason();
+  // Stopped within the heartbeat time-out plus one driver period and a few loop periods of scheduling slack.
+  EXPECT_LT(static_cast<double>(stopped_at - silent_since) * 1e-9, 0.05 + 0.001 + 0.02);
+  EXPECT_EQ(Norm(loop.last_output().command.velocity), 0.0);
+  EXPECT_EQ(counts.allocations, 0);
+  EXPECT_EQ(counts.locks, 0);
+  EXPECT_EQ(counts.io, 0);
+  FaultEvent fault;
+  bool reported = false;
+  while (outbox.faults.TryPop(fault)) reported |= fault.code == FaultCode::kPeerTimeout && fault.robot_stopped;
+  EXPECT_TRUE(reported);
+}
+
+}  // namespace
+}  // namespace visco::control
