@@ -17,6 +17,7 @@ namespace visco::control {
 namespace {
 
 constexpr std::int64_t kNsPerS = 1'000'000'000;
+constexpr int kMaxSendFailures = 3;  // consecutive unsent commands that stop the controller
 
 timespec ToTimespec(std::int64_t ns) {
   timespec ts;
@@ -107,11 +108,46 @@ void ControlLoop::RunCycle(std::int64_t now_ns, std::int64_t now_utime) {
   // Read.
   input_.now_ns = now_ns;
   input_.now_utime = now_utime;
-  if (sources_.link->PollStatus(status_scratch_)) {
-    input_.status = status_scratch_;
+  const std::int64_t now_us = now_ns / 1000;
+  drivers::RobotLink& link = *sources_.link;
+  link.Poll(now_us);
+  if (link.TakeStatus(status_scratch_) == drivers::LinkResult::kOk) {
+    const drivers::RobotStatus& s = status_scratch_;
+    RobotStatus& status = input_.status;
+    status.receive_ns = s.receive_us * 1000;
+    status.utime = s.utime;
+    status.seq = static_cast<std::int32_t>(s.seq);
+    status.command_seq = static_cast<std::int32_t>(s.command_seq);
+    status.position = {s.position[0], s.position[1]};
+    status.velocity = {s.velocity[0], s.velocity[1]};
+    status.contact = s.contact;
+    status.contact_force = {s.contact_force[0], s.contact_force[1]};
+    status.state = static_cast<std::int32_t>(s.state);
+    status.fault_bits = s.fault_bits;
     input_.have_status = true;
   }
-  input_.heartbeat_ns = sources_.link->LastHeartbeatNs();
+  const drivers::PeerState peer = link.peer_state(now_us);
+  if (peer == drivers::PeerState::kAlive) input_.heartbeat_ns = now_ns;
+  input_.peer_lost = peer == drivers::PeerState::kLost;
+  while (link.TakeFault(fault_scratch_) == drivers::LinkResult::kOk) {
+    const drivers::LinkFault& f = fault_scratch_;
+    if (f.cleared || input_.link_fault_code != 0) continue;
+    if (f.robot_stopped || f.code == static_cast<std::int32_t>(FaultCode::kCanError)) {
+      input_.link_fault_code = f.code != 0 ? f.code : static_cast<std::int32_t>(FaultCode::kPeerTimeout);
+      VISCO_FORMAT_TEXT(input_.link_fault, "%s fault code %d (EMCY 0x%04x, driver fault bits 0x%02x)",
+                        f.local ? "link" : "driver", static_cast<int>(f.code), static_cast<unsigned>(f.emcy_code),
+                        static_cast<unsigned>(f.fault_bits));
+    }
+  }
+  if (input_.link_fault_code == 0 && link.bus_state() == drivers::BusState::kBusOff) {
+    input_.link_fault_code = static_cast<std::int32_t>(FaultCode::kCanError);
+    CopyText(input_.link_fault, "CAN bus-off");
+  }
+  if (input_.link_fault_code == 0 && send_failures_ >= kMaxSendFailures) {
+    input_.link_fault_code = static_cast<std::int32_t>(FaultCode::kCanError);
+    VISCO_FORMAT_TEXT(input_.link_fault, "%d commands in a row not sent (%s)", send_failures_,
+                      drivers::ToString(last_send_result_));
+  }
   if (sources_.frames != nullptr && sources_.frames->TryTake(frame_scratch_)) {
     input_.frame = frame_scratch_;
     input_.have_frame = true;
@@ -126,7 +162,13 @@ void ControlLoop::RunCycle(std::int64_t now_ns, std::int64_t now_utime) {
   executor_.Update(input_, output_);
 
   // Write.
-  sources_.link->SendCommand(output_.command);
+  drivers::VelocityCommand command;
+  command.velocity[0] = output_.command.velocity.x;
+  command.velocity[1] = output_.command.velocity.y;
+  command.estop = output_.command.estop;
+  command.reset = output_.command.reset;
+  last_send_result_ = link.SendCommand(command, now_us);
+  send_failures_ = last_send_result_ == drivers::LinkResult::kOk ? 0 : send_failures_ + 1;
   ++cycles_;
   outbox_.cycles.store(cycles_, std::memory_order_relaxed);
   for (int i = 0; i < output_.num_faults; ++i) outbox_.faults.TryPush(output_.faults[i]);

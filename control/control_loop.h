@@ -1,7 +1,8 @@
 #pragma once
 // The fixed-rate control loop (ros2_control style): read -> update -> write, then sleep to the absolute next
 // period with clock_nanosleep(TIMER_ABSTIME), counting overruns and recording wake-up latency. Telemetry and faults
-// leave through SPSC queues to a non-real-time publisher; vision arrives through visco::LatestValue.
+// leave through SPSC queues to a non-real-time publisher; vision arrives through visco::LatestValue; the robot is
+// reached through drivers::RobotLink (SocketCAN, LCM, or the in-process LoopbackLink).
 
 #include <semaphore.h>
 
@@ -12,8 +13,8 @@
 #include "common/latest_value.h"
 #include "control/executor.h"
 #include "control/jitter_stats.h"
-#include "control/robot_link.h"
 #include "control/spsc_queue.h"
+#include "drivers/robot_link.h"
 
 namespace visco::control {
 
@@ -66,7 +67,7 @@ struct LoopConfig {
 
 /// What the loop reads besides the driver.
 struct LoopSources {
-  RobotLink* link = nullptr;                           // required
+  drivers::RobotLink* link = nullptr;                  // required (SocketCAN, LCM or in-process)
   LatestValue<VisualFrame>* frames = nullptr;          // optional
   LatestValue<PositionEstimate>* estimates = nullptr;  // optional
   const std::atomic<bool>* estop = nullptr;            // optional
@@ -115,7 +116,10 @@ class ControlLoop {
   ExecutorOutput output_;
   VisualFrame frame_scratch_;
   PositionEstimate estimate_scratch_;
-  RobotStatus status_scratch_;
+  drivers::RobotStatus status_scratch_;
+  drivers::LinkFault fault_scratch_;
+  int send_failures_ = 0;  // consecutive commands the link could not send
+  drivers::LinkResult last_send_result_ = drivers::LinkResult::kOk;
   JitterStats window_jitter_;  // since the last telemetry sample
   JitterStats total_jitter_;   // since start
   std::int64_t cycles_ = 0;

@@ -190,8 +190,19 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
     return;
   }
 
-  // Driver liveness: its heartbeat or its status stream, whichever is newer.
-  const std::int64_t life_ns = std::max(in.heartbeat_ns, in.have_status ? in.status.receive_ns : 0);
+  if (in.link_fault_code != 0) {
+    VISCO_FORMAT_TEXT(message, "robot link: %s", in.link_fault);
+    Stop(static_cast<FaultCode>(in.link_fault_code), message, out, in);
+    return;
+  }
+  if (in.peer_lost && mode_ != Mode::kIdle) {
+    Stop(FaultCode::kPeerTimeout, "driver heartbeat lost (no heartbeat within the link's time-out)", out, in);
+    return;
+  }
+
+  // Driver liveness: its status stream (a status follows every command and comes at least every few ms), and the
+  // link's judgement of its heartbeat (peer_lost, above).
+  const std::int64_t life_ns = in.have_status ? in.status.receive_ns : 0;
   const bool alive = life_ns > 0 && in.now_ns - life_ns <= Nanoseconds(config_.heartbeat_timeout_s);
   const std::int32_t state = in.status.state;
   const bool driver_ok = in.have_status && in.status.fault_bits == 0 &&
@@ -204,7 +215,8 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
     }
     if (in.now_ns - start_ns_ > Nanoseconds(config_.startup_timeout_s)) {
       if (!alive) {
-        VISCO_FORMAT_TEXT(message, "no heartbeat from the driver within %.1f s of start", config_.startup_timeout_s);
+        VISCO_FORMAT_TEXT(message, "no status or heartbeat from the driver within %.1f s of start",
+                          config_.startup_timeout_s);
       } else {
         char bits[96];
         FaultBitNames(in.status.fault_bits, bits);
@@ -218,7 +230,7 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
     return;
   }
   if (!alive) {
-    VISCO_FORMAT_TEXT(message, "driver heartbeat lost: silent for %.0f ms (limit %.0f ms)",
+    VISCO_FORMAT_TEXT(message, "driver silent: no status or heartbeat for %.0f ms (limit %.0f ms)",
                       life_ns > 0 ? Seconds(in.now_ns - life_ns) * 1e3 : -1.0, config_.heartbeat_timeout_s * 1e3);
     Stop(FaultCode::kPeerTimeout, message, out, in);
     return;

@@ -10,8 +10,6 @@
 #include "visco/fault_t.hpp"
 #include "visco/heartbeat_t.hpp"
 #include "visco/robot_estimate_t.hpp"
-#include "visco/robot_status_t.hpp"
-#include "visco/velocity_command_t.hpp"
 #include "visco/visual_events_t.hpp"
 
 namespace visco::control {
@@ -24,28 +22,6 @@ std::int64_t CaptureToMonotonic(std::int64_t capture_utime, std::int64_t receive
 class ControllerBridge::Handlers {
  public:
   explicit Handlers(ControllerBridge& bridge) : bridge_(bridge) {}
-
-  void Status(const lcm::ReceiveBuffer*, const std::string&, const robot_status_t* m) {
-    if (m->node_id != bridge_.link_.node_id()) return;
-    RobotStatus s;
-    s.receive_ns = MonotonicNs();
-    s.utime = m->utime;
-    s.seq = m->seq;
-    s.command_seq = m->command_seq;
-    s.position = {m->position[0], m->position[1]};
-    s.velocity = {m->velocity[0], m->velocity[1]};
-    s.contact = m->contact;
-    s.contact_force = {m->contact_force[0], m->contact_force[1]};
-    s.state = m->state;
-    s.fault_bits = m->fault_bits;
-    bridge_.link_.PutStatus(s);
-    bridge_.counters_.statuses.fetch_add(1, std::memory_order_relaxed);
-  }
-
-  void Heartbeat(const lcm::ReceiveBuffer*, const std::string&, const heartbeat_t* m) {
-    if (m->node_id >= 0 && m->node_id != bridge_.link_.node_id()) return;
-    bridge_.link_.PutHeartbeat(MonotonicNs());
-  }
 
   void Events(const lcm::ReceiveBuffer*, const std::string&, const visual_events_t* m) {
     const std::int64_t now_ns = MonotonicNs();
@@ -91,10 +67,8 @@ class ControllerBridge::Handlers {
   ControllerBridge& bridge_;
 };
 
-ControllerBridge::ControllerBridge(lcm::LCM& lcm, const Task& task, int node_id, Outbox& outbox)
-    : lcm_(lcm), task_(task), outbox_(outbox), link_(node_id), handlers_(std::make_unique<Handlers>(*this)) {
-  lcm_.subscribe(channels::kStatus, &Handlers::Status, handlers_.get());
-  lcm_.subscribe(channels::kHeartbeatDriver, &Handlers::Heartbeat, handlers_.get());
+ControllerBridge::ControllerBridge(lcm::LCM& lcm, const Task& task, Outbox& outbox)
+    : lcm_(lcm), task_(task), outbox_(outbox), handlers_(std::make_unique<Handlers>(*this)) {
   lcm_.subscribe(channels::kVisualEvents, &Handlers::Events, handlers_.get());
   lcm_.subscribe(channels::kRobotEstimate, &Handlers::Estimate, handlers_.get());
   lcm_.subscribe(channels::kEstop, &Handlers::Estop, handlers_.get());
@@ -133,19 +107,6 @@ void ControllerBridge::PublishLoop() {
 }
 
 void ControllerBridge::Drain() {
-  RobotCommand command;
-  while (link_.TakeCommand(command)) {
-    velocity_command_t m;
-    m.utime = command.utime;
-    m.node_id = link_.node_id();
-    m.seq = command.seq;
-    m.velocity[0] = command.velocity.x;
-    m.velocity[1] = command.velocity.y;
-    m.estop = command.estop;
-    m.reset = command.reset;
-    lcm_.publish(channels::kCommand, &m);
-    counters_.commands.fetch_add(1, std::memory_order_relaxed);
-  }
   FaultEvent fault;
   while (outbox_.faults.TryPop(fault)) {
     fault_t m;

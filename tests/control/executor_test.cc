@@ -239,7 +239,7 @@ TEST(Executor, HeartbeatLossStops) {
   // Stopped in the first period past the time-out (25 periods of 2 ms), with the reason.
   EXPECT_EQ(ticks, 26);
   EXPECT_EQ(h.executor().stop_code(), FaultCode::kPeerTimeout);
-  EXPECT_NE(std::string(h.executor().stop_reason()).find("heartbeat"), std::string::npos);
+  EXPECT_NE(std::string(h.executor().stop_reason()).find("no status or heartbeat"), std::string::npos);
   EXPECT_EQ(Norm(h.Tick().command.velocity), 0.0);
   EXPECT_TRUE(HasFault(h.faults, FaultCode::kPeerTimeout, false));
 }
@@ -257,7 +257,7 @@ TEST(Executor, DriverNeverReadyStopsAfterStartupTimeout) {
   EXPECT_EQ(out.mode, Mode::kIdle);
   h.RunUntilFinished(1.0);
   EXPECT_EQ(h.executor().stop_code(), FaultCode::kPeerTimeout);
-  EXPECT_NE(std::string(h.executor().stop_reason()).find("no heartbeat"), std::string::npos);
+  EXPECT_NE(std::string(h.executor().stop_reason()).find("no status or heartbeat from the driver"), std::string::npos);
 }
 
 TEST(Executor, DriverFaultStopsWithItsNames) {

@@ -24,7 +24,7 @@ namespace {
 __attribute__((tls_model("initial-exec"))) thread_local bool g_active = false;
 __attribute__((tls_model("initial-exec"))) thread_local visco::control::testing::RealtimeCounts g_counts;
 
-inline void Count(std::int64_t visco::control::testing::RealtimeCounts::* field) {
+inline void Count(std::int64_t visco::control::testing::RealtimeCounts::*field) {
   if (g_active) ++(g_counts.*field);
 }
 

@@ -20,7 +20,6 @@
 #include "control/synthetic_camera.h"
 #include "tests/control/harness.h"
 #include "tests/control/realtime_guard.h"
-#include "visco/robot_status_t.hpp"
 
 namespace visco::control {
 namespace {
@@ -90,28 +89,29 @@ class World {
 
  private:
   void DriverLoop() {
-    RobotCommand command;
-    std::int32_t seq = 0;
+    LoopbackLink::Sent sent;
+    std::uint32_t seq = 0;
     auto next = std::chrono::steady_clock::now();
     while (running_) {
       next += std::chrono::milliseconds(1);
       std::this_thread::sleep_until(next);
-      link.RobotTakeCommand(command);
-      RobotStatus status;
+      link.RobotTakeCommand(sent);
+      drivers::RobotStatus status;
       {
         std::lock_guard<std::mutex> lock(mutex_);
-        plant_.Step(command.estop ? Vec2{} : command.velocity, 0.001);
-        status.position = plant_.position;
-        status.velocity = plant_.velocity;
+        plant_.Step(sent.command.estop ? Vec2{} : Vec2{sent.command.velocity[0], sent.command.velocity[1]}, 0.001);
+        status.position[0] = plant_.position.x;
+        status.position[1] = plant_.position.y;
+        status.velocity[0] = plant_.velocity.x;
+        status.velocity[1] = plant_.velocity.y;
         status.contact = plant_.contact;
       }
       if (!heartbeat_on) continue;  // a dead driver: no status, no heartbeat
-      status.receive_ns = MonotonicNs();
       status.seq = ++seq;
-      status.command_seq = command.seq;
-      status.state = robot_status_t::STATE_READY;
+      status.command_seq = sent.seq;
+      status.state = drivers::RobotState::kReady;
       link.RobotPublishStatus(status);
-      link.RobotHeartbeat(status.receive_ns);
+      if (seq % 10 == 0) link.RobotHeartbeat();
     }
   }
   void CameraLoop() {
