@@ -9,6 +9,7 @@
 
 #include "app/spy_command.h"
 #include "common/error.h"
+#include "control/commands.h"
 #include "drivers/commands.h"
 #include "vision/commands.h"
 
@@ -28,6 +29,7 @@ int main(int argc, char** argv) {
   visco::app::RegisterSpyCommand(app);
   visco::drivers::RegisterCommands(app);
   visco::vision::RegisterCommands(app);
+  visco::control::RegisterCommands(app);
 
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
   try {

@@ -1,0 +1,105 @@
+#include "control/commands.h"
+
+#include <signal.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <cstdio>
+#include <memory>
+
+#include "common/error.h"
+#include "control/run.h"
+
+namespace visco::control {
+namespace {
+
+std::atomic<bool> g_stop{false};
+void OnSignal(int) { g_stop.store(true); }
+
+struct CliOptions {
+  RunOptions run;
+  double max_vision_age_ms = 100;
+  double status_timeout_ms = 100;
+  double heartbeat_timeout_ms = 250;
+  bool no_realtime = false;
+};
+
+void Run(CliOptions& cli) {
+  RunOptions& o = cli.run;
+  o.executor.max_vision_age_s = cli.max_vision_age_ms / 1000.0;
+  o.executor.heartbeat_timeout_s = cli.status_timeout_ms / 1000.0;
+  o.heartbeat_timeout_s = cli.heartbeat_timeout_ms / 1000.0;
+  o.realtime = !cli.no_realtime;
+  const Task task = LoadTask(o);
+  struct sigaction action {};
+  action.sa_handler = OnSignal;
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+  const RunResult result = RunTask(task, o, g_stop);
+  std::printf("%s\n", result.ToJson().c_str());
+  std::fflush(stdout);
+  if (result.mode != Mode::kDone) throw JobFailed("run stopped: " + result.reason);
+}
+
+}  // namespace
+
+void RegisterCommands(CLI::App& app) {
+  auto cli = std::make_shared<CliOptions>();
+  RunOptions& o = cli->run;
+  CLI::App* cmd = app.add_subcommand(
+      "run",
+      "Execute a motion strategy in real time: a fixed-rate loop (default 500 Hz) reads the driver's status and "
+      "vision's visual events / robot estimate, runs the strategy's steps (visual guarded, visual compliant, contact "
+      "and goal-terminated motions, with time-outs), applies the safety limits and sends velocity commands to the "
+      "robot over LCM or SocketCAN. Any stop (e-stop, driver silent or faulted, vision lost too long, limit, "
+      "time-out) is announced on VISCO_FAULT and VISCO_TELEMETRY and in the log. Prints a JSON summary; exit 0 when "
+      "the goal is recognised, 1 when the run stopped, 2 for bad input.");
+  cmd->add_option("strategy", o.strategy_path,
+                  "strategy JSON (`visco plan` output; optional extensions: top-level \"speed\" m/s, per-step "
+                  "\"timeout_s\"); without it, the strategy is taken from the first VISCO_STRATEGY message")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--scene", o.scene_path, "scene file: goal (kernel), bounds, position uncertainty, robot polygon")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--rays", o.rays_path, "`visco vcrays` output: CVC ray geometry (needed for compliant motion)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--strategy-wait", o.strategy_wait_s, "seconds to wait for VISCO_STRATEGY")->capture_default_str();
+  cmd->add_option("--lcm-url", o.lcm_url, "LCM provider URL (LCM's default when empty)");
+  cmd->add_option("--can", o.can_interface, "SocketCAN interface of the robot (e.g. vcan0); default: LCM");
+  cmd->add_option("--node", o.node_id, "robot node id, 1..127")->capture_default_str();
+  cmd->add_option("--rate", o.rate_hz, "control rate, Hz (10..2000)")->capture_default_str();
+  cmd->add_option("--speed", o.executor.default_speed, "commanded speed when the strategy gives none, m/s")
+      ->capture_default_str();
+  cmd->add_option("--max-speed", o.executor.limits.max_speed, "speed limit, m/s")->capture_default_str();
+  cmd->add_option("--max-accel", o.executor.limits.max_accel, "acceleration limit, m/s^2")->capture_default_str();
+  cmd->add_option("--bounds-margin", o.executor.limits.bounds_margin,
+                  "within this of a workspace bound, outward motion is removed, m")
+      ->capture_default_str();
+  cmd->add_option("--gain", o.executor.servo.gain, "visual compliance gain lambda, 1/s")->capture_default_str();
+  cmd->add_option("--focal-px", o.executor.servo.focal_px, "camera focal length for the interaction matrix, px")
+      ->capture_default_str();
+  cmd->add_option("--max-normal-speed", o.executor.servo.max_normal_speed,
+                  "saturation of the servo's correction towards the line, m/s")
+      ->capture_default_str();
+  cmd->add_option("--max-vision-age-ms", cli->max_vision_age_ms,
+                  "older visual events / estimates are stale: the command goes to zero and the step holds")
+      ->capture_default_str();
+  cmd->add_option("--max-hold", o.executor.max_hold_s, "a hold on stale vision longer than this stops, s")
+      ->capture_default_str();
+  cmd->add_option("--status-timeout-ms", cli->status_timeout_ms, "no driver status for this long stops the robot")
+      ->capture_default_str();
+  cmd->add_option("--heartbeat-timeout-ms", cli->heartbeat_timeout_ms, "no driver heartbeat for this long stops")
+      ->capture_default_str();
+  cmd->add_option("--step-timeout", o.executor.default_step_timeout_s,
+                  "time-out of steps that give none, s")
+      ->capture_default_str();
+  cmd->add_flag("--goal-from-odometry", o.executor.goal_from_odometry,
+                "recognise the goal from the driver's odometry instead of vision's robot estimate");
+  cmd->add_flag("--no-realtime", cli->no_realtime, "do not try SCHED_FIFO and mlockall");
+  cmd->add_option("--priority", o.priority, "SCHED_FIFO priority of the loop thread")->capture_default_str();
+  cmd->add_option("--telemetry-hz", o.telemetry_hz, "VISCO_TELEMETRY rate, Hz")->capture_default_str();
+  cmd->add_option("--duration", o.max_duration_s, "e-stop after this many seconds (0: no limit)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->callback([cli] { Run(*cli); });
+}
+
+}  // namespace visco::control
