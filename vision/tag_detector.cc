@@ -14,6 +14,7 @@
 #include <opencv2/core.hpp>
 
 #include "common/error.h"
+#include "vision/tag_renderer.h"
 
 namespace visco::vision {
 namespace {
@@ -118,6 +119,43 @@ double RotationDistance(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
 
 }  // namespace
 
+TagBitmap MakeTagBitmap(const std::string& family_name, int id) {
+  CheckFamilyName(family_name);
+  const FamilyEntry* entry = FindFamily(family_name);
+  apriltag_family_t* fam = entry->create();
+  if (id < 0 || static_cast<std::uint32_t>(id) >= fam->ncodes) {
+    const int n = static_cast<int>(fam->ncodes);
+    entry->destroy(fam);
+    throw InputError("tag", family_name + " id " + std::to_string(id),
+                     "not in the family (ids 0.." + std::to_string(n - 1) + ")");
+  }
+  TagBitmap b;
+  b.total_width = fam->total_width;
+  b.width_at_border = fam->width_at_border;
+  b.cells.assign(static_cast<std::size_t>(b.total_width) * b.total_width, 0);
+  // The white ring just outside the black border (inside it for reversed-border families), then the code bits at
+  // the family's bit positions, counted from the black border's outer corner; the most significant bit is bit 0.
+  const int white_width = fam->width_at_border + (fam->reversed_border ? 0 : 2);
+  const int white_start = (fam->total_width - white_width) / 2;
+  for (int i = 0; i < white_width - 1; ++i) {
+    const int lo = white_start, hi = white_start + white_width - 1;
+    b.cells[static_cast<std::size_t>(lo) * b.total_width + lo + i] = 255;
+    b.cells[static_cast<std::size_t>(lo + i) * b.total_width + hi] = 255;
+    b.cells[static_cast<std::size_t>(hi) * b.total_width + hi - i] = 255;
+    b.cells[static_cast<std::size_t>(hi - i) * b.total_width + lo] = 255;
+  }
+  const int border_start = (fam->total_width - fam->width_at_border) / 2;
+  const std::uint64_t code = fam->codes[id];
+  for (std::uint32_t i = 0; i < fam->nbits; ++i) {
+    if ((code >> (fam->nbits - i - 1)) & 1u) {
+      b.cells[static_cast<std::size_t>(fam->bit_y[i] + border_start) * b.total_width + fam->bit_x[i] + border_start] =
+          255;
+    }
+  }
+  entry->destroy(fam);
+  return b;
+}
+
 void CheckFamilyName(const std::string& family) {
   if (FindFamily(family) == nullptr) {
     std::string names;
@@ -197,10 +235,13 @@ std::array<Eigen::Vector3d, 4> TagCornersInTagFrame(double s) {
   return {Eigen::Vector3d(-h, -h, 0), Eigen::Vector3d(h, -h, 0), Eigen::Vector3d(h, h, 0), Eigen::Vector3d(-h, h, 0)};
 }
 
-double ReprojectionRms(const CameraModel& camera, const Corners& corners, double tag_size,
-                       const Eigen::Isometry3d& cMo) {
+double ReprojectionRms(const CameraModel& camera, const Corners& corners, double tag_size, const Eigen::Isometry3d& cMo,
+                       double corner_offset_px) {
   std::array<Eigen::Vector2d, 4> ideal;
-  for (int i = 0; i < 4; ++i) ideal[i] = camera.NormalizedToIdealPixel(camera.PixelToNormalized(corners[i]));
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector2d c = corners[i] - Eigen::Vector2d::Constant(corner_offset_px);
+    ideal[i] = camera.NormalizedToIdealPixel(camera.PixelToNormalized(c));
+  }
   Vec8 r;
   Residuals(camera, TagCornersInTagFrame(tag_size), ideal, cMo, r, nullptr);
   return std::sqrt(r.squaredNorm() / 4);
@@ -213,7 +254,8 @@ std::optional<TagPose> EstimateTagPose(const CameraModel& camera, const Corners&
   std::array<Eigen::Vector2d, 4> ideal;
   for (int i = 0; i < 4; ++i) {
     if (!corners[i].allFinite()) return std::nullopt;
-    ideal[i] = camera.NormalizedToIdealPixel(camera.PixelToNormalized(corners[i]));
+    const Eigen::Vector2d c = corners[i] - Eigen::Vector2d::Constant(options.corner_offset_px);
+    ideal[i] = camera.NormalizedToIdealPixel(camera.PixelToNormalized(c));
   }
   // Degenerate quad (collinear or tiny): no pose.
   double area = 0;

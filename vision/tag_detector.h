@@ -86,6 +86,10 @@ struct TagPose {
 
 /// Pose-estimation settings and rejection rules.
 struct PoseOptions {
+  /// The AprilTag library puts pixel centres at +0.5 (its corners are 0.5 px larger than in the convention of ViSP's
+  /// and OpenCV's calibrations, where the first pixel's centre is 0). This offset is subtracted from the corners
+  /// before the pose is computed. ViSP's vpDetectorAprilTag does not correct it (0 reproduces its poses).
+  double corner_offset_px = 0.5;
   double max_rms_error_px = 2.0;  ///< reject poses whose best reprojection error exceeds this (bad corners)
   /// The two planar solutions are told apart by their errors when the worse one exceeds the better one by more than
   /// this many times the corner noise (below it the data cannot decide: the pose is ambiguous).
@@ -107,8 +111,8 @@ std::optional<TagPose> EstimateTagPose(const CameraModel& camera, const Corners&
 /// The tag's corners in its own frame (ViSP convention, AprilTag order), metres.
 std::array<Eigen::Vector3d, 4> TagCornersInTagFrame(double tag_size);
 
-/// RMS reprojection error (ideal pixels) of `cMo` for observed `corners`.
-double ReprojectionRms(const CameraModel& camera, const Corners& corners, double tag_size,
-                       const Eigen::Isometry3d& cMo);
+/// RMS reprojection error (ideal pixels) of `cMo` for observed `corners` (AprilTag convention, see PoseOptions).
+double ReprojectionRms(const CameraModel& camera, const Corners& corners, double tag_size, const Eigen::Isometry3d& cMo,
+                       double corner_offset_px = 0.5);
 
 }  // namespace visco::vision
