@@ -89,8 +89,7 @@ void RegisterCommands(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--heartbeat-timeout-ms", cli->heartbeat_timeout_ms, "no driver heartbeat for this long stops")
       ->capture_default_str();
-  cmd->add_option("--step-timeout", o.executor.default_step_timeout_s,
-                  "time-out of steps that give none, s")
+  cmd->add_option("--step-timeout", o.executor.default_step_timeout_s, "time-out of steps that give none, s")
       ->capture_default_str();
   cmd->add_flag("--goal-from-odometry", o.executor.goal_from_odometry,
                 "recognise the goal from the driver's odometry instead of vision's robot estimate");

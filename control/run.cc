@@ -110,8 +110,8 @@ RunResult RunTask(const Task& task, const RunOptions& options, const std::atomic
   link_config.heartbeat_timeout_us = static_cast<std::int64_t>(o.heartbeat_timeout_s * 1e6);
   link_config.can_interface = o.can_interface;
   link_config.lcm_url = o.lcm_url;
-  std::unique_ptr<drivers::RobotLink> link = o.can_interface.empty() ? drivers::MakeLcmRobotLink(link_config)
-                                                                     : drivers::MakeSocketCanRobotLink(link_config);
+  std::unique_ptr<drivers::RobotLink> link =
+      o.can_interface.empty() ? drivers::MakeLcmRobotLink(link_config) : drivers::MakeSocketCanRobotLink(link_config);
   lcm::LCM lcm(o.lcm_url);
   if (!lcm.good()) throw JobFailed("LCM: cannot initialise provider '" + o.lcm_url + "'");
   Outbox outbox;
@@ -173,8 +173,7 @@ RunResult RunTask(const Task& task, const RunOptions& options, const std::atomic
   result.stop_code = executor.stop_code();
   result.reason = executor.stop_reason();
   result.num_steps = static_cast<int>(task.steps.size());
-  result.steps_completed =
-      executor.mode() == Mode::kDone ? result.num_steps : std::max(0, executor.step_index());
+  result.steps_completed = executor.mode() == Mode::kDone ? result.num_steps : std::max(0, executor.step_index());
   result.cycles = loop.cycles();
   result.overruns = loop.overruns();
   const JitterStats& jitter = loop.total_jitter();

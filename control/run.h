@@ -12,19 +12,19 @@
 namespace visco::control {
 
 struct RunOptions {
-  std::string strategy_path;     // contract JSON; empty: wait for VISCO_STRATEGY on LCM
-  double strategy_wait_s = 10;   // how long to wait for the LCM strategy
-  std::string scene_path;        // optional: goal, bounds, ε_p, robot vertex offsets
-  std::string rays_path;         // optional: `visco vcrays` output (needed for visual compliant steps)
-  std::string lcm_url;           // "" = LCM's default
-  std::string can_interface;     // non-empty: the robot is on SocketCAN, else on LCM
+  std::string strategy_path;    // contract JSON; empty: wait for VISCO_STRATEGY on LCM
+  double strategy_wait_s = 10;  // how long to wait for the LCM strategy
+  std::string scene_path;       // optional: goal, bounds, ε_p, robot vertex offsets
+  std::string rays_path;        // optional: `visco vcrays` output (needed for visual compliant steps)
+  std::string lcm_url;          // "" = LCM's default
+  std::string can_interface;    // non-empty: the robot is on SocketCAN, else on LCM
   int node_id = 1;
   double rate_hz = 500;
   double heartbeat_timeout_s = 0.25;  // the link's heartbeat time-out (driver heartbeats every 100 ms)
   bool realtime = true;
   int priority = 80;
   double telemetry_hz = 50;
-  double max_duration_s = 0;     // 0: until the strategy ends
+  double max_duration_s = 0;  // 0: until the strategy ends
   ExecutorConfig executor;
 };
 

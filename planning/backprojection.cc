@@ -39,8 +39,8 @@
 #include <cmath>
 #include <functional>
 #include <limits>
-#include <memory>
 #include <map>
+#include <memory>
 #include <queue>
 #include <set>
 #include <stdexcept>
@@ -252,7 +252,8 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
     std::vector<std::string> vref = poly.vertex_refs, eref = poly.edge_refs;
     const size_t n = v.size();
     if (n < 3) {
-      throw std::invalid_argument("backprojection: " + prefix + "[" + std::to_string(index) + "] has fewer than 3 vertices");
+      throw std::invalid_argument("backprojection: " + prefix + "[" + std::to_string(index) +
+                                  "] has fewer than 3 vertices");
     }
     vref.resize(n);
     eref.resize(n);
@@ -285,8 +286,8 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
     const Vector2d lo = pr.bounds_min, hi = pr.bounds_max;
     const Vector2d corners[4] = {{lo.x(), lo.y()}, {hi.x(), lo.y()}, {hi.x(), hi.y()}, {lo.x(), hi.y()}};
     const char* sides[4] = {"ymin", "xmax", "ymax", "xmin"};
-    const char* corner_names[4] = {"bounds.corner[xmin,ymin]", "bounds.corner[xmax,ymin]",
-                                   "bounds.corner[xmax,ymax]", "bounds.corner[xmin,ymax]"};
+    const char* corner_names[4] = {"bounds.corner[xmin,ymin]", "bounds.corner[xmax,ymin]", "bounds.corner[xmax,ymax]",
+                                   "bounds.corner[xmin,ymax]"};
     for (int k = 0; k < 4; ++k) {
       Source s;
       s.a = to_exact(corners[k]);
@@ -320,7 +321,8 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
   {
     std::vector<Traits::Curve_2> cv;
     cv.reserve(sources_.size());
-    for (size_t i = 0; i < sources_.size(); ++i) cv.emplace_back(Seg(sources_[i].a, sources_[i].b), static_cast<int>(i));
+    for (size_t i = 0; i < sources_.size(); ++i)
+      cv.emplace_back(Seg(sources_[i].a, sources_[i].b), static_cast<int>(i));
     CGAL::insert(arr, cv.begin(), cv.end());
   }
   // Face labels by a traversal from the unbounded face, counting how many bounds/obstacle/goal polygons contain
@@ -923,9 +925,7 @@ Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
   };
   // Deterministic order: outer rings by their lowest-leftmost vertex in the sweep frame.
   std::sort(outers.begin(), outers.end(), [](const ExactRing* a, const ExactRing* b) {
-    auto lo = [](const ExactRing* r) {
-      return *std::min_element(r->vertices.begin(), r->vertices.end(), LessYX());
-    };
+    auto lo = [](const ExactRing* r) { return *std::min_element(r->vertices.begin(), r->vertices.end(), LessYX()); };
     return LessYX()(lo(a), lo(b));
   });
   std::vector<std::vector<Vector2d>> outer_d;
@@ -940,7 +940,8 @@ Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
     const Vector2d a = ring.vertices[0], b = ring.vertices[1];
     const Vector2d mid = 0.5 * (a + b);
     const Vector2d d = (b - a).normalized();
-    const Vector2d probe = mid + 1e-7 * (b - a).norm() * Vector2d(d.y(), -d.x());  // right of a clockwise edge: outside the hole
+    const Vector2d probe =
+        mid + 1e-7 * (b - a).norm() * Vector2d(d.y(), -d.x());  // right of a clockwise edge: outside the hole
     int best = -1;
     double best_area = 1e300;
     for (size_t i = 0; i < outer_d.size(); ++i) {

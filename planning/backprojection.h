@@ -38,9 +38,9 @@ struct BackprojectionProblem {
   std::vector<NamedPolygon> goal;       ///< goal regions (either orientation)
   Eigen::Vector2d bounds_min{0.0, 0.0};
   Eigen::Vector2d bounds_max{0.0, 0.0};
-  double theta = 0.0;          ///< commanded direction, counter-clockwise from +x
-  double velocity_cone = 0.0;  ///< ε_v, half-angle, in (0, π/2)
-  double friction_cone = 0.0;  ///< φ, in [0, π/2)
+  double theta = 0.0;             ///< commanded direction, counter-clockwise from +x
+  double velocity_cone = 0.0;     ///< ε_v, half-angle, in (0, π/2)
+  double friction_cone = 0.0;     ///< φ, in [0, π/2)
   std::vector<CvcRayInput> rays;  ///< candidate CVC rays (ignored by the classic backprojection)
 };
 
@@ -78,8 +78,8 @@ struct Region {
 /// The VC-enlarged backprojection with the active rays it relies on.
 struct VcBackprojection {
   Region region;
-  std::vector<std::string> active_rays;  ///< ids of the CVC rays the motion complies to (sorted)
-  std::vector<std::string> rejected_rays;  ///< reliable candidates whose activation did not help or was unsound
+  std::vector<std::string> active_rays;      ///< ids of the CVC rays the motion complies to (sorted)
+  std::vector<std::string> rejected_rays;    ///< reliable candidates whose activation did not help or was unsound
   std::vector<std::string> unreliable_rays;  ///< candidates within 90° ± ε_v of θ (never active, SEMANTICS.md)
 };
 

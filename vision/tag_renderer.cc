@@ -157,7 +157,8 @@ GrayImage Render(const CameraModel& cam, const Eigen::Isometry3d& wMc, const Ren
       const double den = c.n.x() * xy.x() + c.n.y() * xy.y() + c.n.z();
       if (std::abs(den) < 1e-12) continue;
       const double t = c.num / den;
-      if (t <= 0 || t >= best) continue;
+      // Tags (after the polygons in `items`) win depth ties: a tag glued on a face lies in that face's plane.
+      if (t <= 0 || (it.bitmap != nullptr ? t > best * (1 + 1e-9) : t >= best)) continue;
       const Eigen::Vector3d rel(t * xy.x() - c.o.x(), t * xy.y() - c.o.y(), t - c.o.z());
       const double a = c.e1.dot(rel), b = c.e2.dot(rel);
       if (it.bitmap != nullptr) {

@@ -166,7 +166,8 @@ TEST(Backprojection, GoalKernelIsInsideTheGoalAndNearlyTheExactErosion) {
   ASSERT_EQ(kernel.size(), 1u);
   double area = 0;
   const auto& v = kernel[0].vertices;
-  for (size_t i = 0; i < v.size(); ++i) area += v[i].x() * v[(i + 1) % v.size()].y() - v[i].y() * v[(i + 1) % v.size()].x();
+  for (size_t i = 0; i < v.size(); ++i)
+    area += v[i].x() * v[(i + 1) % v.size()].y() - v[i].y() * v[(i + 1) % v.size()].x();
   area = std::abs(area) / 2;
   // Exact erosion of a rectangle by a disc: the rectangle shrunk by 0.5 on each side, 3 x 1.
   EXPECT_LE(area, 3.0 + 1e-12);

@@ -17,7 +17,9 @@ namespace visco::planning {
 class SceneRng {
  public:
   explicit SceneRng(std::uint64_t seed) : rng_(seed) {}
-  double Uniform(double lo, double hi) { return lo + (hi - lo) * static_cast<double>(rng_() >> 11) * (1.0 / 9007199254740992.0); }
+  double Uniform(double lo, double hi) {
+    return lo + (hi - lo) * static_cast<double>(rng_() >> 11) * (1.0 / 9007199254740992.0);
+  }
   int Int(int lo, int hi) { return lo + static_cast<int>(rng_() % static_cast<std::uint64_t>(hi - lo + 1)); }
 
  private:
@@ -66,7 +68,8 @@ inline BackprojectionProblem RandomScene(std::uint64_t seed, bool with_rays = fa
       ray.group = "vc" + std::to_string(i / 2);
       const double ax = r.Uniform(0, 10), ay = r.Uniform(gy, 10);
       const double ang = r.Uniform(-150, -30) * M_PI / 180, len = r.Uniform(2, 8);
-      ray.segments.push_back({Eigen::Vector2d(ax, ay), Eigen::Vector2d(ax + len * std::cos(ang), ay + len * std::sin(ang))});
+      ray.segments.push_back(
+          {Eigen::Vector2d(ax, ay), Eigen::Vector2d(ax + len * std::cos(ang), ay + len * std::sin(ang))});
       pr.rays.push_back(ray);
     }
   }

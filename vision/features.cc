@@ -1,0 +1,265 @@
+#include "vision/features.h"
+
+#include <Eigen/Eigenvalues>
+#include <cmath>
+
+#include "common/error.h"
+
+namespace visco::vision {
+namespace {
+
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+
+// Inverse of the standard normal CDF, by bisection on erfc (only called at construction).
+double NormalQuantile(double p) {
+  double lo = -40, hi = 40;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    const double cdf = 0.5 * std::erfc(-mid / std::sqrt(2.0));
+    (cdf < p ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+// cMt perturbed on the left: rotation vector w (camera frame) then translation dt.
+Eigen::Isometry3d Perturb(const Eigen::Isometry3d& m, const Vec6& d) {
+  Eigen::Isometry3d out = m;
+  const double a = d.head<3>().norm();
+  if (a > 0) out.linear() = Eigen::AngleAxisd(a, d.head<3>() / a).toRotationMatrix() * m.linear();
+  out.translation() += d.tail<3>();
+  return out;
+}
+
+// Numeric gradient (central differences) of a scalar or vector function of a 6-vector perturbation.
+template <int N, typename F>
+Eigen::Matrix<double, N, 6> NumericJacobian(F f) {
+  Eigen::Matrix<double, N, 6> j;
+  for (int k = 0; k < 6; ++k) {
+    const double h = k < 3 ? 1e-6 : 1e-7;
+    Vec6 d = Vec6::Zero();
+    d[k] = h;
+    const Eigen::Matrix<double, N, 1> plus = f(d);
+    d[k] = -h;
+    const Eigen::Matrix<double, N, 1> minus = f(d);
+    j.col(k) = (plus - minus) / (2 * h);
+  }
+  return j;
+}
+
+double LargestStddev(const Eigen::Matrix3d& cov) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+  return std::sqrt(std::max(0.0, es.eigenvalues().maxCoeff()));
+}
+
+}  // namespace
+
+Thresholds HysteresisThresholds(const NoiseModel& noise) {
+  if (!(noise.false_alarm > 0 && noise.false_alarm < 1 && noise.fall_back > 0 && noise.fall_back < 0.5)) {
+    throw InputError("noise model", "false_alarm/fall_back", "probabilities must lie in (0, 1) and (0, 0.5)");
+  }
+  Thresholds k;
+  k.k_hi = NormalQuantile(1 - noise.false_alarm / 2);
+  k.k_lo = std::max(0.0, k.k_hi - NormalQuantile(1 - noise.fall_back));
+  return k;
+}
+
+SideState NextSideState(SideState previous, double d, double sigma, const Thresholds& k) {
+  const double hi = k.k_hi * sigma, lo = k.k_lo * sigma;
+  switch (previous) {
+    case SideState::kPositive:
+      if (d < -hi) return SideState::kNegative;
+      return d > lo ? SideState::kPositive : SideState::kOnLine;
+    case SideState::kNegative:
+      if (d > hi) return SideState::kPositive;
+      return d < -lo ? SideState::kNegative : SideState::kOnLine;
+    case SideState::kOnLine:
+    case SideState::kUnknown:
+      if (d > hi) return SideState::kPositive;
+      if (d < -hi) return SideState::kNegative;
+      return SideState::kOnLine;
+  }
+  return SideState::kUnknown;
+}
+
+double SignedImageDistance(const CameraModel& camera, const Eigen::Isometry3d& wMc, const ObjectModel& robot,
+                           const Eigen::Isometry3d& cMr, int cm_vertex, const ObjectModel& obstacle,
+                           const Eigen::Isometry3d& cMo, int vertex, Eigen::Vector3d* line, Eigen::Vector2d* cm_image) {
+  const Eigen::Vector2d& bv = obstacle.polygon[vertex];
+  const Eigen::Vector3d bot_c = cMo * Eigen::Vector3d(bv.x(), bv.y(), 0);
+  const Eigen::Vector3d top_c = cMo * Eigen::Vector3d(bv.x(), bv.y(), obstacle.height);
+  const Eigen::Vector2d p1 = camera.ProjectIdeal(bot_c), p2 = camera.ProjectIdeal(top_c);
+  Eigen::Vector3d l = Eigen::Vector3d(p1.x(), p1.y(), 1).cross(Eigen::Vector3d(p2.x(), p2.y(), 1));
+  // Orientation: positive on the side of the VC ray's left normal. The ray runs on the table from the vertex to the
+  // camera centre's foot point P; a point just left of it (in the world) must come out positive.
+  const Eigen::Vector3d b_w = wMc * bot_c;
+  const Eigen::Vector2d dir = wMc.translation().head<2>() - b_w.head<2>();
+  const Eigen::Vector2d left = Eigen::Vector2d(-dir.y(), dir.x()).normalized();
+  const Eigen::Vector3d q_w(b_w.x() + 0.01 * left.x(), b_w.y() + 0.01 * left.y(), b_w.z());
+  const Eigen::Vector2d q = camera.ProjectIdeal(wMc.inverse() * q_w);
+  if (l.dot(Eigen::Vector3d(q.x(), q.y(), 1)) < 0) l = -l;
+  l /= l.head<2>().norm();
+  const Eigen::Vector2d& av = robot.polygon[cm_vertex];
+  const Eigen::Vector2d a = camera.ProjectIdeal(cMr * Eigen::Vector3d(av.x(), av.y(), robot.height));
+  if (line != nullptr) *line = l;
+  if (cm_image != nullptr) *cm_image = a;
+  return l.dot(Eigen::Vector3d(a.x(), a.y(), 1));
+}
+
+FeatureEstimator::FeatureEstimator(const CameraModel& camera, const Eigen::Isometry3d& wMc, const ObjectModels& models,
+                                   const NoiseModel& noise, const PoseOptions& pose_options)
+    : camera_(camera),
+      wMc_(wMc),
+      cMw_(wMc.inverse()),
+      models_(models),
+      noise_(noise),
+      pose_options_(pose_options),
+      k_(HysteresisThresholds(noise)),
+      sigma2_(noise.corner_sigma_px * noise.corner_sigma_px) {
+  if (models_.robot.tags.empty()) throw InputError("object models", "robot.tags", "the robot carries no tag");
+  Reset();
+}
+
+void FeatureEstimator::Reset() {
+  robot_priors_.assign(models_.robot.tags.size(), std::nullopt);
+  obstacle_priors_.clear();
+  for (const auto& o : models_.obstacles) obstacle_priors_.emplace_back(o.tags.size(), std::nullopt);
+  states_.assign(models_.events.size(), SideState::kUnknown);
+  last_ = FrameFeatures();
+}
+
+ObjectEstimate FeatureEstimator::EstimateObject(const ObjectModel& model, const std::vector<TagObservation>& tags,
+                                                std::vector<std::optional<Eigen::Isometry3d>>& priors) {
+  ObjectEstimate best;
+  double best_var = std::numeric_limits<double>::infinity();
+  // The table normal in the camera frame resolves the planar ambiguity of face-up tags without a prior.
+  const Eigen::Vector3d table_normal_c = cMw_.linear() * Eigen::Vector3d::UnitZ();
+  for (std::size_t i = 0; i < model.tags.size(); ++i) {
+    const TagMount& mount = model.tags[i];
+    const TagObservation* obs = nullptr;
+    for (const auto& t : tags) {
+      if (t.id == mount.id && t.family == mount.family) obs = &t;
+    }
+    if (obs == nullptr) {
+      priors[i].reset();
+      continue;
+    }
+    std::optional<Eigen::Vector3d> normal;
+    if (std::abs(mount.oMt.linear()(2, 2)) > 0.9) normal = table_normal_c * (mount.oMt.linear()(2, 2) > 0 ? 1 : -1);
+    const auto pose = EstimateTagPose(camera_, obs->corners, mount.size, pose_options_, priors[i], normal);
+    if (!pose) {
+      priors[i].reset();
+      continue;
+    }
+    priors[i] = pose->cMo;
+    // Online noise estimate: E[4 rms^2] = E[SSR] = (8 - 6) sigma^2.
+    if (noise_.estimate_online) {
+      const double s2 = 2 * pose->rms_error_px * pose->rms_error_px;
+      sigma2_ = (1 - noise_.online_weight) * sigma2_ + noise_.online_weight * s2;
+      sigma2_ = std::max(sigma2_, noise_.min_corner_sigma_px * noise_.min_corner_sigma_px);
+    }
+    ++last_.tags_used;
+    const double var = pose->unit_covariance.block<3, 3>(3, 3).trace();
+    if (var < best_var) {
+      best_var = var;
+      best.valid = true;
+      best.tag_id = mount.id;
+      best.cMt = pose->cMo;
+      best.cov_cMt = pose->unit_covariance;  // scaled by sigma^2 below
+      best.cMo = pose->cMo * mount.oMt.inverse();
+      best.wMo = wMc_ * best.cMo;
+      best.rms_error_px = pose->rms_error_px;
+      best.ambiguous = pose->ambiguous;
+    }
+  }
+  return best;
+}
+
+const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>& tags) {
+  FrameFeatures f;
+  last_.tags_used = 0;
+  f.robot_pose = EstimateObject(models_.robot, tags, robot_priors_);
+  for (std::size_t k = 0; k < models_.obstacles.size(); ++k) {
+    f.obstacle_poses.push_back(EstimateObject(models_.obstacles[k], tags, obstacle_priors_[k]));
+  }
+  f.tags_used = last_.tags_used;
+  f.corner_sigma_px = std::sqrt(sigma2_);
+  const double s2 = sigma2_;
+  auto finish_object = [&](ObjectEstimate& o, const ObjectModel& model, int tag_id) {
+    if (!o.valid) return;
+    o.cov_cMt *= s2;
+    Eigen::Isometry3d tMo = Eigen::Isometry3d::Identity();
+    for (const auto& m : model.tags) {
+      if (m.id == tag_id) tMo = m.oMt.inverse();
+    }
+    const auto jp = NumericJacobian<3>(
+        [&](const Vec6& d) -> Eigen::Vector3d { return (wMc_ * Perturb(o.cMt, d) * tMo).translation(); });
+    o.position_stddev = LargestStddev(jp * o.cov_cMt * jp.transpose());
+    o.orientation_stddev = LargestStddev(o.cov_cMt.block<3, 3>(0, 0));
+  };
+  finish_object(f.robot_pose, models_.robot, f.robot_pose.tag_id);
+  for (std::size_t k = 0; k < models_.obstacles.size(); ++k) {
+    finish_object(f.obstacle_poses[k], models_.obstacles[k], f.obstacle_poses[k].tag_id);
+  }
+
+  // The robot on the motion plane.
+  Eigen::Isometry3d rtMo = Eigen::Isometry3d::Identity();
+  for (const auto& m : models_.robot.tags) {
+    if (m.id == f.robot_pose.tag_id) rtMo = m.oMt.inverse();
+  }
+  if (f.robot_pose.valid) {
+    f.robot.valid = true;
+    const Eigen::Isometry3d wMr = f.robot_pose.wMo;
+    f.robot.position = wMr.translation().head<2>();
+    f.robot.heading = std::atan2(wMr.linear()(1, 0), wMr.linear()(0, 0));
+    const auto j = NumericJacobian<2>([&](const Vec6& d) -> Eigen::Vector2d {
+      return (wMc_ * Perturb(f.robot_pose.cMt, d) * rtMo).translation().head<2>();
+    });
+    f.robot.covariance = j * f.robot_pose.cov_cMt * j.transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(f.robot.covariance);
+    f.robot.position_stddev = std::sqrt(std::max(0.0, es.eigenvalues().maxCoeff()));
+    for (const auto& v : models_.robot.polygon) {
+      f.cm_images.push_back(
+          camera_.ProjectIdeal(f.robot_pose.cMo * Eigen::Vector3d(v.x(), v.y(), models_.robot.height)));
+    }
+  }
+
+  // Pairs: signed distance, its uncertainty (first order in both tag poses), hysteresis.
+  f.pairs.resize(models_.events.size());
+  for (std::size_t e = 0; e < models_.events.size(); ++e) {
+    const EventPair& ev = models_.events[e];
+    PairMeasurement& pm = f.pairs[e];
+    const ObjectEstimate& ob = f.obstacle_poses[ev.obstacle];
+    const ObjectModel& om = models_.obstacles[ev.obstacle];
+    if (!f.robot_pose.valid || !ob.valid) {
+      pm.state = SideState::kUnknown;
+      states_[e] = SideState::kUnknown;  // never a silently stale state: the next known state is not a crossing
+      continue;
+    }
+    Eigen::Isometry3d otMo = Eigen::Isometry3d::Identity();
+    for (const auto& m : om.tags) {
+      if (m.id == ob.tag_id) otMo = m.oMt.inverse();
+    }
+    pm.valid = true;
+    pm.signed_distance_px = SignedImageDistance(camera_, wMc_, models_.robot, f.robot_pose.cMo, ev.cm_vertex, om,
+                                                ob.cMo, ev.vertex, &pm.vc_line, &pm.cm_image);
+    const auto gr = NumericJacobian<1>([&](const Vec6& d) -> Eigen::Matrix<double, 1, 1> {
+      return Eigen::Matrix<double, 1, 1>(SignedImageDistance(
+          camera_, wMc_, models_.robot, Perturb(f.robot_pose.cMt, d) * rtMo, ev.cm_vertex, om, ob.cMo, ev.vertex));
+    });
+    const auto go = NumericJacobian<1>([&](const Vec6& d) -> Eigen::Matrix<double, 1, 1> {
+      return Eigen::Matrix<double, 1, 1>(SignedImageDistance(camera_, wMc_, models_.robot, f.robot_pose.cMo,
+                                                             ev.cm_vertex, om, Perturb(ob.cMt, d) * otMo, ev.vertex));
+    });
+    const double var = (gr * f.robot_pose.cov_cMt * gr.transpose())(0, 0) + (go * ob.cov_cMt * go.transpose())(0, 0);
+    pm.stddev_px = std::sqrt(std::max(var, 1e-12));
+    const SideState prev = states_[e];
+    pm.state = NextSideState(prev, pm.signed_distance_px, pm.stddev_px, k_);
+    pm.crossed = prev != SideState::kUnknown && pm.state != prev;
+    states_[e] = pm.state;
+  }
+  last_ = std::move(f);
+  return last_;
+}
+
+}  // namespace visco::vision
