@@ -11,6 +11,7 @@
 #include "common/error.h"
 #include "control/commands.h"
 #include "drivers/commands.h"
+#include "planning/commands.h"
 #include "vision/commands.h"
 
 #ifndef VISCO_VERSION
@@ -28,6 +29,7 @@ int main(int argc, char** argv) {
 
   visco::app::RegisterSpyCommand(app);
   visco::drivers::RegisterCommands(app);
+  visco::planning::RegisterCommands(app);
   visco::vision::RegisterCommands(app);
   visco::control::RegisterCommands(app);
 

@@ -66,18 +66,30 @@ KPolygon Rectangle(const Bounds& bounds) {
   return r;
 }
 
-// Strictly inside the open sector swept counter-clockwise from apex->first to apex->second (straight sectors: the
-// open half-plane left of apex->first), for the direction d.
-bool InOpenSectorExact(const KPoint& apex, const KPoint& first, const KPoint& second, const K::Vector_2& d) {
-  const K::Vector_2 a = first - apex, b = second - apex;
-  const auto cross = [](const K::Vector_2& u, const K::Vector_2& v) {
-    return CGAL::sign(u.x() * v.y() - u.y() * v.x());
+// Given the boundary directions leaving a boundary point (each with whether the interior lies just
+// counter-clockwise of it, i.e. the edge leaves the point), the state of the open piece leaving in direction d:
+// 0 along the boundary, +1 into the interior, -1 into the exterior. Exact.
+int StateFromBoundaryDirections(const std::vector<std::pair<K::Vector_2, bool>>& around, const K::Vector_2& d) {
+  // Counter-clockwise angle from d to u, as (half, u) with half 0 for (0, pi], 1 for (pi, 2 pi); the nearest
+  // direction clockwise of d has the largest angle.
+  const auto half = [&](const K::Vector_2& u) {
+    const CGAL::Orientation o = CGAL::orientation(d, u);
+    if (o == CGAL::LEFT_TURN) return 0;
+    if (o == CGAL::COLLINEAR) return CGAL::sign(d * u) < 0 ? 0 : 2;  // 2: the same direction as d
+    return 1;
   };
-  const int ab = cross(a, b);
-  if (ab > 0) return cross(a, d) > 0 && cross(d, b) > 0;
-  if (ab < 0) return !(cross(b, d) >= 0 && cross(d, a) >= 0);
-  if (CGAL::sign(a * b) < 0) return cross(a, d) > 0;
-  return false;
+  const std::pair<K::Vector_2, bool>* best = nullptr;
+  int best_half = -1;
+  for (const auto& entry : around) {
+    const int h = half(entry.first);
+    if (h == 2) return 0;
+    if (best == nullptr || h > best_half ||
+        (h == best_half && CGAL::orientation(best->first, entry.first) == CGAL::LEFT_TURN)) {
+      best = &entry;
+      best_half = h;
+    }
+  }
+  return best->second ? 1 : -1;
 }
 
 }  // namespace
@@ -209,27 +221,24 @@ CutResult CSpace::CutSegments(const std::vector<OffsetSegment>& segments, const 
     // State of the open piece that starts at `x` and runs in direction d: +1 interior of CB, 0 on its boundary,
     // -1 outside, 2 unknown (x is on no boundary edge, so the piece continues the state before x).
     const auto state_after = [&](const KPoint& x, const K::Vector_2& d) -> int {
-      bool on_boundary = false, inside = false;
+      // The boundary directions leaving x: along outgoing edges (interior on their left, i.e. just
+      // counter-clockwise of them) and back along incoming edges (interior just clockwise of them). The state in
+      // direction d is decided by the boundary direction nearest to d clockwise. This handles vertices where the
+      // boundary passes several times (pinches of the union) as well as plain vertices and edge interiors.
+      std::vector<std::pair<K::Vector_2, bool>> around;  // (direction, outgoing)
       for (std::size_t k : cand) {
         const BoundaryEdge& edge = e.edges[k];
-        const KSegment es(edge.source, edge.target);
-        if (!es.has_on(x)) continue;
-        on_boundary = true;
-        const K::Vector_2 along = edge.target - edge.source;
-        const bool parallel = CGAL::sign(along.x() * d.y() - along.y() * d.x()) == 0;
         if (x == edge.source) {
-          if (parallel && along * d > 0) return 0;
-          inside = inside || InOpenSectorExact(x, edge.target, edge.prev, d);
+          around.emplace_back(edge.target - x, true);
         } else if (x == edge.target) {
-          if (parallel && along * d < 0) return 0;
-          inside = inside || InOpenSectorExact(x, edge.next, edge.source, d);
-        } else {
-          if (parallel) return 0;
-          inside = inside || InOpenSectorExact(x, edge.target, edge.source, d);
+          around.emplace_back(edge.source - x, false);
+        } else if (KSegment(edge.source, edge.target).has_on(x)) {
+          around.emplace_back(edge.target - x, true);
+          around.emplace_back(edge.source - x, false);
         }
       }
-      if (!on_boundary) return 2;
-      return inside ? 1 : -1;
+      if (around.empty()) return 2;
+      return StateFromBoundaryDirections(around, d);
     };
 
     // Classify each piece [breaks[k], breaks[k + 1]].

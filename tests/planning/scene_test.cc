@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -209,6 +210,55 @@ TEST(Scene, RejectsBadAngles) {
   j = BaseScene();
   j["friction_cone_deg"] = 0;
   EXPECT_NO_THROW(ParseScene(j.dump(), "test.json"));
+}
+
+// A pinhole camera at (5, -3, 4) looking at (5, 4, 0): camera x = world +x, z towards the target, y = z x x (down).
+Json PinholeCamera(const Eigen::Vector3d& centre, const Eigen::Vector3d& target) {
+  const Eigen::Vector3d z = (target - centre).normalized();
+  const Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  Json m = Json::array();
+  for (int r = 0; r < 3; ++r) m.push_back({x[r], y[r], z[r], centre[r]});
+  m.push_back({0, 0, 0, 1});
+  return {
+      {"pinhole", {{"px", 500}, {"py", 500}, {"u0", 320}, {"v0", 240}, {"width", 640}, {"height", 480}, {"wMc", m}}}};
+}
+
+TEST(Scene, PinholeCameraGivesFootPointAndFootprint) {
+  Json j = BaseScene();
+  j["camera"] = PinholeCamera({5, -3, 4}, {5, 4, 0});
+  const Scene scene = ParseScene(j.dump(), "test.json");
+  ASSERT_TRUE(scene.camera && scene.camera->pinhole);
+  EXPECT_NEAR(scene.camera->center.x(), 5, 1e-12);
+  EXPECT_NEAR(scene.camera->center.y(), -3, 1e-12);
+  // Closed form: with n = |(0, 7, -4)|, the ray of normalised image point (x, y) has horizontal part
+  // (x, (7 - 4 y) / n); the widest azimuths are at the top corners x = +-0.64, y = -0.48.
+  const double half = std::atan2(0.64 * std::sqrt(65.0), 7 - 4 * 0.48);
+  EXPECT_NEAR(scene.camera->fov_first_rad, M_PI / 2 - half, 1e-9);
+  EXPECT_NEAR(scene.camera->fov_second_rad, M_PI / 2 + half, 1e-9);
+  // The pinhole example scene loads.
+  const Scene example = LoadScene("data/scenes/slot_pinhole.json");
+  EXPECT_NEAR(example.camera->center.x(), 11, 1e-12);
+  EXPECT_GT(example.camera->fov_second_rad - example.camera->fov_first_rad, 0.5);
+}
+
+TEST(Scene, PinholeCameraRejections) {
+  Json j = BaseScene();
+  j["camera"] = PinholeCamera({5, 3, 6}, {5, 3.1, 0});  // looking (almost) straight down: sees its foot point
+  ExpectRejected(j, "camera.pinhole", "foot point");
+  j["camera"] = PinholeCamera({5, 3, -1}, {5, 6, -2});  // below the plane
+  ExpectRejected(j, "camera.pinhole", "above the motion plane");
+  j["camera"] = PinholeCamera({5, 3, 2}, {5, 10, 8});  // looking up: the image misses the plane
+  ExpectRejected(j, "camera.pinhole", "does not see the motion plane");
+  j["camera"] = PinholeCamera({5, -3, 4}, {5, 4, 0});
+  j["camera"]["pinhole"]["wMc"][0][0] = 2.0;
+  ExpectRejected(j, "camera.pinhole.wMc", "not a rotation");
+  j["camera"] = PinholeCamera({5, -3, 4}, {5, 4, 0});
+  j["camera"]["pinhole"]["fov"] = 3;
+  ExpectRejected(j, "camera.pinhole.fov", "unknown field");
+  j["camera"] = PinholeCamera({5, -3, 4}, {5, 4, 0});
+  j["camera"]["center"] = {1, 1};
+  ExpectRejected(j, "camera.center", "unknown field");
 }
 
 TEST(Scene, LoadScene) {

@@ -1,0 +1,61 @@
+#include "planning/commands.h"
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <string>
+
+#include "common/error.h"
+#include "planning/cspace.h"
+#include "planning/scene.h"
+#include "planning/vc_rays.h"
+
+namespace visco::planning {
+namespace {
+
+struct VcRaysArgs {
+  std::string scene;
+  std::string out;
+  std::string svg;
+};
+
+void WriteText(const std::string& text, const std::string& path) {
+  if (path.empty()) {
+    std::fwrite(text.data(), 1, text.size(), stdout);
+    std::fputc('\n', stdout);
+    return;
+  }
+  std::ofstream f(path);
+  f << text << "\n";
+  if (!f) throw InputError(path, "", "cannot write the output file");
+}
+
+void RunVcRays(const VcRaysArgs& a) {
+  const Scene scene = LoadScene(a.scene);
+  const CSpace cspace(scene);
+  const VcRays rays = ComputeVcRays(scene, cspace);
+  WriteText(VcRaysToJson(scene, rays), a.out);
+  if (!a.svg.empty()) WriteText(VcRaysToSvg(scene, cspace, rays), a.svg);
+}
+
+}  // namespace
+
+void RegisterCommands(CLI::App& app) {
+  auto args = std::make_shared<VcRaysArgs>();
+  CLI::App* vcrays = app.add_subcommand(
+      "vcrays",
+      "Compute the visual constraint rays of a scene (Fox & Hutchinson section III): workspace VC rays from the "
+      "unoccluded obstacle vertices in the field of view to the camera centre, and C-space VC rays (one per CM "
+      "vertex of the robot, cut where they enter the C-obstacles and clipped to the bounds), with their crossings. "
+      "Prints JSON {\"vc_rays\": [{\"id\", \"obstacle\", \"vertex\", \"from\", \"to\"}], \"cvc_rays\": [{\"id\", "
+      "\"vc_ray\", \"cm_vertex\", \"segments\"}], \"cvc_crossings\": [...]}. Ids are stable: \"vc<k>\" for the k-th "
+      "obstacle vertex of the file, \"vc<k>.cm<j>\" for robot vertex j.");
+  vcrays->add_option("SCENE", args->scene, "scene file (JSON, see CONTRACT.md)")->required();
+  vcrays->add_option("--out", args->out, "write the JSON to FILE instead of stdout");
+  vcrays->add_option("--svg", args->svg,
+                     "draw obstacles, C-obstacles, camera, VC rays and labelled CVC rays into FILE (SVG)");
+  vcrays->callback([args] { RunVcRays(*args); });
+}
+
+}  // namespace visco::planning

@@ -1,0 +1,106 @@
+#pragma once
+// Seeded random scenes for property tests and benchmarks: non-overlapping star-shaped obstacles in grid cells,
+// some touching (cell-filling rectangles), coordinates on a coarse lattice so that collinear vertices, vertices on
+// each other's projection rays, robot edges parallel to rays and cameras on supporting lines happen often.
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "planning/scene.h"
+
+namespace visco::planning::testing {
+
+struct RandomSceneOptions {
+  int cells_x = 4;
+  int cells_y = 4;
+  double cell = 4.0;       // cell size
+  double lattice = 0.5;    // coordinates are multiples of this (0: continuous)
+  double fill = 0.6;       // probability that a cell holds an obstacle
+  double touching = 0.15;  // probability that an obstacle fills its whole cell (touching its neighbours)
+  int max_vertices = 7;    // per obstacle
+};
+
+inline double Snap(double v, double lattice) { return lattice > 0 ? std::round(v / lattice) * lattice : v; }
+
+// A star-shaped simple polygon around c within radius r, counter-clockwise.
+inline Polygon StarPolygon(std::mt19937_64& rng, const Point& c, double r, int max_vertices, double lattice) {
+  std::uniform_int_distribution<int> count(3, std::max(3, max_vertices));
+  std::uniform_real_distribution<double> unit(0, 1);
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    const int n = count(rng);
+    std::vector<double> angles(n);
+    for (double& a : angles) a = unit(rng) * 2 * M_PI;
+    std::sort(angles.begin(), angles.end());
+    Polygon p;
+    for (double a : angles) {
+      const double radius = r * (0.3 + 0.7 * unit(rng));
+      p.vertices.push_back({Snap(c.x() + radius * std::cos(a), lattice), Snap(c.y() + radius * std::sin(a), lattice)});
+    }
+    if (IsSimple(p) && PolygonOrientation(p) > 0) return p;
+  }
+  return Polygon{{c + Point(-r / 2, -r / 2), c + Point(r / 2, -r / 2), c + Point(0, r / 2)}};
+}
+
+inline Scene RandomScene(std::uint64_t seed, const RandomSceneOptions& o = {}) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> unit(0, 1);
+  Scene s;
+  s.name = "random" + std::to_string(seed);
+  s.source = s.name;
+  s.bounds = {{0, 0}, {o.cells_x * o.cell, o.cells_y * o.cell}};
+  const auto as_scene_polygon = [](Polygon p) {
+    ScenePolygon sp;
+    sp.polygon = std::move(p);
+    for (std::size_t i = 0; i < sp.polygon.size(); ++i) sp.source_index.push_back(static_cast<int>(i));
+    return sp;
+  };
+  for (int cx = 0; cx < o.cells_x; ++cx) {
+    for (int cy = 0; cy < o.cells_y; ++cy) {
+      if (unit(rng) > o.fill) continue;
+      const Point lo(cx * o.cell, cy * o.cell);
+      Polygon p;
+      if (unit(rng) < o.touching) {
+        p.vertices = {lo, lo + Point(o.cell, 0), lo + Point(o.cell, o.cell), lo + Point(0, o.cell)};
+      } else {
+        // Snapping moves a vertex by at most lattice / 2: it stays in the closed cell (it may touch a neighbour).
+        p = StarPolygon(rng, lo + Point(o.cell / 2, o.cell / 2), o.cell / 2 - o.lattice / 2 - 1e-9, o.max_vertices,
+                        o.lattice);
+      }
+      s.obstacles.push_back({"o" + std::to_string(s.obstacles.size()), as_scene_polygon(std::move(p))});
+    }
+  }
+  s.robot = as_scene_polygon(StarPolygon(rng, {0, 0}, 1.0, 6, o.lattice));
+  s.goal = as_scene_polygon(Polygon{{{0, 0}, {1, 0}, {1, 1}, {0, 1}}});
+  // Camera: a lattice point not inside any obstacle (often on a boundary or a supporting line).
+  Camera cam;
+  for (int attempt = 0; attempt < 1000; ++attempt) {
+    cam.center = {Snap(unit(rng) * s.bounds.max.x(), o.lattice > 0 ? o.lattice : 0.25),
+                  Snap(unit(rng) * s.bounds.max.y(), o.lattice > 0 ? o.lattice : 0.25)};
+    bool inside = false;
+    for (const Obstacle& ob : s.obstacles) inside = inside || Locate(ob.shape.polygon, cam.center) == Location::kInside;
+    if (!inside) break;
+  }
+  // Field of view: multiples of 15 degrees, 15 to 165 wide.
+  const double first = 15.0 * std::uniform_int_distribution<int>(0, 23)(rng);
+  const double span = 15.0 * std::uniform_int_distribution<int>(1, 11)(rng);
+  const auto dir = [](double deg) {
+    const double r = deg * M_PI / 180;
+    Vector d(std::cos(r), std::sin(r));
+    for (double& c : d) {
+      if (std::abs(c) < 1e-15) c = 0;
+    }
+    return d;
+  };
+  cam.fov_first_rad = first * M_PI / 180;
+  cam.fov_second_rad = (first + span) * M_PI / 180;
+  cam.fov_first = dir(first);
+  cam.fov_second = dir(first + span);
+  s.camera = cam;
+  s.uncertainty = {0.1, 0.05};
+  s.friction_cone_rad = 0.2;
+  return s;
+}
+
+}  // namespace visco::planning::testing

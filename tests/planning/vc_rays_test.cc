@@ -1,0 +1,266 @@
+#include "planning/vc_rays.h"
+
+#include <gtest/gtest.h>
+
+#include <set>
+#include <string>
+
+#include "planning/cspace.h"
+#include "tests/planning/random_vc_scenes.h"
+
+namespace visco::planning {
+namespace {
+
+Scene Make(const std::string& obstacles, const std::string& camera, const std::string& robot = "") {
+  const std::string text = R"({"bounds": {"min": [-10, -10], "max": [10, 10]},
+    "robot": {"polygon": )" +
+                           (robot.empty() ? "[[0, 0], [1, 0], [1, 1], [0, 1]]" : robot) + R"(}, "obstacles": )" +
+                           obstacles + R"(,
+    "goal": {"polygon": [[-10, -10], [-9, -10], [-9, -9], [-10, -9]]},
+    "camera": )" + camera + R"(, "uncertainty": {"velocity_cone_deg": 5, "position": 0.01}, "friction_cone_deg": 10})";
+  return ParseScene(text, "hand.json");
+}
+
+// (obstacle id, vertex as written in the file) of the unoccluded vertices.
+std::set<std::pair<std::string, int>> Visible(const Scene& s) {
+  std::set<std::pair<std::string, int>> out;
+  for (const UnoccludedVertex& u : FindUnoccludedVertices(s)) {
+    out.insert({s.obstacles[u.obstacle].id, s.obstacles[u.obstacle].shape.source_index[u.vertex]});
+  }
+  EXPECT_EQ(FindUnoccludedVertices(s), FindUnoccludedVerticesReference(s));
+  return out;
+}
+
+using V = std::set<std::pair<std::string, int>>;
+
+TEST(VcRays, SquareSeenFromTheSide) {
+  // Camera to the right looking left: the two right corners and the top-right... (0,0)-(1,1) square, P = (3, 0.5).
+  const Scene s = Make(R"([{"id": "a", "polygon": [[0, 0], [1, 0], [1, 1], [0, 1]]}])",
+                       R"({"center": [3, 0.5], "fov_deg": [100, 260]})");
+  EXPECT_EQ(Visible(s), (V{{"a", 1}, {"a", 2}}));
+}
+
+TEST(VcRays, CameraOnAnEdgesSupportingLine) {
+  // P on the line y = 1 of the top edge: the segment from (0, 1) to P runs along that edge (boundary only).
+  const Scene s = Make(R"([{"id": "a", "polygon": [[0, 0], [1, 0], [1, 1], [0, 1]]}])",
+                       R"({"center": [3, 1], "fov_deg": [100, 260]})");
+  EXPECT_EQ(Visible(s), (V{{"a", 1}, {"a", 2}, {"a", 3}}));
+}
+
+TEST(VcRays, VertexOnAnothersProjectionRay) {
+  // P = (0, 0). Square a = [1, 2]^2; b's corner (3, 3) lies on the ray through a's corners (1, 1) and (2, 2) (the
+  // diagonal of a, through its interior): occluded. c's corner (4, 2) is on the ray through a's corner (2, 1),
+  // which it only grazes: visible.
+  const Scene s = Make(R"([{"id": "a", "polygon": [[1, 1], [2, 1], [2, 2], [1, 2]]},
+                           {"id": "b", "polygon": [[3, 3], [3.5, 3], [3.5, 3.5], [3, 3.5]]},
+                           {"id": "c", "polygon": [[4, 2], [5, 2], [5, 2.5], [4, 2.5]]}])",
+                       R"({"center": [0, 0], "fov_deg": [0, 89]})");
+  const V visible = Visible(s);
+  EXPECT_TRUE(visible.count({"a", 0}));
+  EXPECT_FALSE(visible.count({"a", 2}));  // (2, 2): the diagonal runs through a's interior
+  EXPECT_FALSE(visible.count({"b", 0}));  // (3, 3)
+  EXPECT_TRUE(visible.count({"a", 1}));   // (2, 1)
+  EXPECT_TRUE(visible.count({"c", 0}));   // (4, 2), grazing (2, 1)
+  EXPECT_TRUE(visible.count({"a", 3}));   // (1, 2)
+}
+
+TEST(VcRays, CollinearVertices) {
+  // A polygon with a straight-angle vertex at (1, 0.5) facing the camera, and one on the far side at (0, 0.5).
+  const Scene s = Make(R"([{"id": "a", "polygon": [[0, 0], [1, 0], [1, 0.5], [1, 1], [0, 1], [0, 0.5]]}])",
+                       R"({"center": [3, 0.5], "fov_deg": [100, 260]})");
+  EXPECT_EQ(Visible(s), (V{{"a", 1}, {"a", 2}, {"a", 3}}));
+}
+
+TEST(VcRays, TouchingObstaclesSeenAlongTheirSeam) {
+  // a and b share the edge x = 1; the camera looks down the seam: (1, 0) is seen along the boundary of both.
+  const Scene s = Make(R"([{"id": "a", "polygon": [[0, 0], [1, 0], [1, 1], [0, 1]]},
+                           {"id": "b", "polygon": [[1, 0], [2, 0], [2, 1], [1, 1]]}])",
+                       R"({"center": [1, 5], "fov_deg": [240, 300]})");
+  EXPECT_EQ(Visible(s), (V{{"a", 1}, {"a", 2}, {"a", 3}, {"b", 0}, {"b", 2}, {"b", 3}}));
+  // A vertex of b in the middle of a's edge, seen from the side of a: the segment to P enters a at once.
+  const Scene t = Make(R"([{"id": "a", "polygon": [[0, 0], [1, 0], [1, 2], [0, 2]]},
+                           {"id": "b", "polygon": [[1, 0.5], [2, 0.5], [2, 1.5], [1, 1.5]]}])",
+                       R"({"center": [-3, 1], "fov_deg": [-60, 60]})");
+  EXPECT_EQ(Visible(t), (V{{"a", 0}, {"a", 3}}));
+}
+
+TEST(VcRays, CameraOnAnObstacleBoundary) {
+  // P at the middle of a's top edge looking up: vertices above are visible, nothing through a.
+  const Scene s = Make(R"([{"id": "a", "polygon": [[0, 0], [2, 0], [2, 1], [0, 1]]},
+                           {"id": "b", "polygon": [[0, 3], [2, 3], [2, 4], [0, 4]]}])",
+                       R"({"center": [1, 1], "fov_deg": [0, 179]})");
+  EXPECT_EQ(Visible(s), (V{{"a", 2}, {"b", 0}, {"b", 1}}));
+}
+
+TEST(VcRays, CmVerticesWithARobotEdgeParallelToTheRay) {
+  // The camera straight above the vertex: the ray is vertical, parallel to the square robot's vertical edges.
+  // Left of "down" is +x: a1 = (1, 0) and a2 = (1, 1) tie, the lower index wins; right: a0 and a3 tie -> a0.
+  const Scene s =
+      Make(R"([{"id": "a", "polygon": [[4, 1], [6, 1], [5, 2]]}])", R"({"center": [5, 8], "fov_deg": [265, 275]})");
+  const auto u = FindUnoccludedVertices(s);
+  ASSERT_EQ(u.size(), 1u);
+  EXPECT_EQ(u[0].cm, (std::array<int, 2>{1, 0}));
+  EXPECT_EQ(FindUnoccludedVerticesReference(s), u);
+}
+
+TEST(VcRays, CvcRaysOfTheSlot) {
+  const Scene s = LoadScene("data/scenes/slot.json");
+  const CSpace cspace(s);
+  const VcRays rays = ComputeVcRays(s, cspace);
+  // The slot's left lip (4, 2) is vertex 2 of obstacle "left": k = 2.
+  const VcRay* lip = nullptr;
+  for (const VcRay& r : rays.vc_rays) {
+    if (r.id == "vc2") lip = &r;
+  }
+  ASSERT_NE(lip, nullptr);
+  EXPECT_EQ(lip->from, Point(4, 2));
+  EXPECT_EQ(lip->to, Point(9.5, 7.5));
+  // Ray direction (5.5, 5.5)/|.|: the unit square's CM vertices are a1 = (1, 0) (right of the ray) and a3 = (0, 1).
+  EXPECT_EQ(lip->cm_vertices, (std::array<int, 2>{1, 3}));
+  for (const CvcRay& c : rays.cvc_rays) {
+    if (c.vc_ray != lip - rays.vc_rays.data()) continue;
+    EXPECT_TRUE(c.id == "vc2.cm1" || c.id == "vc2.cm3") << c.id;
+    ASSERT_FALSE(c.segments.empty());
+    // Free parts never enter CB's interior; the a1 ray starts at (3, 2), a corner of CB_left's top edge... it runs
+    // from (3, 2) up-right in free space and is clipped by the bounds' top y = 8 at x = 9.
+    if (c.id == "vc2.cm1") {
+      EXPECT_EQ(c.segments.front().source, Point(3, 2));
+      EXPECT_EQ(c.segments.back().target, Point(8.5, 7.5));
+    }
+  }
+  EXPECT_EQ(rays.cvc_rays.size(), 2 * rays.vc_rays.size());
+}
+
+// Property: the sweep equals the O(n^2) reference on hundreds of seeded random scenes full of degeneracies.
+TEST(VcRaysProperty, SweepEqualsReference) {
+  int total_visible = 0;
+  for (std::uint64_t seed = 1; seed <= 400; ++seed) {
+    testing::RandomSceneOptions o;
+    o.lattice = seed % 4 == 0 ? 0.0 : (seed % 4 == 1 ? 1.0 : 0.5);
+    o.touching = seed % 3 == 0 ? 0.5 : 0.15;
+    const Scene s = testing::RandomScene(seed, o);
+    const auto fast = FindUnoccludedVertices(s);
+    const auto slow = FindUnoccludedVerticesReference(s);
+    ASSERT_EQ(fast, slow) << "seed " << seed;
+    total_visible += static_cast<int>(fast.size());
+  }
+  EXPECT_GT(total_visible, 1000);
+}
+
+// Property: every CVC free part lies outside CB's interior and inside the bounds, the cut parts between them lie
+// inside CB (or outside the bounds), and parts begin and end on CB's boundary, the bounds or the ray's ends.
+TEST(VcRaysProperty, CvcPartsAreExactlyTheFreeParts) {
+  int checked = 0;
+  for (std::uint64_t seed = 1; seed <= 120; ++seed) {
+    testing::RandomSceneOptions o;
+    o.cells_x = 3;
+    o.cells_y = 3;
+    o.lattice = seed % 2 == 0 ? 0.5 : 0.0;
+    const Scene s = testing::RandomScene(seed, o);
+    const CSpace cspace(s);
+    const VcRays rays = ComputeVcRays(s, cspace);
+    ASSERT_EQ(rays.cvc_rays.size(), 2 * rays.vc_rays.size());
+    for (const CvcRay& c : rays.cvc_rays) {
+      const Point a = c.full.source, b = c.full.target;
+      const Vector d = b - a;
+      const double len2 = d.squaredNorm();
+      double t_prev = 0;
+      for (const Segment& seg : c.segments) {
+        const Point mid = 0.5 * (seg.source + seg.target);
+        EXPECT_NE(cspace.Locate(mid), Location::kInside) << c.id << " seed " << seed;
+        EXPECT_TRUE(s.bounds.Contains(mid));
+        const double t0 = (seg.source - a).dot(d) / len2, t1 = (seg.target - a).dot(d) / len2;
+        EXPECT_LT(t0, t1);
+        EXPECT_GE(t0, t_prev - 1e-12);
+        if (t0 - t_prev > 1e-6) {  // a gap: inside CB or outside the bounds
+          const Point gap = a + 0.5 * (t_prev + t0) * d;
+          EXPECT_TRUE(cspace.Locate(gap) == Location::kInside || !s.bounds.Contains(gap)) << c.id << " seed " << seed;
+        }
+        // Each end is on CB's boundary, on the bounds, or an end of the ray.
+        for (const Point& e : {seg.source, seg.target}) {
+          const bool on_ray_end = (e - a).norm() < 1e-9 || (e - b).norm() < 1e-9;
+          const bool on_bounds = std::abs(e.x() - s.bounds.min.x()) < 1e-9 ||
+                                 std::abs(e.x() - s.bounds.max.x()) < 1e-9 ||
+                                 std::abs(e.y() - s.bounds.min.y()) < 1e-9 || std::abs(e.y() - s.bounds.max.y()) < 1e-9;
+          bool on_cb = false;
+          for (const PolygonWithHoles& cb : cspace.obstacle_union()) {
+            for (const Polygon* ring = &cb.outer; ring && !on_cb; ring = nullptr) {
+              for (std::size_t i = 0; i < ring->size() && !on_cb; ++i) {
+                const Segment edge = ring->Edge(i);
+                const Vector ev = edge.target - edge.source;
+                const double t = std::clamp((e - edge.source).dot(ev) / ev.squaredNorm(), 0.0, 1.0);
+                on_cb = (edge.source + t * ev - e).norm() < 1e-9;
+              }
+            }
+            for (const Polygon& h : cb.holes) {
+              for (std::size_t i = 0; i < h.size() && !on_cb; ++i) {
+                const Segment edge = h.Edge(i);
+                const Vector ev = edge.target - edge.source;
+                const double t = std::clamp((e - edge.source).dot(ev) / ev.squaredNorm(), 0.0, 1.0);
+                on_cb = (edge.source + t * ev - e).norm() < 1e-9;
+              }
+            }
+          }
+          EXPECT_TRUE(on_ray_end || on_bounds || on_cb) << c.id << " seed " << seed << " end " << e.transpose();
+        }
+        t_prev = t1;
+        ++checked;
+      }
+      if (1 - t_prev > 1e-6) {
+        const Point gap = a + 0.5 * (t_prev + 1) * d;
+        EXPECT_TRUE(cspace.Locate(gap) == Location::kInside || !s.bounds.Contains(gap)) << c.id << " seed " << seed;
+      }
+    }
+    // Crossings: each point lies on both rays' parts.
+    for (const CvcCrossing& x : rays.crossings) {
+      ASSERT_LT(x.first, x.second);
+      for (int r : {x.first, x.second}) {
+        bool on = false;
+        for (const Segment& seg : rays.cvc_rays[r].segments) {
+          const Vector ev = seg.target - seg.source;
+          const double t = std::clamp((x.point - seg.source).dot(ev) / ev.squaredNorm(), 0.0, 1.0);
+          on = on || (seg.source + t * ev - x.point).norm() < 1e-9;
+        }
+        EXPECT_TRUE(on);
+      }
+    }
+  }
+  EXPECT_GT(checked, 500);
+}
+
+// Property: crossings are exactly the pairs of CVC parts that meet (checked by brute force over all pairs).
+TEST(VcRaysProperty, CrossingsEqualBruteForcePairs) {
+  for (std::uint64_t seed = 1; seed <= 60; ++seed) {
+    testing::RandomSceneOptions o;
+    o.cells_x = 3;
+    o.cells_y = 3;
+    const Scene s = testing::RandomScene(seed * 7919, o);
+    const CSpace cspace(s);
+    const VcRays rays = ComputeVcRays(s, cspace);
+    std::set<std::pair<int, int>> expected, got;
+    for (std::size_t i = 0; i < rays.cvc_rays.size(); ++i) {
+      for (std::size_t j = i + 1; j < rays.cvc_rays.size(); ++j) {
+        if (rays.cvc_rays[i].vc_ray == rays.cvc_rays[j].vc_ray) continue;  // parallel siblings
+        for (const Segment& a : rays.cvc_rays[i].segments) {
+          for (const Segment& b : rays.cvc_rays[j].segments) {
+            if (SegmentsIntersect(a, b)) expected.insert({static_cast<int>(i), static_cast<int>(j)});
+          }
+        }
+      }
+    }
+    for (const CvcCrossing& x : rays.crossings) got.insert({x.first, x.second});
+    // Rounded endpoints can make a touching pair differ; require agreement on all pairs that cross properly.
+    for (const auto& pair : expected) {
+      bool proper = false;
+      for (const Segment& a : rays.cvc_rays[pair.first].segments) {
+        for (const Segment& b : rays.cvc_rays[pair.second].segments) proper = proper || SegmentsCrossProperly(a, b);
+      }
+      if (proper) {
+        EXPECT_TRUE(got.count(pair)) << "seed " << seed;
+      }
+    }
+  }
+}
+
+}  // namespace
+}  // namespace visco::planning

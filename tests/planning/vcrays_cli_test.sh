@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# `visco vcrays` on every example scene: exit 0, the contract's JSON keys, an SVG when asked; bad scenes exit 2 with
+# one line naming the file and the object.
+set -uo pipefail
+visco="$1"
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+failures=0
+fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+for scene in data/scenes/*.json; do
+  if ! "$visco" vcrays "$scene" --out "$tmp/out.json" --svg "$tmp/out.svg" 2>"$tmp/err"; then
+    fail "visco vcrays $scene: $(cat "$tmp/err")"
+    continue
+  fi
+  python3 - "$tmp/out.json" "$scene" <<'PY' || fail "JSON of $1"
+import json, sys
+j = json.load(open(sys.argv[1]))
+assert set(["vc_rays", "cvc_rays"]) <= set(j), j.keys()
+for r in j["vc_rays"]:
+    assert set(["id", "obstacle", "vertex", "from", "to"]) <= set(r), r
+for c in j["cvc_rays"]:
+    assert set(["id", "vc_ray", "cm_vertex", "segments"]) <= set(c), c
+    assert c["id"].startswith(c["vc_ray"] + ".cm"), c
+assert len(j["vc_rays"]) > 0, "no VC rays in " + sys.argv[2]
+PY
+  grep -q "</svg>" "$tmp/out.svg" || fail "no SVG for $scene"
+done
+# Same output twice (ids and order are deterministic).
+"$visco" vcrays data/scenes/slot.json > "$tmp/a.json" && "$visco" vcrays data/scenes/slot.json > "$tmp/b.json"
+cmp -s "$tmp/a.json" "$tmp/b.json" || fail "two runs differ"
+# Bad input: exit 2, "visco: FILE: OBJECT: what".
+sed 's/"friction_cone_deg"/"friction_deg"/' data/scenes/slot.json > "$tmp/bad.json"
+out=$("$visco" vcrays "$tmp/bad.json" 2>&1); status=$?
+[[ $status -eq 2 ]] || fail "bad scene exited $status"
+grep -qE "^visco: .*bad.json: friction_deg: unknown field" <<<"$out" || fail "bad scene message: $out"
+out=$("$visco" vcrays /nonexistent.json 2>&1); status=$?
+[[ $status -eq 2 ]] || fail "missing scene exited $status"
+grep -qE "^visco: /nonexistent.json: cannot open" <<<"$out" || fail "missing scene message: $out"
+"$visco" vcrays --help | grep -q "SCENE" || fail "no --help"
+echo "$(( failures == 0 ? 1 : 0 )) passed, $(( failures == 0 ? 0 : 1 )) failed"
+exit $(( failures == 0 ? 0 : 1 ))
