@@ -1,0 +1,109 @@
+#pragma once
+// Tracking between detections, with ViSP: blobs with vpDot2 (the dot targets of visp-images-data's mire-2),
+// feature points with KLT (vpKltOpencv, the cube sequence), and AprilTags followed from frame to frame either by
+// KLT on their corners or by detection restricted to a region around each tag's last position. The tag tracker's
+// mode is chosen by measurement (tests/bench/vision, docs/vision.md): ROI-restricted detection is the default.
+
+#include <Eigen/Core>
+#include <memory>
+#include <vector>
+
+#include "vision/image.h"
+#include "vision/tag_detector.h"
+
+namespace visco::vision {
+
+/// Finds round blobs brighter (or darker) than their surroundings: Otsu threshold, connected components, filtered by
+/// area (pixels) and circularity (4 pi area / perimeter^2). Centres in pixels (OpenCV/ViSP convention).
+std::vector<Eigen::Vector2d> FindBlobs(const GrayImageView& image, bool bright, double min_area, double max_area,
+                                       double min_circularity = 0.7);
+
+/// Tracks blobs with ViSP's vpDot2. Not thread-safe; not real-time safe.
+class DotTracker {
+ public:
+  DotTracker();
+  ~DotTracker();
+  DotTracker(const DotTracker&) = delete;
+  DotTracker& operator=(const DotTracker&) = delete;
+  /// Starts one vpDot2 per seed (a pixel inside each blob).
+  void Init(const GrayImageView& image, const std::vector<Eigen::Vector2d>& seeds);
+  /// Tracks every dot still alive; a dot that vpDot2 loses stays lost. Returns the number tracked in this frame.
+  int Track(const GrayImageView& image);
+  const std::vector<Eigen::Vector2d>& centers() const { return centers_; }
+  const std::vector<bool>& alive() const { return alive_; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::vector<Eigen::Vector2d> centers_;
+  std::vector<bool> alive_;
+};
+
+/// Tracks points with ViSP's KLT (pyramidal Lucas-Kanade through OpenCV). Not thread-safe; not real-time safe.
+class KltTracker {
+ public:
+  struct Options {
+    int max_features = 200;
+    int window_size = 11;
+    int pyramid_levels = 3;
+    double quality = 0.01;
+    double min_distance = 8;
+  };
+  explicit KltTracker(const Options& options);
+  KltTracker();
+  ~KltTracker();
+  KltTracker(const KltTracker&) = delete;
+  KltTracker& operator=(const KltTracker&) = delete;
+  /// Starts on good features (Shi-Tomasi) found in the image.
+  void InitAuto(const GrayImageView& image);
+  /// Starts on the given points (pixels, OpenCV convention); their ids are 0..n-1.
+  void Init(const GrayImageView& image, const std::vector<Eigen::Vector2d>& points);
+  /// Tracks; lost points are dropped. Returns the number still tracked.
+  int Track(const GrayImageView& image);
+  /// Current points and their ids (ids from Init order).
+  std::vector<Eigen::Vector2d> points() const;
+  std::vector<long> ids() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// How tags are followed between full detections.
+enum class TagTrackingMode {
+  kDetectEveryFrame,  ///< full-image detection in every frame (the baseline)
+  kRoiDetection,      ///< detection restricted to a window around each tag's last corners
+  kKltCorners,        ///< KLT on each tag's four corners
+};
+
+struct TagTrackerOptions {
+  TagTrackingMode mode = TagTrackingMode::kRoiDetection;
+  int full_detection_every = 30;  ///< frames between full detections (new tags appear); 1 = always
+  double roi_margin = 0.6;        ///< window = corners' bounding box grown by this fraction of its size + 8 px
+};
+
+/// Follows tags frame after frame. The observations of tracked frames carry decision_margin 0 for KLT corners.
+class TagTracker {
+ public:
+  TagTracker(const DetectorOptions& detector, const TagTrackerOptions& options);
+  ~TagTracker();
+  TagTracker(const TagTracker&) = delete;
+  TagTracker& operator=(const TagTracker&) = delete;
+
+  /// Processes one frame. `full_detection` tells whether a full-image detection was run.
+  std::vector<TagObservation> Process(const GrayImageView& image, bool* full_detection = nullptr);
+  /// Ids tracked in the previous frame that were not found in the last one.
+  const std::vector<int>& lost_last() const { return lost_; }
+  /// Forces a full detection in the next frame.
+  void Reset() { since_full_ = -1; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  TagTrackerOptions options_;
+  int since_full_ = -1;
+  std::vector<TagObservation> last_;
+  std::vector<int> lost_;
+};
+
+}  // namespace visco::vision
