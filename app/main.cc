@@ -10,6 +10,7 @@
 #include "app/spy_command.h"
 #include "common/error.h"
 #include "control/commands.h"
+#include "control/sim_commands.h"
 #include "drivers/commands.h"
 #include "planning/commands.h"
 #include "vision/commands.h"
@@ -32,6 +33,7 @@ int main(int argc, char** argv) {
   visco::planning::RegisterCommands(app);
   visco::vision::RegisterCommands(app);
   visco::control::RegisterCommands(app);
+  visco::control::RegisterSimCommands(app);
 
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
   try {

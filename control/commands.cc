@@ -25,6 +25,7 @@ struct CliOptions {
 };
 
 void Run(CliOptions& cli) {
+  LogToStderr();  // stdout carries only the JSON summary
   RunOptions& o = cli.run;
   o.executor.max_vision_age_s = cli.max_vision_age_ms / 1000.0;
   o.executor.heartbeat_timeout_s = cli.status_timeout_ms / 1000.0;

@@ -208,12 +208,25 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
   const bool driver_ok = in.have_status && in.status.fault_bits == 0 &&
                          (state == robot_status_t::STATE_READY || state == robot_status_t::STATE_MOVING);
   if (mode_ == Mode::kIdle) {
-    if (alive && driver_ok) {
+    // Start when the driver is ready and, if the first step watches the camera, once vision has spoken (so that a
+    // start does not begin with a hold).
+    const Step& first = task_.steps.front();
+    const bool first_needs_events = !first.active_rays.empty() || first.terminate_ray >= 0;
+    const bool first_needs_estimate = first.terminate == TerminateKind::kGoal && !config_.goal_from_odometry;
+    const bool vision_ready = (!first_needs_events || in.have_frame) && (!first_needs_estimate || in.have_estimate);
+    if (alive && driver_ok && vision_ready) {
       BeginStep(0, in.now_ns);
       Finish(out, in, {}, true);
       return;
     }
     if (in.now_ns - start_ns_ > Nanoseconds(config_.startup_timeout_s)) {
+      if (alive && driver_ok) {
+        VISCO_FORMAT_TEXT(message, "no %s from vision within %.1f s of start",
+                          first_needs_events && !in.have_frame ? "visual events" : "robot estimate",
+                          config_.startup_timeout_s);
+        Stop(FaultCode::kVisionStale, message, out, in);
+        return;
+      }
       if (!alive) {
         VISCO_FORMAT_TEXT(message, "no status or heartbeat from the driver within %.1f s of start",
                           config_.startup_timeout_s);

@@ -1,5 +1,6 @@
 #include "control/run.h"
 
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <chrono>
@@ -51,6 +52,13 @@ void CheckOptions(const RunOptions& o) {
 }
 
 }  // namespace
+
+void LogToStderr() {
+  auto logger = spdlog::get("visco");
+  if (!logger) logger = spdlog::stderr_color_mt("visco");
+  spdlog::set_default_logger(logger);
+  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
+}
 
 std::string RunResult::ToJson() const {
   nlohmann::json j;

@@ -49,6 +49,10 @@ struct RunResult {
   std::string ToJson() const;
 };
 
+/// Sends spdlog's default logger to stderr (the commands print their JSON summary alone on stdout). Not real-time
+/// safe.
+void LogToStderr();
+
 /// Loads the task named by the options (strategy file or LCM message, rays, scene). @throws InputError, JobFailed.
 Task LoadTask(const RunOptions& options);
 

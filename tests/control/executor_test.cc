@@ -54,7 +54,11 @@ TEST(Executor, FreeMotionReachesGoalKernel) {
   task.position_uncertainty = 0.02;
   Harness h(task, Config(), {1.0, 1.0});
   h.Start();
-  EXPECT_EQ(h.Tick().mode, Mode::kFree);  // driver ready at once: step 0 starts
+  // Idle until the driver is ready and vision has sent its first estimate (the camera's latency), then step 0.
+  EXPECT_EQ(h.Tick().mode, Mode::kIdle);
+  int ticks = 1;
+  while (h.Tick().mode == Mode::kIdle) ++ticks;
+  EXPECT_LE(ticks * 0.002, 0.02 + 0.004);
   h.RunUntilFinished(30.0);
   ASSERT_EQ(h.executor().mode(), Mode::kDone) << h.executor().stop_reason();
   // Recognised inside the kernel: at least eps_p inside the goal's left edge (x = 1.4), with at most the motion of
@@ -75,7 +79,7 @@ TEST(Executor, VisualGuardedStopsWhenTheVertexCrossesTheLine) {
   task.steps.push_back(MakeStep(0.0, TerminateKind::kVisualGuarded, 0));
   Harness h(task, Config(), {1.5, 1.0});
   h.Start();
-  h.Tick();
+  for (int i = 0; i < 20; ++i) h.Tick();
   EXPECT_EQ(h.executor().mode(), Mode::kVisualGuarded);
   h.RunUntilFinished(30.0);
   ASSERT_EQ(h.executor().mode(), Mode::kDone) << h.executor().stop_reason();
@@ -153,7 +157,7 @@ TEST(Executor, MultiStepStrategyRunsEveryStepInOrder) {
     if (steps_seen.empty() || steps_seen.back() != step) steps_seen.push_back(step);
   }
   ASSERT_EQ(h.executor().mode(), Mode::kDone) << h.executor().stop_reason();
-  EXPECT_EQ(steps_seen, (std::vector<int>{0, 1, 2, 3}));
+  EXPECT_EQ(steps_seen, (std::vector<int>{-1, 0, 1, 2, 3}));
 }
 
 TEST(Executor, StaleVisionZeroesTheCommandWithinOnePeriodAndResumes) {
@@ -335,6 +339,21 @@ TEST(Executor, CommandsRespectSpeedAndAccelerationLimits) {
     previous = v;
   }
   EXPECT_NEAR(Norm(previous), 0.1, 1e-9);
+}
+
+TEST(Executor, StartWaitsForVisionAndGivesUp) {
+  Task task;
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kGoal));
+  task.goal = Square({5.0, 1.0}, 0.1);
+  ExecutorConfig config = Config();
+  config.startup_timeout_s = 0.3;
+  Harness h(task, config, {1.0, 1.0});
+  h.estimate_on = false;
+  h.Start();
+  for (int i = 0; i < 100; ++i) EXPECT_EQ(h.Tick().mode, Mode::kIdle);
+  h.RunUntilFinished(1.0);
+  EXPECT_EQ(h.executor().stop_code(), FaultCode::kVisionStale);
+  EXPECT_NE(std::string(h.executor().stop_reason()).find("no robot estimate from vision"), std::string::npos);
 }
 
 TEST(Executor, RejectsCompliantStepsWithoutRayGeometry) {

@@ -138,7 +138,7 @@ class Harness {
   ExecutorInput in_;
   ExecutorOutput out_;
   std::int64_t now_ns_ = 1'000'000'000;
-  std::int64_t next_capture_ns_ = 0;
+  std::int64_t next_capture_ns_ = 1'000'000'000;  // the first capture at the first tick
   std::int64_t pending_capture_ns_ = 0;
   Vec2 pending_position_;
   bool pending_ = false;

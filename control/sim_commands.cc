@@ -1,0 +1,99 @@
+#include "control/sim_commands.h"
+
+#include <signal.h>
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include "common/error.h"
+#include "control/run.h"
+#include "control/sim_session.h"
+
+namespace visco::control {
+namespace {
+
+std::atomic<bool> g_stop{false};
+void OnSignal(int) { g_stop.store(true); }
+
+struct SimCli {
+  SimOptions sim;
+  std::vector<double> start;
+  double latency_ms = 20;
+  double watchdog_ms = 100;
+  double duration_s = 0;
+};
+
+void RunSim(SimCli& cli) {
+  LogToStderr();  // stdout carries only the JSON summary
+  SimOptions& o = cli.sim;
+  if (!cli.start.empty()) {
+    o.have_start = true;
+    o.start = {cli.start[0], cli.start[1]};
+  }
+  o.latency_s = cli.latency_ms / 1000.0;
+  if (!(cli.watchdog_ms > 0)) throw InputError("command line", "--watchdog-ms", "must be positive");
+  o.driver.watchdog_us = static_cast<std::int64_t>(cli.watchdog_ms * 1000);
+  SimSession session(o);
+  struct sigaction action {};
+  action.sa_handler = OnSignal;
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+  session.Start();
+  const auto start = std::chrono::steady_clock::now();
+  while (!g_stop.load()) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    if (cli.duration_s > 0 &&
+        std::chrono::steady_clock::now() - start > std::chrono::duration<double>(cli.duration_s)) {
+      break;
+    }
+  }
+  session.Stop();
+  std::printf("%s\n", session.Summary().ToJson().c_str());
+  std::fflush(stdout);
+}
+
+}  // namespace
+
+void RegisterSimCommands(CLI::App& app) {
+  auto cli = std::make_shared<SimCli>();
+  SimOptions& o = cli->sim;
+  CLI::App* cmd = app.add_subcommand(
+      "sim",
+      "Simulated robot and camera for `visco run`: the robot driver (LCM, or SocketCAN with --can) drives a robot "
+      "that obeys SEMANTICS.md's motion model (actual direction inside the velocity cone chosen by a seeded random "
+      "adversary, Coulomb friction on the C-obstacles, sticking, bounds); a simulated camera publishes "
+      "VISCO_VISUAL_EVENTS (signed image distance of each CVC ray's CM vertex to its VC line) and "
+      "VISCO_ROBOT_ESTIMATE from the true pose, with noise, latency and frame drops on request. Runs until "
+      "SIGINT/SIGTERM or --duration; prints a JSON summary on exit.");
+  cmd->add_option("scene", o.scene_path, "scene file (CONTRACT.md)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--rays", o.rays_path, "`visco vcrays` output: the CVC rays to report visual events for")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--start", cli->start, "initial reference point X Y, metres (default: the start region's centroid)")
+      ->expected(2);
+  cmd->add_option("--seed", o.seed, "seed of the adversary and the camera noise")->capture_default_str();
+  cmd->add_option("--mean-hold", o.mean_hold_m, "mean travel between the adversary's direction changes, m")
+      ->capture_default_str();
+  cmd->add_option("--max-acceleration", o.max_acceleration, "robot acceleration limit, m/s^2")->capture_default_str();
+  cmd->add_option("--lcm-url", o.lcm_url, "LCM provider URL (LCM's default when empty)");
+  cmd->add_option("--can", o.can_interface, "the driver listens on this SocketCAN interface instead of LCM");
+  cmd->add_option("--node", o.node_id, "robot node id")->check(CLI::Range(1, 127))->capture_default_str();
+  cmd->add_option("--watchdog-ms", cli->watchdog_ms, "driver command watchdog, ms")->capture_default_str();
+  cmd->add_option("--camera-hz", o.camera_hz, "camera frame rate, Hz")->capture_default_str();
+  cmd->add_option("--latency-ms", cli->latency_ms, "capture-to-publication latency, ms")->capture_default_str();
+  cmd->add_option("--noise-px", o.noise_px, "1-sigma noise of the signed image distances, px")->capture_default_str();
+  cmd->add_option("--position-noise", o.position_noise_m, "1-sigma noise of the robot estimate, m")
+      ->capture_default_str();
+  cmd->add_option("--drop-rate", o.drop_rate, "probability of dropping a frame")->capture_default_str();
+  cmd->add_option("--focal-px", o.focal_px, "simulated camera focal length, px")->capture_default_str();
+  cmd->add_option("--duration", cli->duration_s, "stop after this many seconds (0: until a signal)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->callback([cli] { RunSim(*cli); });
+}
+
+}  // namespace visco::control

@@ -1,0 +1,197 @@
+#include "control/sim_session.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+#include <lcm/lcm-cpp.hpp>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "common/error.h"
+#include "control/control_loop.h"
+#include "control/sim_robot.h"
+#include "drivers/driver_transport.h"
+#include "lcmtypes/channels.h"
+#include "planning/motion_model.h"
+#include "planning/scene.h"
+#include "visco/robot_estimate_t.hpp"
+#include "visco/visual_events_t.hpp"
+
+namespace visco::control {
+
+struct SimSession::Impl {
+  planning::Scene scene;
+  std::unique_ptr<planning::MotionModel> model;
+  std::unique_ptr<SimRobot> robot;
+  std::unique_ptr<drivers::DriverTransport> transport;
+  std::unique_ptr<drivers::Driver> driver;
+  std::unique_ptr<lcm::LCM> lcm;
+  std::unique_ptr<SyntheticCamera> camera;
+};
+
+std::string SimSummary::ToJson() const {
+  nlohmann::json j;
+  j["position"] = {position.x, position.y};
+  j["contact"] = contact;
+  j["frames"] = frames;
+  j["dropped_frames"] = dropped_frames;
+  j["driver"] = {{"state", driver_state},
+                 {"commands_applied", driver.commands_applied},
+                 {"bad_commands", driver.bad_commands},
+                 {"out_of_sequence", driver.out_of_sequence},
+                 {"watchdog_stops", driver.watchdog_stops},
+                 {"estops", driver.estops},
+                 {"resets", driver.resets},
+                 {"statuses_sent", driver.statuses_sent}};
+  return j.dump();
+}
+
+SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>()), options_(options) {
+  const SimOptions& o = options_;
+  if (!(o.camera_hz > 0 && o.camera_hz <= 1000))
+    throw InputError("command line", "--camera-hz", "must be in (0, 1000]");
+  if (!(o.latency_s >= 0 && o.latency_s < 1.0 / o.camera_hz)) {
+    throw InputError("command line", "--latency-ms", "must be >= 0 and below the camera period");
+  }
+  if (!(o.drop_rate >= 0 && o.drop_rate <= 1)) throw InputError("command line", "--drop-rate", "must be in [0, 1]");
+  if (!(o.noise_px >= 0) || !(o.position_noise_m >= 0)) throw InputError("command line", "--noise", "must be >= 0");
+  impl_->scene = planning::LoadScene(o.scene_path);
+  const planning::Scene& scene = impl_->scene;
+  Vec2 start = o.start;
+  if (!o.have_start) {
+    if (!scene.start) throw InputError(o.scene_path, "start", "the scene has no start region: give --start X Y");
+    Eigen::Vector2d c = Eigen::Vector2d::Zero();
+    for (const auto& v : scene.start->polygon.vertices) c += v;
+    c /= static_cast<double>(scene.start->polygon.vertices.size());
+    start = {c.x(), c.y()};
+  }
+  impl_->model = std::make_unique<planning::MotionModel>(MakeMotionWorld(scene));
+  SimRobotConfig robot_config;
+  robot_config.start = start;
+  robot_config.velocity_cone = scene.uncertainty.velocity_cone_rad;
+  robot_config.seed = o.seed;
+  robot_config.mean_hold_m = o.mean_hold_m;
+  robot_config.max_acceleration = o.max_acceleration;
+  impl_->robot = std::make_unique<SimRobot>(*impl_->model, robot_config);
+
+  if (!o.rays_path.empty()) {
+    rays_.rays = LoadRays(o.rays_path);
+    for (std::size_t i = 0; i < rays_.rays.size(); ++i) rays_.ray_index[rays_.rays[i].id] = static_cast<int>(i);
+    AttachScene(rays_, LoadScene(o.scene_path), o.scene_path);
+    if (rays_.rays.size() > static_cast<std::size_t>(kMaxVisualObservations)) {
+      throw InputError(o.rays_path, "cvc_rays", "more rays than the simulated camera's capacity");
+    }
+  }
+  SyntheticCameraConfig camera_config{o.focal_px, o.on_line_band_px, o.noise_px};
+  impl_->camera = std::make_unique<SyntheticCamera>(rays_, camera_config, o.seed ^ 0x5eedcafeULL);
+
+  drivers::DriverTransportConfig transport_config;
+  transport_config.node_id = o.node_id;
+  transport_config.lcm_url = o.lcm_url;
+  transport_config.can_interface = o.can_interface;
+  impl_->transport = o.can_interface.empty() ? drivers::MakeLcmDriverTransport(transport_config)
+                                             : drivers::MakeSocketCanDriverTransport(transport_config);
+  impl_->driver = std::make_unique<drivers::Driver>(o.driver, *impl_->transport, *impl_->robot);
+  impl_->lcm = std::make_unique<lcm::LCM>(o.lcm_url);
+  if (!impl_->lcm->good()) throw JobFailed("LCM: cannot initialise provider '" + o.lcm_url + "'");
+  spdlog::info(
+      "sim: scene {} ({} C-obstacle part(s)), robot at ({:.3f}, {:.3f}), cone {:.1f} deg, seed {}, {} CVC "
+      "ray(s), camera {:.0f} Hz",
+      scene.name, impl_->model->world().obstacles.size(), start.x, start.y,
+      scene.uncertainty.velocity_cone_rad * 180 / M_PI, o.seed, rays_.rays.size(), o.camera_hz);
+}
+
+SimSession::~SimSession() { Stop(); }
+
+void SimSession::Start() {
+  driver_thread_ = std::thread([this] { impl_->driver->Run(stop_driver_); });
+  camera_thread_ = std::thread([this] { CameraLoop(); });
+}
+
+void SimSession::KillDriver() {
+  stop_driver_.store(true);
+  if (driver_thread_.joinable()) driver_thread_.join();
+}
+
+void SimSession::Stop() {
+  stop_camera_.store(true);
+  if (camera_thread_.joinable()) camera_thread_.join();
+  KillDriver();
+}
+
+SimSummary SimSession::Summary() const {
+  SimSummary s;
+  const drivers::RobotFeedback f = impl_->robot->Read();
+  s.position = {f.position[0], f.position[1]};
+  s.contact = f.contact;
+  s.frames = frames_.load();
+  s.dropped_frames = dropped_.load();
+  s.driver = impl_->driver->stats();
+  s.driver_state = drivers::ToString(impl_->driver->state());
+  return s;
+}
+
+void SimSession::CameraLoop() {
+  const SimOptions& o = options_;
+  std::mt19937_64 rng(o.seed ^ 0xca3e7aULL);
+  std::bernoulli_distribution drop(o.drop_rate);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  const auto period =
+      std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(1.0 / o.camera_hz));
+  const auto latency =
+      std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(o.latency_s));
+  auto next = std::chrono::steady_clock::now();
+  SimTruth truth;
+  bool have_truth = false;
+  std::int64_t seq = 0;
+  VisualFrame frame;
+  while (!stop_camera_.load()) {
+    next += period;
+    std::this_thread::sleep_until(next);
+    have_truth |= impl_->robot->truth().TryTake(truth);
+    if (!have_truth || !camera_on_.load()) continue;
+    ++seq;
+    if (drop(rng)) {
+      dropped_.fetch_add(1);
+      continue;
+    }
+    const std::int64_t capture_utime = WallUtime();
+    impl_->camera->Observe(truth.position, seq, MonotonicNs(), frame);
+    std::this_thread::sleep_for(latency);
+    const std::int64_t now_utime = WallUtime();
+    if (!rays_.rays.empty()) {
+      visual_events_t events;
+      events.utime = now_utime;
+      events.frame_utime = capture_utime;
+      events.frame_seq = seq;
+      events.latency_s = static_cast<double>(now_utime - capture_utime) * 1e-6;
+      for (int i = 0; i < frame.count; ++i) {
+        const VisualObservation& obs = frame.items[i];
+        visual_event_t e;
+        e.utime = capture_utime;
+        e.cvc_ray = rays_.rays[static_cast<std::size_t>(obs.ray)].id;
+        e.cm_vertex = rays_.rays[static_cast<std::size_t>(obs.ray)].cm_vertex;
+        e.signed_distance_px = obs.signed_distance_px;
+        e.distance_stddev_px = o.noise_px;
+        e.state = obs.state;
+        e.crossed = obs.crossed;
+        events.events.push_back(e);
+      }
+      events.num_events = static_cast<std::int32_t>(events.events.size());
+      impl_->lcm->publish(channels::kVisualEvents, &events);
+    }
+    robot_estimate_t estimate;
+    estimate.utime = capture_utime;
+    estimate.frame_seq = seq;
+    estimate.valid = true;
+    estimate.position[0] = truth.position.x + o.position_noise_m * noise(rng);
+    estimate.position[1] = truth.position.y + o.position_noise_m * noise(rng);
+    estimate.position_stddev = o.position_noise_m;
+    estimate.heading = 0.0;
+    impl_->lcm->publish(channels::kRobotEstimate, &estimate);
+    frames_.fetch_add(1);
+  }
+}
+
+}  // namespace visco::control

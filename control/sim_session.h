@@ -1,0 +1,86 @@
+#pragma once
+// `visco sim`: the simulated robot (SEMANTICS.md's motion model behind the robot driver of drivers/, over LCM or
+// SocketCAN) and a simulated camera that publishes what vision would: visual_events_t for every CVC ray (the
+// signed image distance of its CM vertex to its VC line, synthetic_camera.h) and robot_estimate_t, from the true
+// pose, with noise, latency and frame drops on request. Not real-time code; part of visco::control_sim.
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <thread>
+
+#include "control/synthetic_camera.h"
+#include "control/task.h"
+#include "drivers/driver.h"
+
+namespace visco::control {
+
+struct SimOptions {
+  std::string scene_path;     // required: the contract's scene file
+  std::string rays_path;      // optional: `visco vcrays` output; without it no visual events are published
+  std::string lcm_url;        // "" = LCM's default
+  std::string can_interface;  // non-empty: the driver listens on SocketCAN instead of LCM
+  int node_id = 1;
+  bool have_start = false;
+  Vec2 start;                     // metres; default: the centroid of the scene's start region
+  std::uint64_t seed = 1;         // the adversary's and the camera noise's seed
+  double mean_hold_m = 0.05;      // metres between the adversary's direction changes (mean)
+  double max_acceleration = 4.0;  // m/s^2
+  double camera_hz = 30.0;
+  double latency_s = 0.02;        // capture to publication
+  double noise_px = 0.0;          // 1-sigma noise of the signed distances
+  double position_noise_m = 0.0;  // 1-sigma noise of the robot estimate (per axis)
+  double drop_rate = 0.0;         // probability that a frame is dropped
+  double focal_px = 800.0;        // the simulated camera's focal length (pixels per unit tangent)
+  double on_line_band_px = 1.0;   // |d| within this reports STATE_ON_LINE
+  drivers::DriverConfig driver;
+};
+
+struct SimSummary {
+  Vec2 position;
+  bool contact = false;
+  std::uint64_t frames = 0;
+  std::uint64_t dropped_frames = 0;
+  drivers::DriverStats driver;
+  std::string driver_state;
+  std::string ToJson() const;
+};
+
+class SimSession {
+ public:
+  /// Loads the scene (planner's validating loader), builds the motion model, opens the driver's transport.
+  /// @throws InputError for a bad scene, rays file or option; JobFailed if LCM / the CAN socket cannot be opened.
+  explicit SimSession(const SimOptions& options);
+  ~SimSession();
+  SimSession(const SimSession&) = delete;
+  SimSession& operator=(const SimSession&) = delete;
+
+  /// Starts the driver thread and the camera thread.
+  void Start();
+  /// Stops both (the robot is left where it is).
+  void Stop();
+  /// Stops only the driver (a killed driver process: no more status or heartbeat); the camera keeps going.
+  void KillDriver();
+  /// Turns the camera off (no frames at all) or on.
+  void SetCameraOn(bool on) { camera_on_.store(on); }
+
+  SimSummary Summary() const;
+  const Task& rays() const { return rays_; }
+
+ private:
+  struct Impl;
+  void CameraLoop();
+  std::unique_ptr<Impl> impl_;
+  Task rays_;  // the CVC rays with robot vertex offsets (for the synthetic camera)
+  SimOptions options_;
+  std::atomic<bool> stop_driver_{false};
+  std::atomic<bool> stop_camera_{false};
+  std::atomic<bool> camera_on_{true};
+  std::atomic<std::uint64_t> frames_{0};
+  std::atomic<std::uint64_t> dropped_{0};
+  std::thread driver_thread_;
+  std::thread camera_thread_;
+};
+
+}  // namespace visco::control
