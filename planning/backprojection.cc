@@ -1,10 +1,11 @@
 // Directional backprojections by a plane sweep against the commanded velocity (Donald–Canny, Fox & Hutchinson
 // §IV-C and §V), in exact arithmetic.
 //
-// Frame: the input is rotated so that the commanded velocity points straight down (−y); the sweep goes up, events
-// in (y, x) lexicographic order. The static geometry (C-obstacle, goal and bounds edges, active CVC ray segments) is
-// overlaid first with CGAL's arrangement (which merges overlapping C-obstacles and splits crossing edges); every
-// face gets a static label (outside the bounds, inside CB, goal, free). The sweep then refines free regions into
+// Frame: the input is mapped exactly by a similarity (a rotation with rounded cosine and sine, applied in exact
+// arithmetic, so collinear edges stay collinear) so that the commanded velocity points straight down (−y); the sweep
+// goes up, events in (y, x) lexicographic order. The static geometry (C-obstacle, goal and bounds edges, active CVC ray
+// segments) is overlaid first with CGAL's arrangement (which merges overlapping C-obstacles and splits crossing edges);
+// every face gets a static label (outside the bounds, inside CB, goal, free). The sweep then refines free regions into
 // good (in the backprojection) and bad, erecting free edges (rays of the inverted velocity cone) where the local
 // rules below say so.
 //
@@ -89,7 +90,16 @@ struct Source {
 struct Rotation {
   double c = 1, s = 0;
   Vector2d Apply(const Vector2d& p) const { return {c * p.x() - s * p.y(), s * p.x() + c * p.y()}; }
-  Vector2d Invert(const Vector2d& p) const { return {c * p.x() + s * p.y(), -s * p.x() + c * p.y()}; }
+  Vector2d Invert(const Vector2d& p) const {
+    const double det = c * c + s * s;
+    return {(c * p.x() + s * p.y()) / det, (-s * p.x() + c * p.y()) / det};
+  }
+  // The sweep frame is the similarity [[c, -s], [s, c]] applied exactly (not rounded): collinear and touching input
+  // edges stay collinear and touching.
+  P2 ApplyExact(const Vector2d& p) const {
+    const FT x(p.x()), y(p.y()), fc(c), fs(s);
+    return P2(fc * x - fs * y, fs * x + fc * y);
+  }
 };
 
 Vector2d ToD(const P2& p) { return {CGAL::to_double(p.x()), CGAL::to_double(p.y())}; }
@@ -227,13 +237,13 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
   if (!(pr.bounds_max.x() > pr.bounds_min.x() && pr.bounds_max.y() > pr.bounds_min.y())) {
     throw std::invalid_argument("backprojection: bounds are empty");
   }
-  if (!(pr.velocity_cone > 0.0 && pr.velocity_cone < M_PI / 2)) {
-    throw std::invalid_argument("backprojection: the velocity cone must be in (0, 90) degrees");
+  if (!(pr.velocity_cone >= 0.0 && pr.velocity_cone < M_PI / 2)) {
+    throw std::invalid_argument("backprojection: the velocity cone must be in [0, 90) degrees");
   }
   if (!(pr.friction_cone >= 0.0 && pr.friction_cone < M_PI / 2)) {
     throw std::invalid_argument("backprojection: the friction cone must be in [0, 90) degrees");
   }
-  eps_ = pr.velocity_cone;
+  eps_ = std::max(pr.velocity_cone, 1e-9);  // a cone of zero width is planned as a hair wider: a subset
   phi_ = pr.friction_cone;
   const double rot = -M_PI / 2 - pr.theta;
   rot_.c = std::cos(rot);
@@ -243,10 +253,7 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
   less_.p = &current_;
   status_ = std::set<Curve*, StatusLess>(less_);
 
-  auto to_exact = [&](const Vector2d& w) {
-    const Vector2d s = rot_.Apply(w);
-    return P2(s.x(), s.y());
-  };
+  auto to_exact = [&](const Vector2d& w) { return rot_.ApplyExact(w); };
   auto add_polygon = [&](const NamedPolygon& poly, EdgeKind kind, const std::string& prefix, size_t index) {
     std::vector<Vector2d> v = poly.vertices;
     std::vector<std::string> vref = poly.vertex_refs, eref = poly.edge_refs;
@@ -261,7 +268,7 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       if (vref[k].empty()) vref[k] = prefix + "[" + std::to_string(index) + "].v[" + std::to_string(k) + "]";
       if (eref[k].empty()) eref[k] = prefix + "[" + std::to_string(index) + "].e[" + std::to_string(k) + "]";
     }
-    const bool ccw = SignedAreaD(v) > 0.0;
+    const bool ccw = (SignedAreaD(v) > 0.0) != poly.hole;  // holes run clockwise: CB's interior on the left
     for (size_t k = 0; k < n; ++k) {
       const Vector2d& wa = v[k];
       const Vector2d& wb = v[(k + 1) % n];
@@ -273,8 +280,8 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       s.name = AddName(eref[k]);
       const Vector2d d = (ccw ? (wb - wa) : (wa - wb)).normalized();
       const Vector2d n_world(d.y(), -d.x());  // outward
-      s.sticking = kind == EdgeKind::kObstacle &&
-                   MotionModel::IsStickingEdge(n_world, pr.theta, pr.velocity_cone, pr.friction_cone);
+      s.sticking =
+          kind == EdgeKind::kObstacle && MotionModel::IsStickingEdge(n_world, pr.theta, eps_, pr.friction_cone);
       s.sweep_normal = rot_.Apply(n_world);
       sources_.push_back(s);
       vertex_names_.emplace(to_exact(v[k]), AddName(vref[k]));
@@ -918,7 +925,7 @@ Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
   auto convert = [&](const ExactRing& r) {
     RegionRing out;
     for (size_t i = 0; i < r.vertices.size(); ++i) {
-      out.vertices.push_back(rot_.Invert(ToD(r.vertices[i])));
+      out.vertices.push_back(rot_.Invert(ToD(r.vertices[i])) + Vector2d::Zero());  // + 0: no negative zeros
       out.edges.push_back({r.edges[i].first, names_[r.edges[i].second]});
     }
     return out;

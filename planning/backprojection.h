@@ -23,6 +23,8 @@ struct NamedPolygon {
   std::vector<Eigen::Vector2d> vertices;
   std::vector<std::string> vertex_refs;  ///< optional, one per vertex
   std::vector<std::string> edge_refs;    ///< optional, one per edge
+  /// A hole of the preceding polygon (a C-obstacle can enclose free space): the region inside is removed.
+  bool hole = false;
 };
 
 /// A candidate CVC ray for B_vcθ(G): its free-space segments and its id (CONTRACT.md `cvc_rays[].id`).
@@ -39,7 +41,7 @@ struct BackprojectionProblem {
   Eigen::Vector2d bounds_min{0.0, 0.0};
   Eigen::Vector2d bounds_max{0.0, 0.0};
   double theta = 0.0;             ///< commanded direction, counter-clockwise from +x
-  double velocity_cone = 0.0;     ///< ε_v, half-angle, in (0, π/2)
+  double velocity_cone = 0.0;     ///< ε_v, half-angle, in [0, π/2); 0 is planned as 1e-9 rad (more cautious)
   double friction_cone = 0.0;     ///< φ, in [0, π/2)
   std::vector<CvcRayInput> rays;  ///< candidate CVC rays (ignored by the classic backprojection)
 };
@@ -83,7 +85,7 @@ struct VcBackprojection {
   std::vector<std::string> unreliable_rays;  ///< candidates within 90° ± ε_v of θ (never active, SEMANTICS.md)
 };
 
-/// B_θ(G) by the plane sweep. @throws std::invalid_argument on malformed input (empty bounds, ε_v outside (0, π/2),
+/// B_θ(G) by the plane sweep. @throws std::invalid_argument on malformed input (empty bounds, ε_v outside [0, π/2),
 /// φ outside [0, π/2), degenerate polygons).
 Region ClassicBackprojection(const BackprojectionProblem& problem);
 

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "common/error.h"
+#include "planning/backproject_command.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
 #include "planning/vc_rays.h"
@@ -56,6 +57,7 @@ void RegisterCommands(CLI::App& app) {
   vcrays->add_option("--svg", args->svg,
                      "draw obstacles, C-obstacles, camera, VC rays and labelled CVC rays into FILE (SVG)");
   vcrays->callback([args] { RunVcRays(*args); });
+  RegisterBackprojectCommand(app);
 }
 
 }  // namespace visco::planning

@@ -1,5 +1,5 @@
 #pragma once
-// The planner's subcommands of the `visco` program: `vcrays` (CONTRACT.md).
+// The planner's subcommands of the `visco` program: `vcrays`, `backproject` (CONTRACT.md).
 
 namespace CLI {
 class App;
@@ -7,7 +7,7 @@ class App;
 
 namespace visco::planning {
 
-/// Registers the planner's subcommands (`visco vcrays`) on `app`.
+/// Registers the planner's subcommands (`visco vcrays`, `visco backproject`) on `app`.
 void RegisterCommands(CLI::App& app);
 
 }  // namespace visco::planning

@@ -90,6 +90,36 @@ TEST(BackprojectionProperty, ClassicIsSoundOnRandomScenes) {
   EXPECT_LT(double(total.outside_unrefuted) / total.outside, 0.05);
 }
 
+TEST(BackprojectionProperty, VcEnlargedIsSoundAndContainsTheClassicOne) {
+  Tally total;
+  int enlarged = 0, scenes = 0;
+  for (std::uint64_t seed = 101; seed <= 130; ++seed) {
+    const BackprojectionProblem pr = RandomScene(seed, true);
+    const Region classic = ClassicBackprojection(pr);
+    const VcBackprojection vc = VcEnlargedBackprojection(pr);
+    ++scenes;
+    EXPECT_GE(vc.region.area, classic.area * (1 - 1e-12)) << "seed " << seed;
+    enlarged += vc.region.area > classic.area * (1 + 1e-9);
+    // B_θ(G) ⊆ B_vcθ(G): configurations of the classic region are in the enlarged one.
+    std::mt19937_64 rng(seed);
+    auto u = [&]() { return static_cast<double>(rng() >> 11) * (1.0 / 9007199254740992.0); };
+    for (int i = 0; i < 300; ++i) {
+      const Vector2d p(10 * u(), 10 * u());
+      if (!classic.Contains(p) || classic.BoundaryDistance(p) < 1e-6 || vc.region.BoundaryDistance(p) < 1e-6) continue;
+      EXPECT_TRUE(vc.region.Contains(p)) << "seed " << seed << " (" << p.x() << ", " << p.y() << ")";
+    }
+    const Tally t = CheckRegion(vc.region, pr, vc.active_rays, seed, 200, "vc");
+    total.inside += t.inside;
+    total.inside_failures += t.inside_failures;
+    total.outside += t.outside;
+    total.outside_unrefuted += t.outside_unrefuted;
+  }
+  std::printf("vc: %d scenes (%d enlarged), %d sampled inside B_vc (failures %d), %d outside (%d unrefuted)\n", scenes,
+              enlarged, total.inside, total.inside_failures, total.outside, total.outside_unrefuted);
+  EXPECT_EQ(total.inside_failures, 0);
+  EXPECT_GT(enlarged, 3);
+}
+
 TEST(BackprojectionProperty, ContainsTheGoalInFreeSpace) {
   for (std::uint64_t seed = 1; seed <= 24; ++seed) {
     const BackprojectionProblem pr = RandomScene(seed);

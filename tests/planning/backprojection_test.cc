@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "planning/motion_model.h"
+#include "tests/planning/random_scenes.h"
 
 namespace visco::planning {
 namespace {
@@ -151,8 +152,13 @@ TEST(Backprojection, ThetaAndOrientationConventions) {
 
 TEST(Backprojection, RejectsBadInput) {
   BackprojectionProblem pr = Problem({}, {Rect(4, 4, 6, 5)}, -90, 10, 20);
-  pr.velocity_cone = 0;
+  pr.velocity_cone = -0.1;
   EXPECT_THROW(ClassicBackprojection(pr), std::invalid_argument);
+  pr.velocity_cone = M_PI / 2;
+  EXPECT_THROW(ClassicBackprojection(pr), std::invalid_argument);
+  // ε_v = 0 is planned as a hair wider cone: the column above the goal, up to the bounds.
+  pr.velocity_cone = 0;
+  EXPECT_NEAR(ClassicBackprojection(pr).area, 2.0 + 2.0 * 5.0, 1e-6);
   pr = Problem({}, {Rect(4, 4, 6, 5)}, -90, 10, 90);
   EXPECT_THROW(ClassicBackprojection(pr), std::invalid_argument);
   pr = Problem({}, {Rect(4, 4, 6, 5)}, -90, 10, 20);
@@ -176,6 +182,71 @@ TEST(Backprojection, GoalKernelIsInsideTheGoalAndNearlyTheExactErosion) {
     EXPECT_GE(p.x(), 2.5 - 1e-9);
     EXPECT_LE(p.x(), 5.5 + 1e-9);
   }
+}
+
+}  // namespace
+}  // namespace visco::planning
+
+namespace visco::planning {
+namespace {
+
+CvcRayInput Ray(const std::string& id, Eigen::Vector2d a, Eigen::Vector2d b) {
+  CvcRayInput r;
+  r.id = id;
+  r.group = id;
+  r.segments.push_back({a, b});
+  return r;
+}
+
+TEST(VcBackprojection, RayThatFansOutEnlargesTheRegion) {
+  // Floor (sticking straight down), goal at x in [7, 8]; a CVC ray from (1, 8.5) down to (7.5, 2) in the goal.
+  BackprojectionProblem pr = Problem({Rect(0, 0, 10, 2)}, {Rect(7, 2, 8, 2.5)}, -90, 10, 20);
+  pr.rays.push_back(Ray("vc0.cm1", {1, 8.5}, {7.5, 2}));
+  const Region classic = ClassicBackprojection(pr);
+  const VcBackprojection vc = VcEnlargedBackprojection(pr);
+  EXPECT_EQ(vc.active_rays, std::vector<std::string>{"vc0.cm1"});
+  EXPECT_GT(vc.region.area, 3 * classic.area);
+  EXPECT_GE(CountKind(vc.region, EdgeKind::kVc), 1);
+  bool ref_ok = false;
+  for (const auto& e : vc.region.polygons[0].outer.edges) ref_ok |= e.kind == EdgeKind::kVc && e.ref == "vc0.cm1";
+  EXPECT_TRUE(ref_ok);
+  EXPECT_TRUE(vc.region.Contains({4, 7}));   // above the ray: complies down to the goal
+  EXPECT_FALSE(vc.region.Contains({3, 4}));  // below it: falls onto the floor
+  EXPECT_FALSE(classic.Contains({4, 7}));
+  // The region with the ray active, checked against the motion model with the ray active.
+  const MotionModel m(ToMotionWorld(pr, vc.active_rays));
+  for (double x = 0.25; x < 10; x += 0.5) {
+    for (double y = 2.25; y < 10; y += 0.5) {
+      const Eigen::Vector2d p(x, y);
+      if (!vc.region.Contains(p) || vc.region.BoundaryDistance(p) < 1e-6) continue;
+      EXPECT_EQ(SimulateAdversarially(m, p, pr.theta, pr.velocity_cone).outcome, Outcome::kReachedGoal)
+          << x << ", " << y;
+    }
+  }
+}
+
+TEST(VcBackprojection, HarmfulAndUselessRaysAreNotActivated) {
+  // A ray crossing the classic region's triangle and ending on the sticking floor away from the goal would divert
+  // configurations of B_θ(G) onto the floor: it must stay inactive, and the region equals the classic one.
+  BackprojectionProblem pr = Problem({Rect(0, 0, 10, 2)}, {Rect(4, 2, 6, 2.5)}, -90, 10, 20);
+  pr.rays.push_back(Ray("harmful", {6, 6}, {1, 2}));
+  pr.rays.push_back(Ray("useless", {9.5, 9.5}, {8.5, 2}));     // far from the goal, not in B_θ
+  pr.rays.push_back(Ray("unreliable", {0.5, 8}, {9.5, 8.5}));  // nearly perpendicular to the velocity
+  const Region classic = ClassicBackprojection(pr);
+  const VcBackprojection vc = VcEnlargedBackprojection(pr);
+  EXPECT_TRUE(vc.active_rays.empty());
+  EXPECT_EQ(vc.unreliable_rays, std::vector<std::string>{"unreliable"});
+  EXPECT_NEAR(vc.region.area, classic.area, 1e-12 * classic.area);
+  // Activating the harmful ray literally would make the region smaller (and B_θ ⊄ B_vcθ).
+  const Region forced = BackprojectionWithActiveRays(pr, {"harmful"});
+  EXPECT_LT(forced.area, classic.area);
+}
+
+TEST(VcBackprojection, IsReliableRay) {
+  EXPECT_TRUE(IsReliableRay({0, 1}, {0, 0}, -M_PI / 2, 10 * kDeg));
+  EXPECT_TRUE(IsReliableRay({0, 0}, {1, -1}, -M_PI / 2, 44 * kDeg));
+  EXPECT_FALSE(IsReliableRay({0, 0}, {1, -1}, -M_PI / 2, 45 * kDeg));
+  EXPECT_FALSE(IsReliableRay({0, 0}, {1, 0}, -M_PI / 2, 1 * kDeg));
 }
 
 }  // namespace

@@ -3,6 +3,8 @@
 // box, a goal in the lower half (sometimes resting on a floor), a commanded direction roughly downwards, random
 // uncertainty and friction, and (optionally) random candidate CVC rays.
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -34,6 +36,61 @@ inline NamedPolygon RandomConvex(SceneRng& r, double cx, double cy, double radiu
   NamedPolygon p;
   for (double a : angles) p.vertices.emplace_back(cx + radius * std::cos(a), cy + radius * std::sin(a));
   return p;
+}
+
+inline bool InsideConvexOrAny(const NamedPolygon& poly, const Eigen::Vector2d& p) {
+  bool inside = false;
+  const auto& v = poly.vertices;
+  for (size_t i = 0, j = v.size() - 1; i < v.size(); j = i++) {
+    if ((v[i].y() > p.y()) != (v[j].y() > p.y())) {
+      const double x = v[i].x() + (p.y() - v[i].y()) * (v[j].x() - v[i].x()) / (v[j].y() - v[i].y());
+      if (p.x() < x) inside = !inside;
+    }
+  }
+  return inside;
+}
+
+/// The parts of segment [a, b] inside the bounds and outside every obstacle (as CVC rays are, SEMANTICS.md).
+inline std::vector<std::array<Eigen::Vector2d, 2>> CutToFreeSpace(const BackprojectionProblem& pr, Eigen::Vector2d a,
+                                                                  Eigen::Vector2d b) {
+  std::vector<double> ts = {0.0, 1.0};
+  const Eigen::Vector2d d = b - a;
+  for (int axis = 0; axis < 2; ++axis) {
+    if (d[axis] == 0) continue;
+    for (double bound : {pr.bounds_min[axis], pr.bounds_max[axis]}) ts.push_back((bound - a[axis]) / d[axis]);
+  }
+  for (const auto& o : pr.obstacles) {
+    for (size_t i = 0; i < o.vertices.size(); ++i) {
+      const Eigen::Vector2d c = o.vertices[i], e = o.vertices[(i + 1) % o.vertices.size()] - c;
+      const double den = d.x() * e.y() - d.y() * e.x();
+      if (std::abs(den) < 1e-15) continue;
+      const Eigen::Vector2d ac = c - a;
+      const double t = (ac.x() * e.y() - ac.y() * e.x()) / den;
+      const double s = (ac.x() * d.y() - ac.y() * d.x()) / den;
+      if (s >= 0 && s <= 1) ts.push_back(t);
+    }
+  }
+  std::sort(ts.begin(), ts.end());
+  std::vector<std::array<Eigen::Vector2d, 2>> out;
+  for (size_t i = 0; i + 1 < ts.size(); ++i) {
+    const double t0 = std::max(ts[i], 0.0), t1 = std::min(ts[i + 1], 1.0);
+    if (t1 - t0 < 1e-6) continue;
+    const Eigen::Vector2d mid = a + 0.5 * (t0 + t1) * d;
+    if (mid.x() < pr.bounds_min.x() || mid.x() > pr.bounds_max.x() || mid.y() < pr.bounds_min.y() ||
+        mid.y() > pr.bounds_max.y()) {
+      continue;
+    }
+    bool blocked = false;
+    for (const auto& o : pr.obstacles) blocked |= InsideConvexOrAny(o, mid);
+    if (blocked) continue;
+    const Eigen::Vector2d p0 = a + t0 * d, p1 = a + t1 * d;
+    if (!out.empty() && (out.back()[1] - p0).norm() < 1e-12) {
+      out.back()[1] = p1;
+    } else {
+      out.push_back({p0, p1});
+    }
+  }
+  return out;
 }
 
 inline BackprojectionProblem RandomScene(std::uint64_t seed, bool with_rays = false) {
@@ -68,9 +125,9 @@ inline BackprojectionProblem RandomScene(std::uint64_t seed, bool with_rays = fa
       ray.group = "vc" + std::to_string(i / 2);
       const double ax = r.Uniform(0, 10), ay = r.Uniform(gy, 10);
       const double ang = r.Uniform(-150, -30) * M_PI / 180, len = r.Uniform(2, 8);
-      ray.segments.push_back(
-          {Eigen::Vector2d(ax, ay), Eigen::Vector2d(ax + len * std::cos(ang), ay + len * std::sin(ang))});
-      pr.rays.push_back(ray);
+      ray.segments = CutToFreeSpace(pr, Eigen::Vector2d(ax, ay),
+                                    Eigen::Vector2d(ax + len * std::cos(ang), ay + len * std::sin(ang)));
+      if (!ray.segments.empty()) pr.rays.push_back(ray);
     }
   }
   return pr;

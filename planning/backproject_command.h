@@ -1,0 +1,41 @@
+#pragma once
+// `visco backproject SCENE --theta DEG [--kernel] [--out FILE] [--svg FILE]` (CONTRACT.md), and the pieces it is
+// made of, for tests and for the planner: the backprojection problem of a scene, the region JSON, the picture.
+
+#include <string>
+
+#include "planning/backprojection.h"
+#include "planning/scene.h"
+
+namespace CLI {
+class App;
+}
+
+namespace visco::planning {
+
+class CSpace;
+struct VcRays;
+
+/// Registers `visco backproject` on `app`.
+void RegisterBackprojectCommand(CLI::App& app);
+
+/// The backprojection problem of a scene for commanded direction θ (radians): the C-obstacles (refs
+/// "cobstacle[<obstacle id>].e[k]" / ".v[k]", numbered along CSpace's polygons; ".hole[h]" and "#p" for holes and
+/// further pieces), the goal (refs "goal.e[i]" / "goal.v[i]", file positions) or, with `kernel`, its kernel
+/// (GoalKernel with the scene's position uncertainty), the bounds, and every CVC ray (id, group = its VC ray).
+BackprojectionProblem ProblemFromScene(const Scene& scene, const CSpace& cspace, const VcRays* rays, double theta,
+                                       bool kernel);
+
+/// CONTRACT.md region JSON: {"area", "regions": [{"outer": {"vertices", "edges": [{"kind", "ref"}]}, "holes"}]}.
+std::string RegionToJson(const Region& region, int indent = -1);
+
+/// The `visco backproject` document: {"theta_deg", "classic": REGION, "vc": REGION + {"active_rays": [...]}}.
+std::string BackprojectionToJson(double theta_deg, const Region& classic, const VcBackprojection& vc);
+
+/// Fig. 13-style picture: classic (left) and VC-enlarged (right) side by side; workspace obstacles shaded,
+/// C-obstacles outlined, goal black, camera a cross, commanded velocity an arrow, the region dashed with VC edges
+/// bold.
+std::string BackprojectionToSvg(const Scene& scene, const CSpace& cspace, const BackprojectionProblem& problem,
+                                const Region& classic, const VcBackprojection& vc);
+
+}  // namespace visco::planning

@@ -1,0 +1,123 @@
+// Cost of the classic directional backprojection B_θ(G) (exact plane sweep) from 1k to 100k C-obstacle vertices,
+// against the slow obvious reference measured in the same run: classifying a 10 x 10 grid of configurations with
+// the motion model (three fixed extreme/central adversaries per configuration, each event scanning every edge).
+//
+// Scaling exponent: compare BM_Classic at 1k and 100k vertices (log(t100k / t1k) / log(100)); the ratio: the
+// reference's time per classified configuration against the sweep's time for the whole region.
+
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <random>
+
+#include "planning/backprojection.h"
+#include "planning/motion_model.h"
+
+namespace visco::planning {
+namespace {
+
+// m convex pentagons on a jittered grid (cells 2 x 2, radius 0.6: no overlaps), a goal strip along the bottom.
+BackprojectionProblem Scene(int m) {
+  std::mt19937_64 rng(12345);
+  auto u = [&]() { return static_cast<double>(rng() >> 11) * (1.0 / 9007199254740992.0); };
+  const int side = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(m))));
+  BackprojectionProblem pr;
+  const double w = 2.0 * side;
+  pr.bounds_min = {0, 0};
+  pr.bounds_max = {w, w + 2};
+  for (int i = 0; i < m; ++i) {
+    const double cx = 2.0 * (i % side) + 1 + 0.3 * (u() - 0.5), cy = 2.0 * (i / side) + 3 + 0.3 * (u() - 0.5);
+    NamedPolygon p;
+    const double a0 = 2 * M_PI * u();
+    for (int k = 0; k < 5; ++k) {
+      const double a = a0 + 2 * M_PI * (k + 0.3 * u()) / 5;
+      p.vertices.emplace_back(cx + 0.6 * std::cos(a), cy + 0.6 * std::sin(a));
+    }
+    pr.obstacles.push_back(p);
+  }
+  NamedPolygon floor;
+  floor.vertices = {{-1, -1}, {w + 1, -1}, {w + 1, 1}, {-1, 1}};
+  pr.obstacles.push_back(floor);
+  NamedPolygon goal;
+  goal.vertices = {{0.2 * w, 1}, {0.8 * w, 1}, {0.8 * w, 1.5}, {0.2 * w, 1.5}};
+  pr.goal.push_back(goal);
+  pr.theta = -80 * M_PI / 180;
+  pr.velocity_cone = 5 * M_PI / 180;
+  pr.friction_cone = 20 * M_PI / 180;
+  return pr;
+}
+
+int Vertices(const BackprojectionProblem& pr) {
+  int n = 0;
+  for (const auto& o : pr.obstacles) n += static_cast<int>(o.vertices.size());
+  return n;
+}
+
+void BM_Classic(benchmark::State& state) {
+  const BackprojectionProblem pr = Scene(static_cast<int>(state.range(0)) / 5);
+  double area = 0;
+  for (auto _ : state) {
+    const Region r = ClassicBackprojection(pr);
+    area = r.area;
+    benchmark::DoNotOptimize(area);
+  }
+  state.counters["vertices"] = Vertices(pr);
+  state.counters["area"] = area;
+  state.SetComplexityN(Vertices(pr));
+}
+
+void BM_ReferenceGrid(benchmark::State& state) {
+  const BackprojectionProblem pr = Scene(static_cast<int>(state.range(0)) / 5);
+  MotionWorld world;
+  for (const auto& o : pr.obstacles) world.obstacles.push_back(o.vertices);
+  for (const auto& g : pr.goal) world.goal.push_back(g.vertices);
+  world.bounds_min = pr.bounds_min;
+  world.bounds_max = pr.bounds_max;
+  world.friction_cone = pr.friction_cone;
+  const MotionModel model(world);
+  constexpr int kGrid = 10;
+  int reached = 0;
+  for (auto _ : state) {
+    reached = 0;
+    for (int i = 0; i < kGrid; ++i) {
+      for (int j = 0; j < kGrid; ++j) {
+        const Eigen::Vector2d p(pr.bounds_min.x() + (i + 0.5) * (pr.bounds_max.x() - pr.bounds_min.x()) / kGrid,
+                                pr.bounds_min.y() + (j + 0.5) * (pr.bounds_max.y() - pr.bounds_min.y()) / kGrid);
+        bool ok = true;
+        for (double off : {-pr.velocity_cone, 0.0, pr.velocity_cone}) {
+          FixedAdversary a(off);
+          ok = ok && Simulate(model, p, pr.theta, pr.velocity_cone, a).outcome == Outcome::kReachedGoal;
+        }
+        reached += ok;
+      }
+    }
+    benchmark::DoNotOptimize(reached);
+  }
+  state.counters["vertices"] = Vertices(pr);
+  state.counters["configurations"] = kGrid * kGrid;
+  state.counters["per_configuration_s"] =
+      benchmark::Counter(kGrid * kGrid, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+  state.SetComplexityN(Vertices(pr));
+}
+
+BENCHMARK(BM_Classic)
+    ->Arg(1000)
+    ->Arg(4000)
+    ->Arg(16000)
+    ->Arg(64000)
+    ->Arg(100000)
+    ->Unit(benchmark::kMillisecond)
+    ->Complexity();
+BENCHMARK(BM_ReferenceGrid)
+    ->Arg(1000)
+    ->Arg(4000)
+    ->Arg(16000)
+    ->Arg(64000)
+    ->Arg(100000)
+    ->Unit(benchmark::kMillisecond)
+    ->Complexity();
+
+}  // namespace
+}  // namespace visco::planning
+
+BENCHMARK_MAIN();
