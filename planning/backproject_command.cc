@@ -156,26 +156,13 @@ void WriteText(const std::string& text, const std::string& path) {
   if (!f) throw InputError(path, "", "cannot write the output file");
 }
 
-std::vector<CvcRayInput> RaysOf(const Scene& scene, const CSpace& cspace) {
-  std::vector<CvcRayInput> out;
-  const VcRays rays = ComputeVcRays(scene, cspace);
-  for (const auto& r : rays.cvc_rays) {
-    CvcRayInput in;
-    in.id = r.id;
-    in.group = rays.vc_rays[r.vc_ray].id;
-    for (const auto& s : r.segments) in.segments.push_back({s.source, s.target});
-    if (!in.segments.empty()) out.push_back(std::move(in));
-  }
-  return out;
-}
-
 void Run(const Args& a) {
   if (!std::isfinite(a.theta_deg)) throw InputError("command line", "--theta", "must be a finite number of degrees");
   const Scene scene = LoadScene(a.scene);
   const CSpace cspace(scene);
   const double theta = a.theta_deg * M_PI / 180.0;
-  BackprojectionProblem pr = ProblemFromScene(scene, cspace, nullptr, theta, a.kernel);
-  pr.rays = RaysOf(scene, cspace);
+  const VcRays rays = ComputeVcRays(scene, cspace);
+  const BackprojectionProblem pr = ProblemFromScene(scene, cspace, &rays, theta, a.kernel);
   if (pr.goal.empty()) {
     throw JobFailed(a.scene +
                     ": goal: the goal kernel is empty (the goal is narrower than twice the position "
@@ -191,8 +178,8 @@ void Run(const Args& a) {
 
 BackprojectionProblem ProblemFromScene(const Scene& scene, const CSpace& cspace, const VcRays* rays, double theta,
                                        bool kernel) {
-  (void)rays;
   BackprojectionProblem pr;
+  if (rays) pr.rays = CvcRayInputs(*rays);
   for (size_t i = 0; i < cspace.num_c_obstacles(); ++i) {
     const auto& pieces = cspace.c_obstacle(i);
     for (size_t p = 0; p < pieces.size(); ++p) {
@@ -218,6 +205,18 @@ BackprojectionProblem ProblemFromScene(const Scene& scene, const CSpace& cspace,
   pr.velocity_cone = scene.uncertainty.velocity_cone_rad;
   pr.friction_cone = scene.friction_cone_rad;
   return pr;
+}
+
+std::vector<CvcRayInput> CvcRayInputs(const VcRays& rays) {
+  std::vector<CvcRayInput> out;
+  for (const auto& r : rays.cvc_rays) {
+    CvcRayInput in;
+    in.id = r.id;
+    in.group = rays.vc_rays[r.vc_ray].id;
+    for (const auto& s : r.segments) in.segments.push_back({s.source, s.target});
+    if (!in.segments.empty()) out.push_back(std::move(in));
+  }
+  return out;
 }
 
 std::string RegionToJson(const Region& region, int indent) { return RegionJson(region).dump(indent); }

@@ -3,6 +3,7 @@
 // made of, for tests and for the planner: the backprojection problem of a scene, the region JSON, the picture.
 
 #include <string>
+#include <vector>
 
 #include "planning/backprojection.h"
 #include "planning/scene.h"
@@ -25,6 +26,9 @@ void RegisterBackprojectCommand(CLI::App& app);
 /// (GoalKernel with the scene's position uncertainty), the bounds, and every CVC ray (id, group = its VC ray).
 BackprojectionProblem ProblemFromScene(const Scene& scene, const CSpace& cspace, const VcRays* rays, double theta,
                                        bool kernel);
+
+/// The CVC rays of a scene as backprojection candidates (id, group = the VC ray's id, free-space segments).
+std::vector<CvcRayInput> CvcRayInputs(const VcRays& rays);
 
 /// CONTRACT.md region JSON: {"area", "regions": [{"outer": {"vertices", "edges": [{"kind", "ref"}]}, "holes"}]}.
 std::string RegionToJson(const Region& region, int indent = -1);
