@@ -3,7 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "planning/backproject_command.h"
 #include "planning/backprojection.h"
@@ -19,7 +21,8 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 
 struct Pipeline {
-  explicit Pipeline(const std::string& path) : scene(LoadScene(path)), cspace(scene), rays(ComputeVcRays(scene, cspace)) {}
+  explicit Pipeline(const std::string& path)
+      : scene(LoadScene(path)), cspace(scene), rays(ComputeVcRays(scene, cspace)) {}
   BackprojectionProblem Problem(double theta_deg, bool kernel = false) const {
     return ProblemFromScene(scene, cspace, &rays, theta_deg * kDeg, kernel);
   }
@@ -54,7 +57,12 @@ TEST(BackprojectScene, Fig13RayFansOutAndEnlargesTheRegion) {
   ASSERT_FALSE(vc.active_rays.empty());
   // The ray through the post's top-right corner for the robot's top-left vertex (its CVC ray ends on the post's
   // right wall and leads down into the goal) is active; its sibling (ending on the sticking top of the post) is not.
-  const std::string corner = pl.rays.vc_rays.empty() ? "" : "";
+  // Ids: vertex 6 of the file is the post's (3, 3); robot vertex 3 is (0, 1), vertex 1 is (1, 0).
+  auto active = [&](const std::string& id) {
+    return std::find(vc.active_rays.begin(), vc.active_rays.end(), id) != vc.active_rays.end();
+  };
+  EXPECT_TRUE(active("vc6.cm3"));
+  EXPECT_FALSE(active("vc6.cm1"));
   bool any_vc_edge = false;
   for (const auto& poly : vc.region.polygons) {
     for (const auto& e : poly.outer.edges) any_vc_edge |= e.kind == EdgeKind::kVc;
