@@ -1,18 +1,159 @@
 #include "vision/commands.h"
 
 #include <CLI/CLI.hpp>
+#include <atomic>
+#include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <fstream>
+#include <lcm/lcm-cpp.hpp>
 #include <memory>
+#include <nlohmann/json.hpp>
+#include <thread>
 
 #include "common/error.h"
+#include "lcmtypes/channels.h"
 #include "vision/camera.h"
 #include "vision/detect_json.h"
 #include "vision/image.h"
+#include "vision/pipeline.h"
 #include "vision/tag_detector.h"
 
 namespace visco::vision {
 namespace {
+
+std::atomic<bool> g_interrupted{false};
+extern "C" void OnSignal(int) { g_interrupted = true; }
+
+struct TrackArgs {
+  std::string camera, camera_name, extrinsics, objects;
+  std::string images, video;
+  bool lcm_input = false;
+  std::string lcm_url;
+  bool publish = true;
+  double fps = 30;
+  std::string mode = "roi";
+  int full_every = 30;
+  std::int64_t max_frames = 0;
+  std::string out;
+  float quad_sigma = 0;
+  double corner_sigma = 0.3;
+};
+
+const char* StateName(std::int8_t s) {
+  switch (s) {
+    case 1:
+      return "negative";
+    case 2:
+      return "on_line";
+    case 3:
+      return "positive";
+    default:
+      return "unknown";
+  }
+}
+
+void RunTrack(const TrackArgs& a) {
+  const int inputs = (a.images.empty() ? 0 : 1) + (a.video.empty() ? 0 : 1) + (a.lcm_input ? 1 : 0);
+  if (inputs != 1) throw InputError("command line", "--images/--video/--lcm", "give exactly one frame source");
+  const CameraModel camera = LoadCamera(a.camera, a.camera_name);
+  const Eigen::Isometry3d wMc = LoadExtrinsics(a.extrinsics);
+  const ObjectModels models = LoadObjectModels(a.objects);
+  PipelineOptions po;
+  po.camera_name = camera.name.empty() ? "camera" : camera.name;
+  po.detector.quad_sigma = a.quad_sigma;
+  po.noise.corner_sigma_px = a.corner_sigma;
+  po.tracker.full_detection_every = a.full_every;
+  if (a.mode == "roi") {
+    po.tracker.mode = TagTrackingMode::kRoiDetection;
+  } else if (a.mode == "klt") {
+    po.tracker.mode = TagTrackingMode::kKltCorners;
+  } else if (a.mode == "detect") {
+    po.tracker.mode = TagTrackingMode::kDetectEveryFrame;
+  } else {
+    throw InputError("command line", "--mode", "must be roi, klt or detect, not '" + a.mode + "'");
+  }
+  for (const auto& t : models.robot.tags) CheckFamilyName(t.family);
+  std::unique_ptr<lcm::LCM> bus;
+  if (a.publish || a.lcm_input) {
+    bus = std::make_unique<lcm::LCM>(a.lcm_url);
+    if (!bus->good()) throw InputError("command line", "--lcm-url", "cannot open LCM bus '" + a.lcm_url + "'");
+  }
+  std::unique_ptr<FrameSource> source;
+  const std::int64_t start = NowUtime();
+  if (!a.images.empty()) source = MakeFolderSource(a.images, a.fps, start);
+  if (!a.video.empty()) source = MakeVideoSource(a.video, start);
+  if (a.lcm_input) source = MakeLcmSource(*bus, channels::kCameraImage);
+
+  std::FILE* out = stdout;
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(nullptr, &std::fclose);
+  if (!a.out.empty()) {
+    file.reset(std::fopen(a.out.c_str(), "w"));
+    if (!file) throw InputError(a.out, "", "cannot write output file");
+    out = file.get();
+  }
+  VisionPipeline pipeline(camera, wMc, models, po);
+  std::int64_t frames = 0, bad = 0, lost = 0, crossings = 0, full = 0;
+  double latency_sum = 0;
+  std::atomic<bool> done{false};
+  PipelineThread thread(std::move(source), pipeline, a.publish ? bus.get() : nullptr, nullptr,
+                        [&](const PipelineOutput& o) {
+                          for (const auto& f : o.faults) {
+                            nlohmann::json j;
+                            j["fault"] = {{"utime", f.utime},
+                                          {"code", f.code},
+                                          {"severity", f.severity},
+                                          {"cleared", f.cleared != 0},
+                                          {"message", f.message}};
+                            std::fprintf(out, "%s\n", j.dump().c_str());
+                          }
+                          if (!o.processed) {
+                            ++bad;
+                            return;
+                          }
+                          ++frames;
+                          full += o.full_detection ? 1 : 0;
+                          lost += o.robot.valid ? 0 : 1;
+                          latency_sum += o.events.latency_s;
+                          nlohmann::json j;
+                          j["seq"] = o.robot.frame_seq;
+                          j["utime"] = o.robot.utime;
+                          j["full_detection"] = o.full_detection;
+                          j["tags"] = nlohmann::json::array();
+                          for (const auto& t : o.detections.detections) j["tags"].push_back(t.id);
+                          j["robot"] = {{"valid", o.robot.valid},
+                                        {"position", {o.robot.position[0], o.robot.position[1]}},
+                                        {"stddev", o.robot.position_stddev},
+                                        {"heading_deg", o.robot.heading * 180 / M_PI}};
+                          j["events"] = nlohmann::json::array();
+                          for (const auto& e : o.events.events) {
+                            crossings += e.crossed ? 1 : 0;
+                            j["events"].push_back({{"cvc_ray", e.cvc_ray},
+                                                   {"signed_distance_px", e.signed_distance_px},
+                                                   {"stddev_px", e.distance_stddev_px},
+                                                   {"state", StateName(e.state)},
+                                                   {"crossed", e.crossed}});
+                          }
+                          j["latency_ms"] = o.events.latency_s * 1e3;
+                          std::fprintf(out, "%s\n", j.dump().c_str());
+                          std::fflush(out);
+                          if (a.max_frames > 0 && frames >= a.max_frames) done = true;
+                        });
+  g_interrupted = false;
+  std::signal(SIGINT, OnSignal);
+  std::signal(SIGTERM, OnSignal);
+  thread.Start();
+  while (!g_interrupted && !done && !thread.finished()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  thread.Stop();
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  nlohmann::json s;
+  s["summary"] = {{"frames", frames},          {"bad_frames", bad},
+                  {"robot_lost_frames", lost}, {"crossings", crossings},
+                  {"full_detections", full},   {"mean_latency_ms", frames > 0 ? latency_sum / frames * 1e3 : 0.0}};
+  std::fprintf(out, "%s\n", s.dump().c_str());
+  if (frames == 0) throw JobFailed("no frame could be processed (" + std::to_string(bad) + " bad frames)");
+}
 
 struct DetectArgs {
   std::string image;
@@ -79,6 +220,36 @@ void RegisterCommands(CLI::App& app) {
                    "reject poses whose RMS reprojection error (pixels) exceeds this")
       ->capture_default_str();
   detect->callback([args] { RunDetect(*args); });
+
+  auto targs = std::make_shared<TrackArgs>();
+  CLI::App* track = app.add_subcommand(
+      "track",
+      "Run the vision pipeline over a stream: an image folder, a video file or the LCM camera channel "
+      "(VISCO_CAMERA_IMAGE, image_t). Detects and tracks the tags of the object models, estimates object poses, the "
+      "robot position and the visual events, publishes them on LCM (VISCO_TAG_DETECTIONS, VISCO_OBJECT_POSES, "
+      "VISCO_ROBOT_ESTIMATE, VISCO_VISUAL_EVENTS, faults on VISCO_FAULT) and prints one JSON line per frame, faults as "
+      "{\"fault\": ...} lines, and a final {\"summary\": ...} line.");
+  track->add_option("--camera", targs->camera, "calibration: ViSP XML or OpenCV YAML")->required();
+  track->add_option("--camera-name", targs->camera_name, "camera in a multi-camera ViSP XML file");
+  track->add_option("--extrinsics", targs->extrinsics, "camera pose in the world (JSON, wMc)")->required();
+  track->add_option("--objects", targs->objects, "object models: robot, obstacles, tags, event pairs (JSON)")
+      ->required();
+  track->add_option("--images", targs->images, "folder of image files, processed in name order");
+  track->add_option("--video", targs->video, "video file (OpenCV)");
+  track->add_flag("--lcm", targs->lcm_input, "read image_t frames from VISCO_CAMERA_IMAGE until interrupted");
+  track->add_option("--lcm-url", targs->lcm_url, "LCM provider URL (default: LCM's default)");
+  track->add_flag("!--no-publish", targs->publish, "do not publish on LCM (print only)");
+  track->add_option("--fps", targs->fps, "frame rate of an image folder (timestamps)")->capture_default_str();
+  track->add_option("--mode", targs->mode, "tag tracking between full detections: roi, klt or detect")
+      ->capture_default_str();
+  track->add_option("--full-every", targs->full_every, "frames between full detections")->capture_default_str();
+  track->add_option("--quad-sigma", targs->quad_sigma, "AprilTag segmentation blur (0.8 for noisy images)")
+      ->capture_default_str();
+  track->add_option("--corner-sigma", targs->corner_sigma, "initial corner noise, pixels (then estimated online)")
+      ->capture_default_str();
+  track->add_option("--max-frames", targs->max_frames, "stop after this many processed frames (0: no limit)");
+  track->add_option("--out", targs->out, "write the JSON lines to this file instead of stdout");
+  track->callback([targs] { RunTrack(*targs); });
 }
 
 }  // namespace visco::vision

@@ -156,8 +156,12 @@ TagTracker::~TagTracker() = default;
 
 std::vector<TagObservation> TagTracker::Process(const GrayImageView& image, bool* full_detection) {
   lost_.clear();
+  bool missing = false;
+  for (int id : options_.expected_ids) {
+    missing = missing || std::none_of(last_.begin(), last_.end(), [&](const TagObservation& t) { return t.id == id; });
+  }
   const bool full = options_.mode == TagTrackingMode::kDetectEveryFrame || since_full_ < 0 || last_.empty() ||
-                    since_full_ + 1 >= std::max(1, options_.full_detection_every);
+                    missing || since_full_ + 1 >= std::max(1, options_.full_detection_every);
   std::vector<TagObservation> now;
   if (full) {
     now = impl_->detector.Detect(image);

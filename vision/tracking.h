@@ -80,6 +80,9 @@ struct TagTrackerOptions {
   TagTrackingMode mode = TagTrackingMode::kRoiDetection;
   int full_detection_every = 30;  ///< frames between full detections (new tags appear); 1 = always
   double roi_margin = 0.6;        ///< window = corners' bounding box grown by this fraction of its size + 8 px
+  /// Ids that should be in view (the object models' tags): while one of them is not tracked, every frame gets a
+  /// full detection so that it is found again as soon as it reappears.
+  std::vector<int> expected_ids;
 };
 
 /// Follows tags frame after frame. The observations of tracked frames carry decision_margin 0 for KLT corners.

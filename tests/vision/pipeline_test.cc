@@ -1,0 +1,228 @@
+// The pipeline end to end on rendered frames: an image folder with a corrupt and a wrongly sized file, frames out of
+// order, the robot lost and found again, image_t decoding and the LCM camera channel, outputs on a real LCM bus
+// (memq) and in the LatestValue hand-off.
+
+#include "vision/pipeline.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <lcm/lcm-cpp.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "lcmtypes/channels.h"
+#include "vision/camera.h"
+#include "vision/object_model.h"
+#include "vision/tag_renderer.h"
+
+namespace visco::vision {
+namespace {
+
+const CameraModel kCam = CameraModel::Pinhole(600, 600, 319.5, 239.5, 640, 480);
+
+Eigen::Isometry3d Planar(double x, double y, double yaw) {
+  Eigen::Isometry3d m = Eigen::Isometry3d::Identity();
+  m.linear() = RotationFromRpy(0, 0, yaw);
+  m.translation() = Eigen::Vector3d(x, y, 0);
+  return m;
+}
+
+struct World {
+  ObjectModels models = LoadObjectModels("data/vision/demo_objects.json");
+  Eigen::Isometry3d wMc = LoadExtrinsics("data/vision/demo_extrinsics.json");
+  GrayImage Render(int i, bool with_robot = true) const {
+    RenderScene scene;
+    scene.polygons.push_back({{{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}}, 120});
+    const Eigen::Isometry3d wMr = Planar(-0.16 + 0.012 * i, 0.0, 0.1), wMo = Planar(0.02, 0.12, 0.3);
+    if (with_robot) {
+      AddPrism(scene, models.robot.polygon, models.robot.height, wMr, 70, 60);
+      scene.tags.push_back({"tag36h11", 0, models.robot.tags[0].size, wMr * models.robot.tags[0].oMt});
+    }
+    AddPrism(scene, models.obstacles[0].polygon, models.obstacles[0].height, wMo, 160, 140);
+    scene.tags.push_back({"tag36h11", 1, models.obstacles[0].tags[0].size, wMo * models.obstacles[0].tags[0].oMt});
+    RenderOptions ro;
+    ro.noise_stddev = 1;
+    ro.seed = 77 + i;
+    return visco::vision::Render(kCam, wMc, scene, ro);
+  }
+};
+
+template <typename T>
+struct Collector {
+  std::vector<T> got;
+  void Handle(const lcm::ReceiveBuffer*, const std::string&, const T* m) { got.push_back(*m); }
+};
+
+PipelineOptions Options() {
+  PipelineOptions o;
+  o.detector.quad_sigma = 0.8f;
+  return o;
+}
+
+TEST(Pipeline, FolderWithBadFilesToLcmAndLatestValue) {
+  const World w;
+  const auto dir = std::filesystem::temp_directory_path() / ("visco_pipeline_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const int n = 12;
+  for (int i = 0; i < n; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "frame_%04d.png", i);
+    WriteGrayImage(w.Render(i).view(), (dir / name).string());
+  }
+  std::ofstream(dir / "frame_0005b.png") << "this is not a PNG";
+  WriteGrayImage(GrayImage(320, 240, 100).view(), (dir / "frame_0007b.png").string());
+
+  lcm::LCM bus("memq://");
+  ASSERT_TRUE(bus.good());
+  Collector<visco::fault_t> faults;
+  Collector<visco::robot_estimate_t> robots;
+  Collector<visco::visual_events_t> events;
+  Collector<visco::tag_detections_t> detections;
+  bus.subscribe(channels::kFault, &Collector<visco::fault_t>::Handle, &faults);
+  bus.subscribe(channels::kRobotEstimate, &Collector<visco::robot_estimate_t>::Handle, &robots);
+  bus.subscribe(channels::kVisualEvents, &Collector<visco::visual_events_t>::Handle, &events);
+  bus.subscribe(channels::kTagDetections, &Collector<visco::tag_detections_t>::Handle, &detections);
+  LatestValue<VisionSnapshot> latest;
+  VisionPipeline pipeline(kCam, w.wMc, w.models, Options());
+  PipelineThread thread(MakeFolderSource(dir.string(), 30, 1'000'000), pipeline, &bus, &latest);
+  thread.Start();
+  thread.Join();
+  while (bus.handleTimeout(0) > 0) {
+  }
+  EXPECT_EQ(thread.frames(), n);
+  EXPECT_EQ(thread.bad_frames(), 2);
+  ASSERT_EQ(faults.got.size(), 2u);
+  EXPECT_NE(faults.got[0].message.find("frame_0005b.png"), std::string::npos) << faults.got[0].message;
+  EXPECT_NE(faults.got[0].message.find("cannot decode"), std::string::npos);
+  EXPECT_NE(faults.got[1].message.find("320x240"), std::string::npos) << faults.got[1].message;
+  EXPECT_EQ(faults.got[1].code, visco::fault_t::CODE_BAD_MESSAGE);
+  EXPECT_GT(faults.got[1].utime, 0);
+  ASSERT_EQ(robots.got.size(), static_cast<std::size_t>(n));
+  ASSERT_EQ(events.got.size(), static_cast<std::size_t>(n));
+  ASSERT_EQ(detections.got.size(), static_cast<std::size_t>(n));
+  for (const auto& r : robots.got) EXPECT_TRUE(r.valid);
+  int crossed = 0;
+  for (const auto& e : events.got) {
+    ASSERT_EQ(e.num_events, 2);
+    crossed += e.events[0].crossed ? 1 : 0;
+    EXPECT_GE(e.latency_s, 0);
+  }
+  EXPECT_GE(crossed, 1);  // the robot passes the VC ray of the block's vertex 0
+  VisionSnapshot s{};
+  ASSERT_TRUE(latest.TryTake(s));
+  EXPECT_EQ(s.frame_seq, robots.got.back().frame_seq);
+  EXPECT_TRUE(s.robot_valid);
+  EXPECT_EQ(s.num_events, 2);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Pipeline, OutOfOrderFramesAndLostRobotAreReported) {
+  const World w;
+  VisionPipeline pipeline(kCam, w.wMc, w.models, Options());
+  auto frame = [&](std::int64_t seq, std::int64_t utime, bool robot) {
+    Frame f;
+    f.seq = seq;
+    f.utime = utime;
+    f.image = w.Render(static_cast<int>(seq), robot);
+    return f;
+  };
+  auto a = pipeline.Process(frame(0, 1000, true), 0);
+  ASSERT_TRUE(a.processed);
+  EXPECT_TRUE(a.robot.valid);
+  EXPECT_TRUE(a.faults.empty());
+  auto b = pipeline.Process(frame(2, 3000, true), 0);
+  ASSERT_TRUE(b.processed);
+  auto c = pipeline.Process(frame(1, 2000, true), 0);
+  EXPECT_FALSE(c.processed);
+  ASSERT_EQ(c.faults.size(), 1u);
+  EXPECT_NE(c.faults[0].message.find("out of order"), std::string::npos) << c.faults[0].message;
+  EXPECT_EQ(c.faults[0].utime, 2000);
+  auto d = pipeline.Process(frame(3, 4000, false), 0);
+  ASSERT_TRUE(d.processed);
+  EXPECT_FALSE(d.robot.valid);
+  EXPECT_FALSE(d.snapshot.robot_valid);
+  ASSERT_EQ(d.faults.size(), 1u);
+  EXPECT_EQ(d.faults[0].code, visco::fault_t::CODE_VISION_LOST);
+  EXPECT_EQ(d.faults[0].utime, 4000);
+  EXPECT_EQ(d.events.events[0].state, 0);  // unknown, not the stale last state
+  auto e = pipeline.Process(frame(4, 5000, false), 0);
+  EXPECT_TRUE(e.faults.empty());  // reported once, not every frame
+  auto f = pipeline.Process(frame(5, 6000, true), 0);
+  ASSERT_EQ(f.faults.size(), 1u);
+  EXPECT_TRUE(f.faults[0].cleared);
+  EXPECT_TRUE(f.robot.valid);
+  EXPECT_FALSE(f.events.events[0].crossed);  // from unknown: no crossing claimed
+}
+
+TEST(Pipeline, DecodesImageMessagesAndRejectsBadOnes) {
+  visco::image_t m;
+  m.utime = 5;
+  m.seq = 9;
+  m.width = 4;
+  m.height = 2;
+  m.row_stride = 5;
+  m.pixel_format = visco::image_t::PIXEL_FORMAT_GRAY8;
+  m.data.assign(10, 7);
+  m.size = 10;
+  Frame f;
+  std::string err;
+  ASSERT_TRUE(DecodeImageMessage(m, f, err)) << err;
+  EXPECT_EQ(f.image.width, 4);
+  EXPECT_EQ(f.utime, 5);
+  m.size = 11;
+  EXPECT_FALSE(DecodeImageMessage(m, f, err));
+  EXPECT_NE(err.find("size field"), std::string::npos);
+  m.size = 10;
+  m.row_stride = 6;
+  EXPECT_FALSE(DecodeImageMessage(m, f, err));
+  EXPECT_NE(err.find("row_stride"), std::string::npos);
+  m.pixel_format = visco::image_t::PIXEL_FORMAT_PNG;
+  EXPECT_FALSE(DecodeImageMessage(m, f, err));
+  EXPECT_NE(err.find("corrupt"), std::string::npos);
+  std::vector<std::uint8_t> png;
+  cv::imencode(".png", cv::Mat(3, 5, CV_8UC1, cv::Scalar(50)), png);
+  m.data = png;
+  m.size = static_cast<std::int32_t>(png.size());
+  EXPECT_FALSE(DecodeImageMessage(m, f, err));
+  EXPECT_NE(err.find("decoded image is 5x3"), std::string::npos) << err;
+  m.width = 5;
+  m.height = 3;
+  EXPECT_TRUE(DecodeImageMessage(m, f, err)) << err;
+  m.pixel_format = 42;
+  EXPECT_FALSE(DecodeImageMessage(m, f, err));
+}
+
+TEST(Pipeline, LcmCameraChannelIn) {
+  const World w;
+  lcm::LCM bus("memq://");
+  ASSERT_TRUE(bus.good());
+  auto source = MakeLcmSource(bus, channels::kCameraImage);  // subscribed before the camera publishes
+  for (int i = 0; i < 3; ++i) {
+    const GrayImage img = w.Render(i);
+    visco::image_t m;
+    m.utime = 1000 + i;
+    m.seq = i;
+    m.camera = "synthetic";
+    m.width = img.width;
+    m.height = img.height;
+    m.row_stride = img.width;
+    m.pixel_format = visco::image_t::PIXEL_FORMAT_GRAY8;
+    m.data = img.pixels;
+    m.size = static_cast<std::int32_t>(m.data.size());
+    bus.publish(channels::kCameraImage, &m);
+  }
+  VisionPipeline pipeline(kCam, w.wMc, w.models, Options());
+  std::vector<PipelineOutput> outs;
+  Frame f;
+  std::string err;
+  for (int tries = 0; tries < 10 && outs.size() < 3; ++tries) {
+    if (source->Next(f, err, 10) == SourceStatus::kFrame) outs.push_back(pipeline.Process(f, NowUtime()));
+  }
+  ASSERT_EQ(outs.size(), 3u);
+  for (const auto& o : outs) EXPECT_TRUE(o.robot.valid);
+  EXPECT_EQ(outs[2].detections.camera, "synthetic");
+}
+
+}  // namespace
+}  // namespace visco::vision

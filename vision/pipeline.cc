@@ -1,0 +1,457 @@
+#include "vision/pipeline.h"
+
+#include <algorithm>
+#include <chrono>
+#include <deque>
+#include <filesystem>
+#include <lcm/lcm-cpp.hpp>
+#include <mutex>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "common/error.h"
+#include "lcmtypes/channels.h"
+
+namespace visco::vision {
+namespace {
+
+std::string Describe(const Frame& f) {
+  return "frame seq " + std::to_string(f.seq) + " (utime " + std::to_string(f.utime) +
+         (f.origin.empty() ? "" : ", " + f.origin) + ")";
+}
+
+visco::fault_t Fault(std::int64_t utime, std::int32_t code, std::int8_t severity, const std::string& message,
+                     bool cleared = false) {
+  visco::fault_t f;
+  f.utime = utime;
+  f.source = "vision";
+  f.code = code;
+  f.severity = severity;
+  f.robot_stopped = false;
+  f.cleared = cleared;
+  f.message = message;
+  return f;
+}
+
+void ToQuaternion(const Eigen::Matrix3d& r, double out[4]) {
+  const Eigen::Quaterniond q(r);
+  out[0] = q.w(), out[1] = q.x(), out[2] = q.y(), out[3] = q.z();
+}
+
+bool GrayFromMat(const cv::Mat& m, GrayImage& out) {
+  if (m.empty()) return false;
+  cv::Mat g;
+  if (m.channels() == 1) {
+    g = m;
+  } else if (m.channels() == 3) {
+    cv::cvtColor(m, g, cv::COLOR_BGR2GRAY);
+  } else if (m.channels() == 4) {
+    cv::cvtColor(m, g, cv::COLOR_BGRA2GRAY);
+  } else {
+    return false;
+  }
+  if (g.depth() != CV_8U) return false;
+  out = GrayImage(g.cols, g.rows);
+  for (int v = 0; v < g.rows; ++v) std::copy_n(g.ptr<std::uint8_t>(v), g.cols, &out.pixels[std::size_t(v) * g.cols]);
+  return true;
+}
+
+class FolderSource : public FrameSource {
+ public:
+  FolderSource(std::vector<std::string> files, double fps, std::int64_t start)
+      : files_(std::move(files)), period_us_(static_cast<std::int64_t>(1e6 / fps)), start_(start) {}
+  SourceStatus Next(Frame& frame, std::string& error, int) override {
+    if (next_ >= files_.size()) return SourceStatus::kEnd;
+    const std::size_t i = next_++;
+    frame.seq = static_cast<std::int64_t>(i);
+    frame.utime = start_ + static_cast<std::int64_t>(i) * period_us_;
+    frame.origin = std::filesystem::path(files_[i]).filename().string();
+    cv::Mat m;
+    try {
+      m = cv::imread(files_[i], cv::IMREAD_UNCHANGED);
+    } catch (const cv::Exception& e) {
+      error = std::string("cannot decode image: ") + e.err;
+      return SourceStatus::kBadFrame;
+    }
+    if (!GrayFromMat(m, frame.image)) {
+      error = "cannot decode image (corrupt or unsupported format)";
+      return SourceStatus::kBadFrame;
+    }
+    return SourceStatus::kFrame;
+  }
+
+ private:
+  std::vector<std::string> files_;
+  std::int64_t period_us_;
+  std::int64_t start_;
+  std::size_t next_ = 0;
+};
+
+class VideoSource : public FrameSource {
+ public:
+  VideoSource(cv::VideoCapture cap, std::string name, std::int64_t start)
+      : cap_(std::move(cap)), name_(std::move(name)), start_(start) {
+    fps_ = cap_.get(cv::CAP_PROP_FPS);
+    if (!(fps_ > 0)) fps_ = 30;
+  }
+  SourceStatus Next(Frame& frame, std::string& error, int) override {
+    cv::Mat m;
+    if (!cap_.read(m)) return SourceStatus::kEnd;
+    frame.seq = seq_++;
+    const double ms = cap_.get(cv::CAP_PROP_POS_MSEC);
+    frame.utime =
+        start_ + (ms > 0 ? static_cast<std::int64_t>(ms * 1000) : static_cast<std::int64_t>(frame.seq * 1e6 / fps_));
+    frame.origin = name_;
+    if (!GrayFromMat(m, frame.image)) {
+      error = "cannot convert the decoded frame to grey";
+      return SourceStatus::kBadFrame;
+    }
+    return SourceStatus::kFrame;
+  }
+
+ private:
+  cv::VideoCapture cap_;
+  std::string name_;
+  std::int64_t start_;
+  double fps_;
+  std::int64_t seq_ = 0;
+};
+
+class LcmSource : public FrameSource {
+ public:
+  LcmSource(lcm::LCM& bus, const std::string& channel) : bus_(bus) {
+    sub_ = bus_.subscribe(channel, &LcmSource::Handle, this);
+  }
+  ~LcmSource() override { bus_.unsubscribe(sub_); }
+  SourceStatus Next(Frame& frame, std::string& error, int timeout_ms) override {
+    if (queue_.empty()) bus_.handleTimeout(timeout_ms);
+    if (queue_.empty()) return SourceStatus::kNoFrameYet;
+    const visco::image_t msg = std::move(queue_.front());
+    queue_.pop_front();
+    return DecodeImageMessage(msg, frame, error) ? SourceStatus::kFrame : SourceStatus::kBadFrame;
+  }
+  void Handle(const lcm::ReceiveBuffer*, const std::string&, const visco::image_t* msg) {
+    // Keep the newest few: vision must not fall behind the camera (dropped frames show up as seq gaps).
+    if (queue_.size() >= 4) queue_.pop_front();
+    queue_.push_back(*msg);
+  }
+
+ private:
+  lcm::LCM& bus_;
+  lcm::Subscription* sub_ = nullptr;
+  std::deque<visco::image_t> queue_;
+};
+
+TagTrackerOptions WithExpectedIds(TagTrackerOptions o, const ObjectModels& models) {
+  for (const auto& t : models.robot.tags) o.expected_ids.push_back(t.id);
+  for (const auto& ob : models.obstacles) {
+    for (const auto& t : ob.tags) o.expected_ids.push_back(t.id);
+  }
+  return o;
+}
+
+}  // namespace
+
+std::int64_t NowUtime() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+bool DecodeImageMessage(const visco::image_t& msg, Frame& frame, std::string& error) {
+  frame.utime = msg.utime;
+  frame.seq = msg.seq;
+  frame.camera = msg.camera;
+  frame.origin = "lcm";
+  if (msg.size != static_cast<std::int32_t>(msg.data.size())) {
+    error = "size field " + std::to_string(msg.size) + " differs from the data length";
+    return false;
+  }
+  if (msg.width <= 0 || msg.height <= 0) {
+    error = "non-positive image size " + std::to_string(msg.width) + "x" + std::to_string(msg.height);
+    return false;
+  }
+  cv::Mat m;
+  switch (msg.pixel_format) {
+    case visco::image_t::PIXEL_FORMAT_GRAY8:
+    case visco::image_t::PIXEL_FORMAT_RGB8:
+    case visco::image_t::PIXEL_FORMAT_BGR8: {
+      const int bpp = msg.pixel_format == visco::image_t::PIXEL_FORMAT_GRAY8 ? 1 : 3;
+      if (msg.row_stride < msg.width * bpp ||
+          static_cast<std::int64_t>(msg.row_stride) * msg.height > static_cast<std::int64_t>(msg.data.size())) {
+        error = "row_stride " + std::to_string(msg.row_stride) + " x height " + std::to_string(msg.height) +
+                " does not fit the " + std::to_string(msg.data.size()) + " data bytes";
+        return false;
+      }
+      const cv::Mat raw(msg.height, msg.width, bpp == 1 ? CV_8UC1 : CV_8UC3, const_cast<std::uint8_t*>(msg.data.data()),
+                        static_cast<std::size_t>(msg.row_stride));
+      if (bpp == 1) {
+        m = raw;
+      } else {
+        cv::cvtColor(raw, m,
+                     msg.pixel_format == visco::image_t::PIXEL_FORMAT_RGB8 ? cv::COLOR_RGB2GRAY : cv::COLOR_BGR2GRAY);
+      }
+      break;
+    }
+    case visco::image_t::PIXEL_FORMAT_MJPEG:
+    case visco::image_t::PIXEL_FORMAT_PNG: {
+      try {
+        m = cv::imdecode(msg.data, cv::IMREAD_GRAYSCALE);
+      } catch (const cv::Exception& e) {
+        m.release();
+      }
+      if (m.empty()) {
+        error = "corrupt compressed image";
+        return false;
+      }
+      if (m.cols != msg.width || m.rows != msg.height) {
+        error = "decoded image is " + std::to_string(m.cols) + "x" + std::to_string(m.rows) + ", message says " +
+                std::to_string(msg.width) + "x" + std::to_string(msg.height);
+        return false;
+      }
+      break;
+    }
+    default:
+      error = "unknown pixel_format " + std::to_string(msg.pixel_format);
+      return false;
+  }
+  return GrayFromMat(m, frame.image) || (error = "cannot convert to grey", false);
+}
+
+std::unique_ptr<FrameSource> MakeFolderSource(const std::string& folder, double fps, std::int64_t start_utime) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_directory(folder, ec)) throw InputError(folder, "", "image folder does not exist");
+  if (!(fps > 0)) throw InputError("command line", "--fps", "must be positive");
+  std::vector<std::string> files;
+  for (const auto& e : fs::directory_iterator(folder)) {
+    std::string ext = e.path().extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+    if (e.is_regular_file() && (ext == ".pgm" || ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".ppm" ||
+                                ext == ".bmp" || ext == ".tif" || ext == ".tiff")) {
+      files.push_back(e.path().string());
+    }
+  }
+  if (files.empty()) throw InputError(folder, "", "holds no image file (.pgm, .png, .jpg, .ppm, .bmp, .tif)");
+  std::sort(files.begin(), files.end());
+  return std::make_unique<FolderSource>(std::move(files), fps, start_utime);
+}
+
+std::unique_ptr<FrameSource> MakeVideoSource(const std::string& path, std::int64_t start_utime) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw InputError(path, "", "video file does not exist");
+  cv::VideoCapture cap(path);
+  if (!cap.isOpened()) throw InputError(path, "", "cannot be opened as a video");
+  return std::make_unique<VideoSource>(std::move(cap), std::filesystem::path(path).filename().string(), start_utime);
+}
+
+std::unique_ptr<FrameSource> MakeLcmSource(lcm::LCM& bus, const std::string& channel) {
+  return std::make_unique<LcmSource>(bus, channel);
+}
+
+VisionPipeline::VisionPipeline(const CameraModel& camera, const Eigen::Isometry3d& wMc, const ObjectModels& models,
+                               const PipelineOptions& options)
+    : camera_(camera),
+      options_(options),
+      tracker_(options.detector, WithExpectedIds(options.tracker, models)),
+      features_(camera, wMc, models, options.noise, options.pose) {}
+
+visco::fault_t VisionPipeline::BadFrame(const Frame& frame, const std::string& error) const {
+  return Fault(frame.utime, visco::fault_t::CODE_BAD_MESSAGE, visco::fault_t::SEVERITY_WARNING,
+               Describe(frame) + ": " + error + "; dropped");
+}
+
+PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_utime) {
+  PipelineOutput out;
+  if (camera_.width > 0 && (frame.image.width != camera_.width || frame.image.height != camera_.height)) {
+    out.faults.push_back(BadFrame(frame, "image is " + std::to_string(frame.image.width) + "x" +
+                                             std::to_string(frame.image.height) + ", the camera's is " +
+                                             std::to_string(camera_.width) + "x" + std::to_string(camera_.height)));
+    return out;
+  }
+  if (frame.image.pixels.size() != static_cast<std::size_t>(frame.image.width) * frame.image.height ||
+      frame.image.width <= 0) {
+    out.faults.push_back(BadFrame(frame, "empty or inconsistent image"));
+    return out;
+  }
+  if (last_utime_ && (frame.utime <= *last_utime_ || frame.seq <= *last_seq_)) {
+    out.faults.push_back(BadFrame(frame, "out of order (previous frame seq " + std::to_string(*last_seq_) + ", utime " +
+                                             std::to_string(*last_utime_) + ")"));
+    return out;
+  }
+  last_utime_ = frame.utime;
+  last_seq_ = frame.seq;
+  out.processed = true;
+
+  const auto tags = tracker_.Process(frame.image.view(), &out.full_detection);
+  const FrameFeatures& f = features_.Update(tags);
+  const ObjectModels& models = features_.models();
+  const std::int64_t done = NowUtime();
+
+  // Detections.
+  auto& d = out.detections;
+  d.utime = done;
+  d.frame_utime = frame.utime;
+  d.frame_seq = frame.seq;
+  d.camera = frame.camera.empty() ? options_.camera_name : frame.camera;
+  d.processing_time_s = static_cast<double>(done - arrival_utime) * 1e-6;
+  for (const auto& t : tags) {
+    visco::tag_detection_t td{};
+    td.utime = frame.utime;
+    td.family = t.family;
+    td.id = t.id;
+    for (int k = 0; k < 4; ++k) td.corners[k][0] = t.corners[k].x(), td.corners[k][1] = t.corners[k].y();
+    td.decision_margin = t.decision_margin;
+    td.hamming = t.hamming;
+    td.tracked = !out.full_detection;
+    // The pose of the tag as estimated by the features (same prior and rejection), if it belongs to an object.
+    auto fill = [&](const ObjectEstimate& o) {
+      if (o.valid && o.tag_id == t.id) {
+        td.position[0] = o.cMt.translation().x(), td.position[1] = o.cMt.translation().y();
+        td.position[2] = o.cMt.translation().z();
+        ToQuaternion(o.cMt.linear(), td.orientation);
+        td.reprojection_error = o.rms_error_px;
+      }
+    };
+    td.orientation[0] = 1;
+    td.reprojection_error = -1;  // no pose: not a tag of the models, or rejected
+    fill(f.robot_pose);
+    for (const auto& o : f.obstacle_poses) fill(o);
+    d.detections.push_back(td);
+  }
+  d.num_detections = static_cast<std::int32_t>(d.detections.size());
+
+  // Object poses.
+  auto& p = out.poses;
+  p.utime = done;
+  p.frame_utime = frame.utime;
+  auto add_pose = [&](const ObjectEstimate& o, const std::string& id) {
+    if (!o.valid) return;
+    visco::object_pose_t op{};
+    op.utime = frame.utime;
+    op.object_id = id;
+    for (int k = 0; k < 3; ++k) op.position[k] = o.wMo.translation()[k];
+    ToQuaternion(o.wMo.linear(), op.orientation);
+    op.position_stddev = o.position_stddev;
+    op.orientation_stddev = o.orientation_stddev;
+    op.contact_refined = false;  // face-contact refinement (planning) is not applied here yet
+    p.poses.push_back(op);
+  };
+  add_pose(f.robot_pose, models.robot.id);
+  for (std::size_t k = 0; k < f.obstacle_poses.size(); ++k) add_pose(f.obstacle_poses[k], models.obstacles[k].id);
+  p.num_poses = static_cast<std::int32_t>(p.poses.size());
+
+  // Robot estimate.
+  auto& r = out.robot;
+  r.utime = frame.utime;
+  r.frame_seq = frame.seq;
+  r.valid = f.robot.valid;
+  r.position[0] = f.robot.position.x(), r.position[1] = f.robot.position.y();
+  r.position_stddev = f.robot.position_stddev;
+  r.heading = f.robot.heading;
+  if (!f.robot.valid && !robot_lost_reported_) {
+    robot_lost_reported_ = true;
+    std::string ids;
+    for (const auto& t : models.robot.tags) ids += (ids.empty() ? "" : ", ") + std::to_string(t.id);
+    out.faults.push_back(Fault(frame.utime, visco::fault_t::CODE_VISION_LOST, visco::fault_t::SEVERITY_ERROR,
+                               "robot lost: no usable tag (" + ids + ") in " + Describe(frame)));
+  } else if (f.robot.valid && robot_lost_reported_) {
+    robot_lost_reported_ = false;
+    out.faults.push_back(Fault(frame.utime, visco::fault_t::CODE_VISION_LOST, visco::fault_t::SEVERITY_INFO,
+                               "robot seen again in " + Describe(frame), true));
+  }
+
+  // Events.
+  auto& e = out.events;
+  e.frame_utime = frame.utime;
+  e.frame_seq = frame.seq;
+  for (std::size_t k = 0; k < f.pairs.size(); ++k) {
+    const PairMeasurement& pm = f.pairs[k];
+    visco::visual_event_t ve{};
+    ve.utime = frame.utime;
+    ve.cvc_ray = models.events[k].cvc_ray;
+    ve.cm_vertex = models.events[k].cm_vertex;
+    ve.signed_distance_px = pm.signed_distance_px;
+    ve.distance_stddev_px = pm.stddev_px;
+    ve.state = static_cast<std::int8_t>(pm.state);
+    ve.crossed = pm.crossed;
+    e.events.push_back(ve);
+  }
+  e.num_events = static_cast<std::int32_t>(e.events.size());
+  const std::int64_t end = NowUtime();
+  e.utime = end;
+  e.latency_s = static_cast<double>(end - arrival_utime) * 1e-6;
+
+  // Snapshot for the control loop.
+  VisionSnapshot& s = out.snapshot;
+  s.frame_utime = frame.utime;
+  s.frame_seq = frame.seq;
+  s.publish_utime = end;
+  s.robot_valid = f.robot.valid;
+  s.position[0] = f.robot.position.x(), s.position[1] = f.robot.position.y();
+  s.position_stddev = f.robot.position_stddev;
+  s.heading = f.robot.heading;
+  s.num_events = static_cast<std::int32_t>(std::min<std::size_t>(f.pairs.size(), VisionSnapshot::kMaxEvents));
+  for (int k = 0; k < s.num_events; ++k) {
+    s.events[k] = {f.pairs[k].signed_distance_px, f.pairs[k].stddev_px, static_cast<std::int8_t>(f.pairs[k].state),
+                   f.pairs[k].crossed};
+  }
+  return out;
+}
+
+PipelineThread::PipelineThread(std::unique_ptr<FrameSource> source, VisionPipeline& pipeline, lcm::LCM* bus,
+                               LatestValue<VisionSnapshot>* latest,
+                               std::function<void(const PipelineOutput&)> on_output)
+    : source_(std::move(source)), pipeline_(pipeline), bus_(bus), latest_(latest), on_output_(std::move(on_output)) {}
+
+PipelineThread::~PipelineThread() { Stop(); }
+
+void PipelineThread::Start() {
+  thread_ = std::thread([this] { Run(); });
+}
+
+void PipelineThread::Stop() {
+  stop_ = true;
+  if (thread_.joinable()) thread_.join();
+}
+
+void PipelineThread::Join() {
+  if (thread_.joinable()) thread_.join();
+}
+
+void PipelineThread::Run() {
+  Frame frame;
+  std::string error;
+  while (!stop_) {
+    error.clear();
+    const SourceStatus st = source_->Next(frame, error, 100);
+    if (st == SourceStatus::kEnd) break;
+    if (st == SourceStatus::kNoFrameYet) continue;
+    const std::int64_t arrival = NowUtime();
+    PipelineOutput out;
+    if (st == SourceStatus::kBadFrame) {
+      out.faults.push_back(pipeline_.BadFrame(frame, error));
+    } else {
+      out = pipeline_.Process(frame, arrival);
+    }
+    if (out.processed) {
+      ++frames_;
+      if (latest_ != nullptr) latest_->Publish(out.snapshot);
+      if (bus_ != nullptr) {
+        bus_->publish(channels::kTagDetections, &out.detections);
+        bus_->publish(channels::kObjectPoses, &out.poses);
+        bus_->publish(channels::kRobotEstimate, &out.robot);
+        bus_->publish(channels::kVisualEvents, &out.events);
+      }
+    } else {
+      ++bad_frames_;
+    }
+    if (bus_ != nullptr) {
+      for (const auto& f : out.faults) bus_->publish(channels::kFault, &f);
+    }
+    if (on_output_) on_output_(out);
+  }
+  finished_ = true;
+}
+
+}  // namespace visco::vision

@@ -1,0 +1,163 @@
+#pragma once
+// The vision pipeline: frames in (an image folder, a video file through OpenCV, or LCM image_t), tag detection and
+// tracking, object poses, the robot estimate and visual events out as LCM messages, and the latest estimate handed to
+// the control loop through visco::LatestValue (no lock, no allocation on the loop side). Bad frames (corrupt,
+// wrongly sized, out of order) and lost tags are reported as fault_t messages with the frame's timestamp; they never
+// crash the pipeline and never leave a stale estimate looking fresh (the estimate carries its frame time and is
+// marked invalid when the robot is not seen).
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/latest_value.h"
+#include "visco/fault_t.hpp"
+#include "visco/image_t.hpp"
+#include "visco/object_poses_t.hpp"
+#include "visco/robot_estimate_t.hpp"
+#include "visco/tag_detections_t.hpp"
+#include "visco/visual_events_t.hpp"
+#include "vision/camera.h"
+#include "vision/features.h"
+#include "vision/image.h"
+#include "vision/object_model.h"
+#include "vision/tracking.h"
+
+namespace lcm {
+class LCM;
+}
+
+namespace visco::vision {
+
+/// One camera frame.
+struct Frame {
+  std::int64_t utime = 0;  ///< capture time, microseconds since the epoch
+  std::int64_t seq = 0;    ///< frame counter
+  std::string camera;
+  std::string origin;  ///< where it came from (file name, "lcm"), for messages
+  GrayImage image;
+};
+
+/// What a source returns for one pull.
+enum class SourceStatus { kFrame, kBadFrame, kNoFrameYet, kEnd };
+
+/// A stream of frames. Not thread-safe; the pipeline thread owns it.
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+  /// Gets the next frame (kFrame), reports an unusable one (kBadFrame: `error` says why; `frame.utime`/`seq` are
+  /// set), says nothing arrived within `timeout_ms` (kNoFrameYet), or that the stream ended (kEnd).
+  virtual SourceStatus Next(Frame& frame, std::string& error, int timeout_ms) = 0;
+};
+
+/// Frames from the image files of a folder in name order; timestamps start_utime + i / fps.
+/// @throws InputError if the folder does not exist or holds no image file.
+std::unique_ptr<FrameSource> MakeFolderSource(const std::string& folder, double fps, std::int64_t start_utime);
+/// Frames from a video file (OpenCV VideoCapture); timestamps from the container, else from fps.
+/// @throws InputError if the file cannot be opened.
+std::unique_ptr<FrameSource> MakeVideoSource(const std::string& path, std::int64_t start_utime);
+/// Frames from image_t messages on `channel` of an LCM bus (the caller keeps `bus` alive; the source handles it).
+std::unique_ptr<FrameSource> MakeLcmSource(lcm::LCM& bus, const std::string& channel);
+
+/// Decodes an image_t into a grey frame. Returns false with `error` for a corrupt or inconsistent message.
+bool DecodeImageMessage(const visco::image_t& msg, Frame& frame, std::string& error);
+
+/// Fixed-size estimate for the control loop (trivially copyable, LatestValue<VisionSnapshot>).
+struct VisionSnapshot {
+  static constexpr int kMaxEvents = 32;
+  struct Event {
+    double signed_distance_px;
+    double stddev_px;
+    std::int8_t state;  // SideState
+    bool crossed;
+  };
+  std::int64_t frame_utime;  ///< capture time of the frame this comes from
+  std::int64_t frame_seq;
+  std::int64_t publish_utime;  ///< when the pipeline finished the frame
+  bool robot_valid;            ///< false: the robot was not seen in this frame
+  double position[2];          ///< metres, world
+  double position_stddev;
+  double heading;
+  std::int32_t num_events;  ///< min(pairs, kMaxEvents), in ObjectModels::events order
+  Event events[kMaxEvents];
+};
+
+struct PipelineOptions {
+  DetectorOptions detector;
+  TagTrackerOptions tracker;
+  NoiseModel noise;
+  PoseOptions pose;
+  std::string camera_name = "camera";
+};
+
+/// Everything published for one processed frame, plus faults.
+struct PipelineOutput {
+  bool processed = false;  ///< false: the frame was rejected (see faults)
+  visco::tag_detections_t detections;
+  visco::object_poses_t poses;
+  visco::robot_estimate_t robot;
+  visco::visual_events_t events;
+  std::vector<visco::fault_t> faults;
+  VisionSnapshot snapshot{};
+  bool full_detection = false;
+};
+
+/// The per-frame work, without threads or I/O. Not thread-safe.
+class VisionPipeline {
+ public:
+  VisionPipeline(const CameraModel& camera, const Eigen::Isometry3d& wMc, const ObjectModels& models,
+                 const PipelineOptions& options);
+  /// Processes one frame that arrived at `arrival_utime` (for the latency fields).
+  PipelineOutput Process(const Frame& frame, std::int64_t arrival_utime);
+  /// Reports a frame the source could not deliver.
+  visco::fault_t BadFrame(const Frame& frame, const std::string& error) const;
+  const FeatureEstimator& features() const { return features_; }
+
+ private:
+  CameraModel camera_;
+  PipelineOptions options_;
+  TagTracker tracker_;
+  FeatureEstimator features_;
+  std::optional<std::int64_t> last_utime_, last_seq_;
+  bool robot_lost_reported_ = false;
+};
+
+/// Microseconds since the epoch (system clock).
+std::int64_t NowUtime();
+
+/// Runs a source through a pipeline on its own thread, publishes on LCM (if a bus is given) and into `latest`.
+class PipelineThread {
+ public:
+  /// `bus` and `latest` may be null; `on_output` (may be empty) is called on the pipeline thread after each frame.
+  PipelineThread(std::unique_ptr<FrameSource> source, VisionPipeline& pipeline, lcm::LCM* bus,
+                 LatestValue<VisionSnapshot>* latest, std::function<void(const PipelineOutput&)> on_output = {});
+  ~PipelineThread();
+  void Start();
+  /// Asks the thread to stop and waits for it.
+  void Stop();
+  /// Waits for the end of the stream.
+  void Join();
+  std::int64_t frames() const { return frames_.load(); }
+  std::int64_t bad_frames() const { return bad_frames_.load(); }
+  /// True once the stream has ended or the thread was stopped.
+  bool finished() const { return finished_.load(); }
+
+ private:
+  void Run();
+  std::unique_ptr<FrameSource> source_;
+  VisionPipeline& pipeline_;
+  lcm::LCM* bus_;
+  LatestValue<VisionSnapshot>* latest_;
+  std::function<void(const PipelineOutput&)> on_output_;
+  std::thread thread_;
+  std::atomic<bool> stop_{false};
+  std::atomic<bool> finished_{false};
+  std::atomic<std::int64_t> frames_{0}, bad_frames_{0};
+};
+
+}  // namespace visco::vision
