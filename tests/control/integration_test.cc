@@ -16,12 +16,14 @@
 #include <thread>
 #include <vector>
 
+#include "common/error.h"
 #include "control/control_loop.h"
 #include "control/run.h"
 #include "control/sim_session.h"
 #include "lcmtypes/channels.h"
 #include "visco/controller_telemetry_t.hpp"
 #include "visco/fault_t.hpp"
+#include "visco/motion_strategy_t.hpp"
 
 namespace visco::control {
 namespace {
@@ -198,6 +200,47 @@ TEST(ControlIntegration, DriverDeathStopsTheController) {
     reported |= f.source == "controller" && f.code == fault_t::CODE_PEER_TIMEOUT && f.robot_stopped;
   }
   EXPECT_TRUE(reported);
+}
+
+TEST(ControlIntegration, StrategyArrivesOnLcm) {
+  // `visco run` without a strategy file takes the first VISCO_STRATEGY message (the planner's LCM output).
+  const std::string url = PrivateUrl();
+  std::atomic<bool> publishing{true};
+  std::thread publisher([&] {
+    lcm::LCM lcm(url);
+    motion_strategy_t m;
+    m.scene = "post";
+    m.feasible = true;
+    m.speed = 0.1;
+    motion_step_t step;
+    step.theta = -1.745;
+    step.active_rays = {"vc6.cm1"};
+    step.num_active_rays = 1;
+    step.terminate_kind = motion_step_t::TERMINATE_CONTACT;
+    step.timeout_s = 4;
+    m.steps.push_back(step);
+    m.num_steps = 1;
+    while (publishing) {
+      lcm.publish(channels::kStrategy, &m);
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+  });
+  RunOptions options = Controller(url);
+  options.strategy_path.clear();
+  options.strategy_wait_s = 5;
+  const Task task = LoadTask(options);
+  publishing = false;
+  publisher.join();
+  ASSERT_EQ(task.steps.size(), 1u);
+  EXPECT_DOUBLE_EQ(task.speed, 0.1);
+  EXPECT_EQ(task.steps[0].terminate, TerminateKind::kContact);
+  ASSERT_EQ(task.steps[0].active_rays.size(), 1u);
+  EXPECT_EQ(task.rays[static_cast<std::size_t>(task.steps[0].active_rays[0])].id, "vc6.cm1");
+  EXPECT_TRUE(task.rays[static_cast<std::size_t>(task.steps[0].active_rays[0])].has_cm_offset);
+  // Nothing published: the wait ends with a clear failure.
+  options.lcm_url = PrivateUrl();
+  options.strategy_wait_s = 0.2;
+  EXPECT_THROW(LoadTask(options), JobFailed);
 }
 
 }  // namespace
