@@ -169,6 +169,7 @@ struct TagDetector::Impl {
   apriltag_family_t* family = nullptr;
   apriltag_detector_t* detector = nullptr;
   int rejected = 0;
+  std::vector<std::uint8_t> scratch;
   ~Impl() {
     if (detector != nullptr) apriltag_detector_destroy(detector);
     if (family != nullptr) entry->destroy(family);
@@ -206,9 +207,20 @@ std::vector<TagObservation> TagDetector::DetectInRegion(const GrayImageView& ima
   const int xa = std::clamp(x0, 0, image.width), ya = std::clamp(y0, 0, image.height);
   const int xb = std::clamp(x0 + w, 0, image.width), yb = std::clamp(y0 + h, 0, image.height);
   if (xb - xa < 8 || yb - ya < 8) return out;
-  // Zero-copy wrap of the region (the detector only reads its input).
-  image_u8_t im{xb - xa, yb - ya, image.stride,
-                const_cast<std::uint8_t*>(image.data) + static_cast<std::ptrdiff_t>(ya) * image.stride + xa};
+  // Zero-copy wrap of the region. The library blurs its input in place when quad_sigma != 0 at full resolution
+  // (measured: repeated detections on one image degraded it until no tag was found), so then the region is copied
+  // into a scratch buffer owned by the detector.
+  const int rw = xb - xa, rh = yb - ya;
+  const std::uint8_t* origin = image.data + static_cast<std::ptrdiff_t>(ya) * image.stride + xa;
+  const bool copy = options_.quad_sigma != 0.0f && options_.quad_decimate <= 1.0f;
+  if (copy) {
+    impl_->scratch.resize(static_cast<std::size_t>(rw) * static_cast<std::size_t>(rh));
+    for (int v = 0; v < rh; ++v) {
+      std::copy_n(origin + static_cast<std::ptrdiff_t>(v) * image.stride, rw,
+                  impl_->scratch.data() + std::size_t(v) * rw);
+    }
+  }
+  image_u8_t im{rw, rh, copy ? rw : image.stride, copy ? impl_->scratch.data() : const_cast<std::uint8_t*>(origin)};
   zarray_t* dets = apriltag_detector_detect(impl_->detector, &im);
   for (int i = 0; i < zarray_size(dets); ++i) {
     apriltag_detection_t* d = nullptr;

@@ -126,3 +126,20 @@ TEST(AprilTagBenchmark640x480, Tag36h11CornersAndPoses) {
 
 }  // namespace
 }  // namespace visco::vision
+
+namespace visco::vision {
+namespace {
+
+TEST(AprilTagPgm, DetectionLeavesTheImageUntouched) {
+  // The AprilTag library blurs its input in place when quad_sigma != 0; the detector must work on a copy.
+  const GrayImage image = ReadGrayImage(kData + "AprilTag.pgm");
+  const std::vector<std::uint8_t> before = image.pixels;
+  DetectorOptions o;
+  o.quad_sigma = 0.8f;
+  TagDetector detector(o);
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(detector.Detect(image.view()).size(), 12u) << "pass " << i;
+  EXPECT_TRUE(image.pixels == before);
+}
+
+}  // namespace
+}  // namespace visco::vision

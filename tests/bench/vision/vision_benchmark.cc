@@ -118,6 +118,7 @@ void BM_TrackedToFullRatio(benchmark::State& state) {
 }
 BENCHMARK(BM_TrackedToFullRatio)
     ->Args({0, static_cast<int>(TagTrackingMode::kRoiDetection)})
+    ->Args({0, static_cast<int>(TagTrackingMode::kKltCorners)})
     ->Args({1, static_cast<int>(TagTrackingMode::kRoiDetection)})
     ->Args({1, static_cast<int>(TagTrackingMode::kKltCorners)})
     ->Unit(benchmark::kMillisecond);
