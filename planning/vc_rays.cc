@@ -324,13 +324,23 @@ std::vector<UnoccludedVertex> FindUnoccludedVerticesReference(const Scene& scene
   return result;
 }
 
-std::string VcRayId(const Scene& scene, int obstacle, int file_vertex) {
+namespace {
+
+// First file ordinal k of each obstacle's vertices (obstacles' vertices counted in file order).
+std::vector<int> VertexOrdinalBases(const Scene& scene) {
+  std::vector<int> bases;
   int k = 0;
-  for (int o = 0; o < obstacle; ++o) {
-    const std::vector<int>& s = scene.obstacles[o].shape.source_index;
-    k += *std::max_element(s.begin(), s.end()) + 1;
+  for (const Obstacle& o : scene.obstacles) {
+    bases.push_back(k);
+    k += *std::max_element(o.shape.source_index.begin(), o.shape.source_index.end()) + 1;
   }
-  return fmt::format("vc{}", k + file_vertex);
+  return bases;
+}
+
+}  // namespace
+
+std::string VcRayId(const Scene& scene, int obstacle, int file_vertex) {
+  return fmt::format("vc{}", VertexOrdinalBases(scene)[obstacle] + file_vertex);
 }
 
 std::string CvcRayId(const std::string& vc_ray_id, int robot_file_vertex) {
@@ -341,6 +351,7 @@ VcRays ComputeVcRays(const Scene& scene, const CSpace& cspace) {
   VcRays rays;
   if (!scene.camera) return rays;
   const Point p = scene.camera->center;
+  const std::vector<int> bases = VertexOrdinalBases(scene);
   std::vector<std::pair<int, VcRay>> keyed;
   for (const UnoccludedVertex& u : FindUnoccludedVertices(scene)) {
     const Obstacle& o = scene.obstacles[u.obstacle];
@@ -348,13 +359,14 @@ VcRays ComputeVcRays(const Scene& scene, const CSpace& cspace) {
     ray.obstacle = u.obstacle;
     ray.vertex_normalised = u.vertex;
     ray.vertex = o.shape.source_index[u.vertex];
-    ray.id = VcRayId(scene, u.obstacle, ray.vertex);
+    const int ordinal = bases[u.obstacle] + ray.vertex;
+    ray.id = fmt::format("vc{}", ordinal);
     ray.from = o.shape.polygon[u.vertex];
     ray.to = p;
     std::array<int, 2> cm = {scene.robot.source_index[u.cm[0]], scene.robot.source_index[u.cm[1]]};
     std::sort(cm.begin(), cm.end());
     ray.cm_vertices = cm;
-    keyed.emplace_back(std::stoi(ray.id.substr(2)), std::move(ray));
+    keyed.emplace_back(ordinal, std::move(ray));
   }
   std::sort(keyed.begin(), keyed.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   std::vector<OffsetSegment> inputs;
