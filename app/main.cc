@@ -14,6 +14,7 @@
 #include "drivers/commands.h"
 #include "planning/commands.h"
 #include "vision/commands.h"
+#include "planning/apo_command.h"
 
 #ifndef VISCO_VERSION
 #define VISCO_VERSION "unknown"
@@ -34,6 +35,7 @@ int main(int argc, char** argv) {
   visco::vision::RegisterCommands(app);
   visco::control::RegisterCommands(app);
   visco::control::RegisterSimCommands(app);
+  visco::planning::RegisterApoCommand(app);
 
   spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
   try {

@@ -1,0 +1,13 @@
+#pragma once
+// `visco apo OBSERVATION.json`: assembly plan from observation with face-contact correction (docs/apo.md).
+
+namespace CLI {
+class App;
+}
+
+namespace visco::planning {
+
+/// Adds the `apo` subcommand to the `visco` program.
+void RegisterApoCommand(CLI::App& app);
+
+}  // namespace visco::planning

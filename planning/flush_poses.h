@@ -1,0 +1,61 @@
+#pragma once
+// Make observed object poses consistent with their face contacts (Suehiro & Ikeuchi 1991, §2), for vision:
+// objects seen resting on the table or touching each other are moved, as little as possible, until the touching
+// faces are exactly flush. Call it on the poses from the camera before the planner builds its scene.
+//
+//   std::vector<visco::planning::FlushObject> objects = {
+//       {"table", visco::planning::MakeBox({1, 1, 0.05}), wMtable, /*stable=*/true},
+//       {"block", visco::planning::MakeBox({0.1, 0.1, 0.05}), wMblock_seen}};
+//   const visco::planning::FlushResult flush = visco::planning::MakeFlush(objects);
+//   if (flush.ok) use(flush.poses[1]);   // else flush.message says why; flush.poses are the observed ones
+//
+// Units: metres. Poses wMo map object coordinates to world (or camera) coordinates; any one fixed frame will do.
+
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "planning/face_contact.h"
+#include "planning/polyhedron.h"
+
+namespace visco::planning {
+
+/// An object as seen: its model (planning/polyhedron.h: MakeBox, MakePrism or vertices and faces), its observed
+/// pose, and whether it is stable (fixed: the table; never moved).
+struct FlushObject {
+  std::string id;
+  Polyhedron model;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  bool stable = false;
+};
+
+struct FlushOptions {
+  ContactThresholds contact;  ///< what counts as touching in the observed poses (3 mm, 3°, 2 mm wide).
+  SolverOptions solver;       ///< characteristic length (0.1 m) and tolerances.
+};
+
+/// A pair of faces found touching.
+struct FlushContact {
+  int object = -1;  ///< index of the object whose face plane is used (the face side).
+  int face = -1;
+  int against = -1;  ///< index of the other object (its contact region's vertices are used).
+  int against_face = -1;
+  double observed_gap = 0;  ///< max |distance| of the contact vertices to the face plane as observed, metres.
+};
+
+struct FlushResult {
+  bool ok = false;                       ///< every contact holds (|e| ≤ solver.residue_tolerance).
+  std::vector<Eigen::Isometry3d> poses;  ///< corrected poses, same order as the input (observed ones if !ok).
+  std::vector<FlushContact> contacts;
+  SolveReport report;   ///< iterations, rank, residues, null-space certificate.
+  std::string message;  ///< one sentence: what happened.
+};
+
+/// Find the touching faces among `objects` (every pair; the face side is the non-stable object, or the later one in
+/// the list when both move) and correct the non-stable poses by the smallest change (weighted by the characteristic
+/// length) that makes every contact exact; directions the contacts do not constrain keep their observed values.
+/// @throws std::invalid_argument if a model is invalid (CheckPolyhedron) or a pose is not rigid.
+/// Not real-time safe (allocates; a few milliseconds for a handful of objects).
+FlushResult MakeFlush(const std::vector<FlushObject>& objects, const FlushOptions& options = {});
+
+}  // namespace visco::planning

@@ -1,0 +1,66 @@
+#pragma once
+// Polyhedral object models and face contacts between them (Suehiro & Ikeuchi §1–2): faces with plane equations in
+// the object frame, and the contact region F_c of two faces that touch (the projection of one face onto the other),
+// whose vertices give the face contact equations.
+//
+// Units: metres. A pose wMo maps object coordinates to world coordinates (4×4 homogeneous, rigid).
+
+#include <Eigen/Core>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace visco::planning {
+
+/// A closed polyhedron in its object frame. Faces list vertex indices counter-clockwise seen from outside (so that
+/// the right-hand normal points out of the solid); faces may be non-convex simple polygons.
+struct Polyhedron {
+  std::vector<Eigen::Vector3d> vertices;
+  std::vector<std::vector<int>> faces;
+};
+
+/// A box of the given size (x, y, z), frame at the centre of its bottom face: x ∈ ±sx/2, y ∈ ±sy/2, z ∈ [0, sz].
+/// Faces: 0 bottom (−z), 1 top (+z), then the sides.
+Polyhedron MakeBox(const Eigen::Vector3d& size);
+
+/// A prism: the simple polygon `profile` (points (x, z), counter-clockwise with x to the right and z up) extruded
+/// along y over [−length/2, length/2]. Faces: 0 the front (y = −length/2), 1 the back, then one side per profile
+/// edge i → i+1 (face 2 + i).
+Polyhedron MakePrism(const std::vector<Eigen::Vector2d>& profile, double length);
+
+/// Why the model is unusable, or an empty string: index out of range, fewer than three distinct vertices, zero area,
+/// a vertex farther than `planarity_tolerance` (metres) from its face's plane, or faces oriented inwards (negative
+/// volume). The message names the face and vertex.
+std::string CheckPolyhedron(const Polyhedron& model, double planarity_tolerance);
+
+/// The plane (n_x, n_y, n_z, −d) of a face in the object frame, |n| = 1, n pointing out of the solid (Newell).
+Eigen::Vector4d FacePlane(const Polyhedron& model, int face);
+
+/// What counts as touching (footnote 1 of the paper: a threshold on the small observed gap).
+struct ContactThresholds {
+  double distance = 0.003;   ///< metres: every contact vertex within this of the other face's plane.
+  double angle_deg = 3.0;    ///< the two outward normals opposite within this angle.
+  double min_width = 0.002;  ///< metres: the contact region is at least this wide (thinner overlaps are edges).
+};
+
+/// A face of object A touching a face of object B.
+struct FacePatch {
+  int face = -1;                        ///< A's face (its plane gives n).
+  int against_face = -1;                ///< B's face.
+  std::vector<Eigen::Vector3d> points;  ///< vertices of the contact region F_c in B's frame (convex hull, ≥ 3).
+  double max_gap = 0;                   ///< max |distance| of the points to A's face plane at the given poses.
+  double width = 0;                     ///< the region's minimum width, metres.
+};
+
+/// The contact region of face `face_a` of A against face `face_b` of B at the given poses: A's face projected onto
+/// B's face plane and intersected with B's face; its convex hull, in B's frame. Empty when the faces do not
+/// overlap or the overlap is thinner than `min_width`. Orientation and distance are not checked here.
+std::optional<FacePatch> FaceOverlap(const Polyhedron& a, const Eigen::Matrix4d& wMa, int face_a, const Polyhedron& b,
+                                     const Eigen::Matrix4d& wMb, int face_b, double min_width);
+
+/// Every face of A that touches a face of B at the given poses (normals opposite, region wide enough, every region
+/// vertex close to A's face plane).
+std::vector<FacePatch> FindFaceContacts(const Polyhedron& a, const Eigen::Matrix4d& wMa, const Polyhedron& b,
+                                        const Eigen::Matrix4d& wMb, const ContactThresholds& thresholds);
+
+}  // namespace visco::planning
