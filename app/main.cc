@@ -12,9 +12,9 @@
 #include "control/commands.h"
 #include "control/sim_commands.h"
 #include "drivers/commands.h"
+#include "planning/apo_command.h"
 #include "planning/commands.h"
 #include "vision/commands.h"
-#include "planning/apo_command.h"
 
 #ifndef VISCO_VERSION
 #define VISCO_VERSION "unknown"
