@@ -63,6 +63,7 @@ inline constexpr std::uint8_t kNmtResetCommunication = 0x82;
 // EMCY error codes (CANopen CiA 301 / 402 meanings).
 inline constexpr std::uint16_t kEmcyNoError = 0x0000;          // error reset: the fault has cleared
 inline constexpr std::uint16_t kEmcyGeneric = 0x1000;          // generic error (used for e-stop)
+inline constexpr std::uint16_t kEmcyBusOff = 0x8100;           // communication error: bus-off or interface down
 inline constexpr std::uint16_t kEmcyCanOverrun = 0x8110;       // CAN overrun (frames lost)
 inline constexpr std::uint16_t kEmcyCanPassive = 0x8120;       // CAN in error passive mode
 inline constexpr std::uint16_t kEmcyBusOffRecovered = 0x8140;  // recovered from bus-off

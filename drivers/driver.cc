@@ -40,6 +40,7 @@ void Driver::Update(std::int64_t now_us) {
         SetFault(fault_bits::kBadFrame,
                  event.decode == can::DecodeStatus::kBadLength ? can::kEmcyPdoLength : can::kEmcyProtocol,
                  fault_t::CODE_BAD_MESSAGE, false, can::ToString(event.decode));
+        SendStatus(now_us);  // the answer shows the fault bit
         break;
       case DriverEventKind::kEStop:
         EStop(now_us, "NMT stop");
@@ -51,7 +52,10 @@ void Driver::Update(std::int64_t now_us) {
         ++stats_.bus_offs;
         bus_off_ = true;
         if (state_ == RobotState::kReady || state_ == RobotState::kMoving) StopRobot(RobotState::kStopped);
-        SetFault(fault_bits::kBus, can::kEmcyCanPassive, fault_t::CODE_CAN_ERROR, true, "CAN bus-off");
+        fault_bits_ = static_cast<std::uint16_t>(fault_bits_ | fault_bits::kBus);
+        // Announced even when error passive set the bit before: bus-off stops the robot. (While the interface is
+        // down the EMCY cannot go out; the bus-off-recovered EMCY reports the stop when it is back.)
+        Announce(can::kEmcyBusOff, fault_t::CODE_CAN_ERROR, true, false, "CAN bus-off: robot stopped");
         break;
       case DriverEventKind::kBusRestarted:
         bus_off_ = false;
@@ -114,6 +118,7 @@ void Driver::OnCommand(const DriverEvent& event, std::int64_t now_us) {
     std::snprintf(message, sizeof(message), "command %u out of sequence (last accepted %u): ignored", event.seq,
                   last_seq_);
     SetFault(fault_bits::kSequence, can::kEmcyProtocol, fault_t::CODE_BAD_MESSAGE, false, message);
+    SendStatus(now_us);  // the answer shows the fault bit and the last accepted sequence number
     return;
   }
   if (have_seq_) stats_.sequence_gaps += (event.seq + modulus - last_seq_) % modulus - 1;

@@ -372,7 +372,7 @@ class SocketCanDriverTransport final : public DriverTransport {
 
   LinkResult SendFault(const DriverFault& fault) override {
     can::EmcyFrame emcy;
-    emcy.error_code = fault.cleared ? can::kEmcyNoError : fault.emcy_code;
+    emcy.error_code = fault.emcy_code;  // 0x0000 for a reset; 0x8140 "recovered from bus-off" keeps its code
     // CiA 301 error register: bit 0 generic error, bit 4 communication error.
     const bool comm = fault.code == fault_t::CODE_CAN_ERROR || fault.code == fault_t::CODE_BAD_MESSAGE ||
                       fault.code == fault_t::CODE_PEER_TIMEOUT;

@@ -1,0 +1,398 @@
+// Hardware-in-the-loop on virtual CAN: the controller's SocketCAN RobotLink (in this process) against the real
+// `visco driver --can vcan0` process, with faults injected on the bus by a third raw socket. Runs inside the VM of
+// scripts/hil-vm (tests/drivers/hil/run_in_vm.sh), never on the host: the host kernel has no CAN.
+//
+// Every fault ends with the robot stopped within the watchdog period (plus the quick stop and one poll), the fault
+// reported (EMCY / fault bits / link state), and recovery once it clears.
+
+#include <gtest/gtest.h>
+#include <sched.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "drivers/can_protocol.h"
+#include "drivers/driver_transport.h"
+#include "drivers/robot_link.h"
+#include "drivers/socketcan.h"
+
+extern char** environ;
+
+namespace visco::drivers {
+namespace {
+
+constexpr int kNode = 1;
+// Watchdog and heartbeat timeout are longer than on a real machine: the emulated CPU of the VM can stall both
+// processes for a hundred milliseconds when the host is busy.
+constexpr std::int64_t kWatchdogUs = 300'000;
+constexpr std::int64_t kHeartbeatTimeoutUs = 500'000;
+constexpr std::int64_t kPeriodUs = 2'000;  // the controller's loop: 500 Hz
+// Slack for the emulated machine (TCG on a loaded 2-core host): the driver process may wait this long for the CPU.
+// Stop times are measured on the bus (kernel receive timestamps of the status frames), not by this process.
+constexpr std::int64_t kSlackUs = 100'000;
+constexpr std::int64_t kQuickStopUs = 10'000;  // 0.5 m/s at 50 m/s^2
+constexpr std::int64_t kStatusPeriodUs = 10'000;
+
+std::string VisCo() {
+  const char* bin = std::getenv("VISCO_BIN");
+  return bin != nullptr ? bin : "build/bin/visco";
+}
+
+// The `visco driver` process.
+class DriverProcess {
+ public:
+  DriverProcess() { Start(); }
+  ~DriverProcess() { Kill(SIGTERM); }
+  void Start() {
+    const std::string bin = VisCo();
+    // Each process on its own CPU: vcan hands frames to per-CPU backlog queues, so a sender that migrates between
+    // CPUs can have its frames delivered out of order (a real bus cannot reorder). The driver would rightly reject
+    // those as out of sequence, but the test wants to see only the faults it injects.
+    std::vector<std::string> args = {
+        "/usr/bin/taskset", "-c",  "1",           "--",  bin,       "driver", "--can", "vcan0", "--node", "1",
+        "--watchdog-ms",    "300", "--max-speed", "0.5", "--start", "1",      "2"};
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    ASSERT_EQ(posix_spawn(&pid_, argv[0], nullptr, nullptr, argv.data(), environ), 0) << bin;
+  }
+  void Kill(int signal) {
+    if (pid_ <= 0) return;
+    kill(pid_, signal);
+    int status = 0;
+    waitpid(pid_, &status, 0);
+    pid_ = -1;
+  }
+
+ private:
+  pid_t pid_ = -1;
+};
+
+struct Observed {
+  std::vector<RobotStatus> statuses;
+  std::vector<LinkFault> faults;
+};
+
+class CanHil : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::setvbuf(stdout, nullptr, _IOLBF, 0);
+    cpu_set_t cpus;
+    CPU_ZERO(&cpus);
+    CPU_SET(0, &cpus);
+    sched_setaffinity(0, sizeof(cpus), &cpus);  // the controller on CPU 0, the driver on CPU 1
+    RobotLinkConfig config;
+    config.node_id = kNode;
+    config.can_interface = "vcan0";
+    config.heartbeat_timeout_us = kHeartbeatTimeoutUs;
+    link_ = MakeSocketCanRobotLink(config);
+    CanSocketOptions injector;
+    injector.interface = "vcan0";
+    injector.receive = false;
+    injector_ = std::make_unique<CanSocket>(injector);
+    driver_ = std::make_unique<DriverProcess>();
+    // Wait for the driver's heartbeat (process start on the emulated machine takes a while).
+    ASSERT_TRUE(RunUntil(
+        10'000'000, [&] { return link_->peer_state(Now()) == PeerState::kAlive; }, false))
+        << "no heartbeat from the driver";
+    Reset();
+  }
+  void TearDown() override { driver_.reset(); }
+
+  static std::int64_t Now() { return MonotonicMicros(); }
+
+  // One controller cycle: poll, collect, optionally command; then sleep to the next period.
+  void Cycle(bool send) {
+    link_->Poll(Now());
+    RobotStatus status;
+    if (link_->TakeStatus(status) == LinkResult::kOk) {
+      seen_.statuses.push_back(status);
+      last_ = status;
+    }
+    LinkFault fault;
+    while (link_->TakeFault(fault) == LinkResult::kOk) seen_.faults.push_back(fault);
+    if (send) link_->SendCommand(command_, Now());
+    std::this_thread::sleep_until(next_);
+    next_ += std::chrono::microseconds(kPeriodUs);
+    if (next_ < std::chrono::steady_clock::now()) next_ = std::chrono::steady_clock::now();
+  }
+  // Runs cycles until `done` or `timeout_us`; true if done.
+  bool RunUntil(std::int64_t timeout_us, const std::function<bool()>& done, bool send = true) {
+    next_ = std::chrono::steady_clock::now();
+    const std::int64_t end = Now() + timeout_us;
+    while (Now() < end) {
+      Cycle(send);
+      if (done()) return true;
+    }
+    return false;
+  }
+  void RunFor(std::int64_t us, bool send = true) {
+    RunUntil(
+        us, [] { return false; }, send);
+  }
+  void Reset() {
+    command_ = VelocityCommand{};
+    command_.reset = true;
+    ASSERT_TRUE(RunUntil(2'000'000, [&] { return last_.state == RobotState::kReady && last_.fault_bits == 0; }))
+        << "reset did not bring the driver to READY (state " << ToString(last_.state) << ", faults " << last_.fault_bits
+        << ")";
+    command_.reset = false;
+  }
+  void Move(double vx, double vy) {
+    command_ = VelocityCommand{};
+    command_.velocity[0] = vx;
+    command_.velocity[1] = vy;
+    ASSERT_TRUE(RunUntil(2'000'000, [&] {
+      return last_.state == RobotState::kMoving && std::abs(last_.velocity[0] - vx) < 1e-3 &&
+             std::abs(last_.velocity[1] - vy) < 1e-3;
+    })) << "the robot did not reach the commanded velocity";
+  }
+  bool Stopped() const { return last_.velocity[0] == 0.0 && last_.velocity[1] == 0.0; }
+  bool SawFault(std::uint16_t emcy, bool stopped) const {
+    return std::any_of(seen_.faults.begin(), seen_.faults.end(), [&](const LinkFault& f) {
+      return !f.local && f.emcy_code == emcy && f.robot_stopped == stopped;
+    });
+  }
+  // Waits (still commanding as `send` says) until the driver reports `state` with zero velocity; returns the time
+  // from `since_wall` (wall clock) to that status's kernel receive timestamp, or -1.
+  std::int64_t TimeToStop(RobotState state, bool send, std::int64_t since_wall) {
+    const bool ok = RunUntil(
+        2'000'000, [&] { return last_.state == state && Stopped(); }, send);
+    return ok ? last_.utime - since_wall : -1;
+  }
+  std::string Faults() const {
+    std::string text;
+    for (const LinkFault& f : seen_.faults) {
+      char line[120];
+      std::snprintf(line, sizeof(line), "\n  emcy 0x%04X code %d bits 0x%02X stopped %d cleared %d local %d",
+                    f.emcy_code, f.code, f.fault_bits, f.robot_stopped, f.cleared, f.local);
+      text += line;
+    }
+    return text;
+  }
+  void Inject(const can::Frame& frame) { ASSERT_EQ(injector_->Write(frame), CanIo::kOk); }
+  can::Frame ErrorFrame(std::uint32_t classes, std::uint8_t crtl = 0) {
+    can::Frame f;
+    f.id = can::kErrFlag | classes;
+    f.dlc = 8;
+    f.data[1] = crtl;
+    return f;
+  }
+
+  std::unique_ptr<RobotLink> link_;
+  std::unique_ptr<CanSocket> injector_;
+  std::unique_ptr<DriverProcess> driver_;
+  VelocityCommand command_;
+  RobotStatus last_;
+  Observed seen_;
+  std::chrono::steady_clock::time_point next_;
+};
+
+TEST_F(CanHil, CommandsMoveTheRobotAndEveryCommandIsAnswered) {
+  Move(0.2, -0.1);
+  const RobotStatus start = last_;
+  const std::uint64_t sent_before = link_->counters().commands_sent;
+  RunFor(500'000);
+  const LinkCounters c = link_->counters();
+  // Every command gets a status (TPDO1..3) with its sequence number; allow the last few in flight.
+  EXPECT_GE(c.statuses_received + 5, c.commands_sent - sent_before);
+  EXPECT_EQ(c.bad_frames, 0U);
+  EXPECT_EQ(c.rx_overflow_drops, 0U);
+  EXPECT_EQ(c.bus_off_events, 0U);
+  // The position integrates the velocity: 0.2 m/s for the time between the two statuses (robot-side clock).
+  const double dt = (last_.utime - start.utime) * 1e-6;
+  EXPECT_NEAR(last_.position[0] - start.position[0], 0.2 * dt, 0.01);
+  EXPECT_NEAR(last_.position[1] - start.position[1], -0.1 * dt, 0.01);
+  // The last status answers one of the last commands (a few may still be in flight).
+  EXPECT_LE(static_cast<std::uint8_t>(link_->last_command_seq() - last_.command_seq), 10);
+  std::printf("hil: %llu commands, %llu statuses, %llu status gaps in 0.5 s\n",
+              static_cast<unsigned long long>(c.commands_sent), static_cast<unsigned long long>(c.statuses_received),
+              static_cast<unsigned long long>(c.status_gaps));
+}
+
+TEST_F(CanHil, SilentControllerTripsTheWatchdogAndResetRecovers) {
+  Move(0.3, 0.0);
+  const std::int64_t silent = WallMicros();  // right after the last command was sent
+  const std::int64_t took = TimeToStop(RobotState::kStopped, false, silent);
+  ASSERT_GT(took, 0) << "the driver did not stop the robot";
+  std::printf("hil: watchdog stop %.1f ms after the last command (watchdog %.0f ms)\n", took / 1e3, kWatchdogUs / 1e3);
+  EXPECT_LE(took, kWatchdogUs + kQuickStopUs + kStatusPeriodUs + kSlackUs);
+  EXPECT_GE(took, kWatchdogUs - kPeriodUs);
+  EXPECT_TRUE(last_.fault_bits & fault_bits::kWatchdog);
+  EXPECT_TRUE(SawFault(can::kEmcyRpdoTimeout, true));
+  // Commands alone do not restart it; a reset does.
+  command_.velocity[0] = 0.3;
+  RunFor(100'000);
+  EXPECT_EQ(last_.state, RobotState::kStopped);
+  EXPECT_TRUE(Stopped());
+  Reset();
+  Move(0.1, 0.1);
+}
+
+TEST_F(CanHil, MalformedAndOutOfSequenceFramesAreIgnoredAndReported) {
+  Move(0.2, 0.0);
+  // A command with a bad CRC and one with a wrong length, both asking for 0.5 m/s.
+  can::CommandFrame evil;
+  evil.seq = static_cast<std::uint8_t>(link_->last_command_seq() + 1);
+  evil.velocity[0] = 0.5;
+  can::Frame frame;
+  ASSERT_EQ(can::EncodeCommand(kNode, evil, frame), can::EncodeStatus::kOk);
+  frame.data[7] ^= 0x5A;
+  Inject(frame);
+  RunFor(50'000);
+  EXPECT_TRUE(SawFault(can::kEmcyProtocol, false)) << Faults();
+  frame.data[7] ^= 0x5A;
+  frame.dlc = 6;
+  Inject(frame);
+  RunFor(50'000);
+  EXPECT_TRUE(SawFault(can::kEmcyPdoLength, false)) << Faults();
+  // An old sequence number with a valid CRC (a replayed frame).
+  evil.seq = static_cast<std::uint8_t>(link_->last_command_seq() - 5);
+  ASSERT_EQ(can::EncodeCommand(kNode, evil, frame), can::EncodeStatus::kOk);
+  Inject(frame);
+  const auto sequence_reported = [&] {
+    return std::any_of(seen_.faults.begin(), seen_.faults.end(), [](const LinkFault& f) {
+      return f.emcy_code == can::kEmcyProtocol && (f.fault_bits & fault_bits::kSequence) != 0;
+    });
+  };
+  EXPECT_TRUE(RunUntil(300'000, sequence_reported)) << Faults();
+  for (const RobotStatus& s : seen_.statuses) ASSERT_LE(s.velocity[0], 0.2 + 1e-3) << "a bad frame moved the robot";
+  // The controller's valid commands clear the bits again.
+  RunFor(50'000);
+  EXPECT_EQ(last_.fault_bits, 0) << Faults();
+  EXPECT_EQ(last_.state, RobotState::kMoving) << Faults();
+  const LinkCounters c = link_->counters();
+  std::printf("hil: link counters: sent %llu, send failures %llu, statuses %llu, gaps %llu\n",
+              static_cast<unsigned long long>(c.commands_sent), static_cast<unsigned long long>(c.send_failures),
+              static_cast<unsigned long long>(c.statuses_received), static_cast<unsigned long long>(c.status_gaps));
+
+  // Now the controller is replaced by garbage: only malformed frames. The watchdog stops the robot.
+  const std::int64_t since = Now();
+  const std::int64_t since_wall = WallMicros();
+  next_ = std::chrono::steady_clock::now();
+  std::int64_t took = -1;
+  while (Now() - since < 2'000'000) {
+    ++frame.data[0];
+    frame.data[7] = static_cast<std::uint8_t>(can::FrameCrc(frame.id, frame.data) ^ 0x01);  // always wrong
+    Inject(frame);
+    Cycle(false);
+    if (last_.state == RobotState::kStopped && Stopped()) {
+      took = last_.utime - since_wall;
+      break;
+    }
+  }
+  ASSERT_GT(took, 0);
+  std::printf("hil: garbage-only bus: robot stopped after %.1f ms\n", took / 1e3);
+  EXPECT_GE(took, kWatchdogUs - kPeriodUs);
+  EXPECT_LE(took, kWatchdogUs + kQuickStopUs + kStatusPeriodUs + kSlackUs);
+  EXPECT_TRUE(last_.fault_bits & fault_bits::kWatchdog);
+  Reset();
+  Move(0.1, 0.0);
+}
+
+TEST_F(CanHil, ErrorPassiveWarnsBusOffStopsAndRestartRecovers) {
+  Move(0.2, 0.0);
+  Inject(ErrorFrame(can::kErrCrtl, can::kCrtlTxPassive));
+  RunUntil(300'000, [&] { return (last_.fault_bits & fault_bits::kBus) != 0; });
+  EXPECT_TRUE(last_.fault_bits & fault_bits::kBus);
+  EXPECT_EQ(last_.state, RobotState::kMoving) << "error passive alone does not stop the robot";
+  EXPECT_EQ(link_->bus_state(), BusState::kPassive);
+  EXPECT_TRUE(SawFault(can::kEmcyCanPassive, false));
+
+  const std::int64_t since = WallMicros();
+  Inject(ErrorFrame(can::kErrBusOff));
+  const std::int64_t took = TimeToStop(RobotState::kStopped, true, since);
+  ASSERT_GT(took, 0);
+  std::printf("hil: bus-off: robot stopped after %.1f ms\n", took / 1e3);
+  EXPECT_LE(took, kQuickStopUs + kStatusPeriodUs + kSlackUs);
+  EXPECT_TRUE(SawFault(can::kEmcyBusOff, true)) << Faults();
+  EXPECT_EQ(link_->bus_state(), BusState::kBusOff);
+  EXPECT_TRUE(std::any_of(seen_.faults.begin(), seen_.faults.end(), [](const LinkFault& f) { return f.local; }));
+  RunFor(50'000);
+  EXPECT_EQ(last_.state, RobotState::kStopped) << "no reset while the bus is off";
+
+  Inject(ErrorFrame(can::kErrRestarted));
+  RunUntil(500'000, [&] { return (last_.fault_bits & fault_bits::kBus) == 0; });
+  EXPECT_EQ(link_->bus_state(), BusState::kActive);
+  EXPECT_TRUE(SawFault(can::kEmcyBusOffRecovered, true)) << Faults();
+  Reset();
+  Move(0.0, 0.2);
+}
+
+TEST_F(CanHil, InterfaceDownStopsTheRobotAndUpRecovers) {
+  Move(0.2, 0.0);
+  const std::int64_t since = Now();
+  ASSERT_EQ(std::system("ip link set vcan0 down"), 0);
+  RunFor(150'000);
+  EXPECT_EQ(link_->bus_state(), BusState::kBusOff);
+  ASSERT_EQ(std::system("ip link set vcan0 up"), 0);
+  // While the interface was down nothing could be seen; after it is up the driver reports a stopped robot.
+  RunUntil(1'000'000, [&] { return last_.state == RobotState::kStopped && Stopped() && last_.utime > 0; });
+  EXPECT_EQ(last_.state, RobotState::kStopped);
+  EXPECT_TRUE(Stopped());
+  EXPECT_TRUE(SawFault(can::kEmcyBusOffRecovered, true))
+      << "the driver reports the stop once the bus is back" << Faults();
+  std::printf("hil: interface down for 150 ms: stopped, reported, up again after %.1f ms\n", (Now() - since) / 1e3);
+  EXPECT_EQ(link_->bus_state(), BusState::kActive);
+  Reset();
+  Move(0.1, 0.0);
+}
+
+TEST_F(CanHil, KilledDriverIsDetectedByItsHeartbeatAndRestartRecovers) {
+  Move(0.2, 0.0);
+  const std::int64_t since = Now();
+  driver_->Kill(SIGKILL);
+  const bool lost = RunUntil(2'000'000, [&] { return link_->peer_state(Now()) == PeerState::kLost; });
+  ASSERT_TRUE(lost);
+  const std::int64_t took = Now() - since;
+  std::printf("hil: killed driver detected after %.1f ms (heartbeat timeout %.0f ms)\n", took / 1e3,
+              kHeartbeatTimeoutUs / 1e3);
+  EXPECT_LE(took, kHeartbeatTimeoutUs + 100'000 + kSlackUs);
+  // A restarted driver boots into READY with zero velocity and is usable after a reset.
+  driver_->Start();
+  ASSERT_TRUE(RunUntil(
+      10'000'000, [&] { return link_->peer_state(Now()) == PeerState::kAlive; }, false));
+  RunUntil(1'000'000, [&] { return last_.utime > 0 && Stopped(); });
+  EXPECT_TRUE(Stopped());
+  Reset();
+  Move(0.1, 0.0);
+}
+
+TEST_F(CanHil, NmtStopIsAnEStopAndNmtStartResets) {
+  Move(0.2, 0.2);
+  can::Frame nmt;
+  ASSERT_EQ(can::EncodeNmt(can::kNmtStop, kNode, nmt), can::EncodeStatus::kOk);
+  const std::int64_t since = WallMicros();
+  Inject(nmt);
+  const std::int64_t took = TimeToStop(RobotState::kEStop, true, since);
+  ASSERT_GT(took, 0);
+  std::printf("hil: NMT stop (e-stop): robot stopped after %.1f ms\n", took / 1e3);
+  EXPECT_LE(took, kQuickStopUs + kStatusPeriodUs + kSlackUs);
+  EXPECT_TRUE(SawFault(can::kEmcyGeneric, true));
+  ASSERT_EQ(can::EncodeNmt(can::kNmtStart, 0, nmt), can::EncodeStatus::kOk);
+  Inject(nmt);
+  command_ = VelocityCommand{};
+  RunUntil(500'000, [&] { return last_.state == RobotState::kReady; });
+  EXPECT_EQ(last_.state, RobotState::kReady);
+  Move(0.1, 0.0);
+  // The controller's own e-stop flag.
+  command_.estop = true;
+  RunUntil(500'000, [&] { return last_.state == RobotState::kEStop && Stopped(); });
+  EXPECT_EQ(last_.state, RobotState::kEStop);
+  Reset();
+}
+
+}  // namespace
+}  // namespace visco::drivers
