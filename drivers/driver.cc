@@ -29,8 +29,17 @@ void Driver::Start(std::int64_t now_us) {
 }
 
 void Driver::Update(std::int64_t now_us) {
+  // A bounded number of events per call: they are all taken to have arrived at `now_us`, so draining a queue that
+  // keeps filling (a slow CPU, a flood of frames) must not go on with an ever older `now_us`. Run() calls again at
+  // once with a fresh time.
+  constexpr int kMaxEventsPerUpdate = 16;
   DriverEvent event;
-  while (transport_.NextEvent(now_us, event)) {
+  bool drained = false;
+  for (int handled = 0; handled < kMaxEventsPerUpdate; ++handled) {
+    if (!transport_.NextEvent(now_us, event)) {
+      drained = true;
+      break;
+    }
     switch (event.kind) {
       case DriverEventKind::kCommand:
         OnCommand(event, now_us);
@@ -81,8 +90,8 @@ void Driver::Update(std::int64_t now_us) {
     }
   }
 
-  // Watchdog.
-  if (last_valid_us_ >= 0 && (state_ == RobotState::kReady || state_ == RobotState::kMoving) &&
+  // Watchdog, once every pending event has been looked at (a valid command may still wait in the queue).
+  if (drained && last_valid_us_ >= 0 && (state_ == RobotState::kReady || state_ == RobotState::kMoving) &&
       now_us - last_valid_us_ > config_.watchdog_us) {
     ++stats_.watchdog_stops;
     StopRobot(RobotState::kStopped);

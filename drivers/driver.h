@@ -52,8 +52,9 @@ class Driver {
 
   /// Sends the boot-up heartbeat. Call once before the first Update().
   void Start(std::int64_t now_us);
-  /// One iteration at `now_us` (monotonic): handles every pending event, steps the robot by the time since the
-  /// last call, runs the watchdog, sends the periodic status and heartbeat. No allocation.
+  /// One iteration at `now_us` (monotonic): handles up to 16 pending events (taken to arrive at `now_us`), steps the
+  /// robot by the time since the last call, runs the watchdog, sends the periodic status and heartbeat.
+  /// No allocation.
   void Update(std::int64_t now_us);
   /// Runs Start() and Update() at the configured period until `stop` becomes true.
   void Run(const std::atomic<bool>& stop);

@@ -170,6 +170,21 @@ TEST(Driver, OutOfSequenceAndMalformedCommandsAreIgnoredAndReported) {
   EXPECT_EQ(rig.driver.stats().sequence_gaps, 89U);
 }
 
+TEST(Driver, ABacklogIsReadBeforeTheWatchdogJudges) {
+  Rig rig;
+  rig.transport.Command(1, 0.1, 0.0);
+  rig.Run(1);
+  // The driver was away for 150 ms (> watchdog); meanwhile 20 garbage frames and then a valid command queued up.
+  for (int i = 0; i < 20; ++i) rig.transport.Event(DriverEventKind::kBadCommand, can::DecodeStatus::kBadChecksum);
+  rig.transport.Command(2, 0.1, 0.0);
+  rig.now += 150'000;
+  rig.driver.Update(rig.now);  // handles the first 16 events only: no verdict yet
+  rig.driver.Update(rig.now);  // the rest, including the valid command
+  EXPECT_EQ(rig.driver.state(), RobotState::kMoving);
+  EXPECT_FALSE(rig.driver.fault_bits() & fault_bits::kWatchdog);
+  EXPECT_EQ(rig.driver.stats().bad_commands, 20U);
+}
+
 TEST(Driver, EStopLatchesUntilReset) {
   Rig rig;
   rig.transport.Command(1, 0.2, 0.2);

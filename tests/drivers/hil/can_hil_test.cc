@@ -61,8 +61,8 @@ class DriverProcess {
     // CPUs can have its frames delivered out of order (a real bus cannot reorder). The driver would rightly reject
     // those as out of sequence, but the test wants to see only the faults it injects.
     std::vector<std::string> args = {
-        "/usr/bin/taskset", "-c",  "1",           "--",  bin,       "driver", "--can", "vcan0", "--node", "1",
-        "--watchdog-ms",    "300", "--max-speed", "0.5", "--start", "1",      "2"};
+        "/usr/bin/taskset", "-c",  "1",           bin,   "driver",  "--can", "vcan0", "--node", "1",
+        "--watchdog-ms",    "300", "--max-speed", "0.5", "--start", "1",     "2"};
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
     argv.push_back(nullptr);
