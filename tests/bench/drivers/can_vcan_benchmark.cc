@@ -134,7 +134,7 @@ void BM_CommandToFeedbackRoundTrip(benchmark::State& state) {
   VelocityCommand command;
   command.reset = true;
   bool ready = false;
-  for (int i = 0; i < 200 && !ready; ++i) {  // the driver process needs a while to start in the VM
+  for (int i = 0; i < 1200 && !ready; ++i) {  // the driver process needs a while to start in the VM
     link->SendCommand(command, MonotonicMicros());
     ready = until_answer(100'000);
   }

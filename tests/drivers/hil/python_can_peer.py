@@ -108,7 +108,7 @@ def main():
     peer = Peer(args.node)
     watchdog = args.watchdog_ms / 1000.0
 
-    check(peer.wait(lambda: peer.heartbeats > 0, 20.0), "driver heartbeat 0x%03X seen" % (0x700 + args.node))
+    check(peer.wait(lambda: peer.heartbeats > 0, 120.0), "driver heartbeat 0x%03X seen" % (0x700 + args.node))
     peer.command(0, 0, reset=True)
     check(peer.wait(lambda: peer.status is not None and peer.status[0] == peer.seq and peer.status[3] == 1, 3.0),
           "reset answered: READY with the reset's sequence number")
