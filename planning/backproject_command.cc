@@ -12,6 +12,7 @@
 #include <string>
 
 #include "common/error.h"
+#include "common/write_output.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
 #include "planning/vc_rays.h"
@@ -145,16 +146,7 @@ struct Args {
   std::string out, svg;
 };
 
-void WriteText(const std::string& text, const std::string& path) {
-  if (path.empty()) {
-    std::fwrite(text.data(), 1, text.size(), stdout);
-    std::fputc('\n', stdout);
-    return;
-  }
-  std::ofstream f(path);
-  f << text << "\n";
-  if (!f) throw InputError(path, "", "cannot write the output file");
-}
+void WriteText(const std::string& text, const std::string& path) { WriteTextOutput(text, path); }
 
 void Run(const Args& a) {
   if (!std::isfinite(a.theta_deg)) throw InputError("command line", "--theta", "must be a finite number of degrees");

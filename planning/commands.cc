@@ -7,6 +7,7 @@
 #include <string>
 
 #include "common/error.h"
+#include "common/write_output.h"
 #include "planning/backproject_command.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
@@ -21,16 +22,7 @@ struct VcRaysArgs {
   std::string svg;
 };
 
-void WriteText(const std::string& text, const std::string& path) {
-  if (path.empty()) {
-    std::fwrite(text.data(), 1, text.size(), stdout);
-    std::fputc('\n', stdout);
-    return;
-  }
-  std::ofstream f(path);
-  f << text << "\n";
-  if (!f) throw InputError(path, "", "cannot write the output file");
-}
+void WriteText(const std::string& text, const std::string& path) { WriteTextOutput(text, path); }
 
 void RunVcRays(const VcRaysArgs& a) {
   const Scene scene = LoadScene(a.scene);
