@@ -12,6 +12,12 @@ if(VISCO_SANITIZE STREQUAL "address")
   target_compile_options(visco_warnings INTERFACE -fsanitize=address,undefined -fno-sanitize=vptr
                                                   -fno-omit-frame-pointer -fno-sanitize-recover=undefined)
   target_link_options(visco_warnings INTERFACE -fsanitize=address,undefined)
+  # GCC 12's flow analysis at -O1 with sanitizers reports -Wmaybe-uninitialized inside system headers instantiated
+  # from our code (std::regex's std::function moves, CGAL's Epic_converter): false positives that -Werror would turn
+  # into a broken ASan build. The normal build keeps the warning.
+  if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+    target_compile_options(visco_warnings INTERFACE -Wno-maybe-uninitialized)
+  endif()
 elseif(VISCO_SANITIZE STREQUAL "thread")
   target_compile_options(visco_warnings INTERFACE -fsanitize=thread -fno-omit-frame-pointer)
   target_link_options(visco_warnings INTERFACE -fsanitize=thread)
