@@ -90,6 +90,10 @@ void RegisterCommands(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--heartbeat-timeout-ms", cli->heartbeat_timeout_ms, "no driver heartbeat for this long stops")
       ->capture_default_str();
+  cmd->add_option("--startup-timeout", o.executor.startup_timeout_s,
+                  "the driver must be ready (and vision must have spoken, if the first step needs it) within this, s")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_option("--step-timeout", o.executor.default_step_timeout_s, "time-out of steps that give none, s")
       ->capture_default_str();
   cmd->add_flag("--goal-from-odometry", o.executor.goal_from_odometry,

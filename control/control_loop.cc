@@ -190,6 +190,7 @@ void ControlLoop::PushTelemetry(std::int64_t now_utime) {
   t.mode = output_.mode;
   t.holding = output_.holding;
   CopyText(t.stop_reason, output_.stop_reason);
+  CopyText(t.step_reason, output_.step_reason);
   t.command = output_.command.velocity;
   t.estimate = output_.estimate;
   t.estimate_age_s = output_.estimate_age_s;

@@ -25,6 +25,7 @@ struct TelemetrySnapshot {
   Mode mode = Mode::kIdle;
   bool holding = false;
   char stop_reason[128] = {};
+  char step_reason[128] = {};  // why the previous step ended
   Vec2 command;
   Vec2 estimate;
   double estimate_age_s = 0.0;

@@ -77,11 +77,12 @@ Executor::Executor(const Task& task, const ExecutorConfig& config)
 void Executor::Start(std::int64_t now_ns) {
   started_ = true;
   start_ns_ = now_ns;
+  step_reason_[0] = '\0';
   mode_ = Mode::kIdle;
   step_ = -1;
 }
 
-void Executor::BeginStep(int index, std::int64_t now_ns) {
+void Executor::BeginStep(int index, std::int64_t now_ns, int reached_ray) {
   step_ = index;
   step_start_ns_ = now_ns;
   std::fill(rays_.begin(), rays_.end(), RayState{});
@@ -90,6 +91,15 @@ void Executor::BeginStep(int index, std::int64_t now_ns) {
   contact_since_ns_ = -1;
   const Step& step = task_.steps[static_cast<std::size_t>(index)];
   mode_ = step.terminate == TerminateKind::kVisualGuarded ? Mode::kVisualGuarded : Mode::kFree;
+  // The previous step ended on reaching `reached_ray` (visual guarded motion): if this step complies to that ray, it
+  // starts engaged on it. The robot is on the ray by construction, up to the stop's overshoot, which the law's
+  // normal correction removes; waiting to reach the ray again could wait forever (the new direction may lead away
+  // from the side the overshoot left it on).
+  if (reached_ray >= 0 &&
+      std::find(step.active_rays.begin(), step.active_rays.end(), reached_ray) != step.active_rays.end()) {
+    engaged_ray_ = reached_ray;
+    rays_[static_cast<std::size_t>(reached_ray)].reached = true;
+  }
 }
 
 void Executor::AddFault(ExecutorOutput& out, const ExecutorInput& in, FaultCode code, std::int8_t severity,
@@ -162,6 +172,7 @@ void Executor::Finish(ExecutorOutput& out, const ExecutorInput& in, Vec2 nominal
   out.mode = mode_;
   out.step_index = step_;
   out.holding = holding_;
+  CopyText(out.step_reason, step_reason_);
   if (mode_ == Mode::kStopped) {
     CopyText(out.stop_reason, stop_reason_);
   } else if (holding_) {
@@ -329,6 +340,7 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
 
   // Termination and ray engagement, from frames captured during this step, each processed once.
   bool terminated = false;
+  int reached_ray = -1;
   if (need_events && in.frame.frame_seq != last_frame_seq_ && in.frame.capture_ns >= step_start_ns_) {
     last_frame_seq_ = in.frame.frame_seq;
     for (int ray : step.active_rays) {
@@ -342,6 +354,7 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
       if (already_tracked ? rays_[static_cast<std::size_t>(step.terminate_ray)].reached
                           : TrackRay(step.terminate_ray, *obs)) {
         terminated = true;
+        reached_ray = step.terminate_ray;
         VISCO_FORMAT_TEXT(message, "step %d: reached CVC ray \"%s\"", step_,
                           task_.rays[static_cast<std::size_t>(step.terminate_ray)].id.c_str());
       }
@@ -371,7 +384,8 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
       VISCO_FORMAT_TEXT(stop_reason_, "done: %s", message);
       step_ = static_cast<int>(task_.steps.size());
     } else {
-      BeginStep(step_ + 1, in.now_ns);
+      CopyText(step_reason_, message);
+      BeginStep(step_ + 1, in.now_ns, reached_ray);
     }
     Finish(out, in, {}, true);  // the terminated motion stops; the next one starts next period
     return;

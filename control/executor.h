@@ -101,6 +101,7 @@ struct ExecutorOutput {
   std::int32_t step_index = -1;  // -1 before the first step, num_steps when done
   bool holding = false;
   char stop_reason[128] = {};  // empty while running
+  char step_reason[128] = {};  // why the previous step ended (empty before the second step)
   Vec2 estimate;               // metres, position used for goal recognition / bounds
   double estimate_age_s = 0.0;
   std::int32_t num_faults = 0;
@@ -132,7 +133,7 @@ class Executor {
     bool reached = false;
   };
 
-  void BeginStep(int index, std::int64_t now_ns);
+  void BeginStep(int index, std::int64_t now_ns, int reached_ray = -1);
   void Stop(FaultCode code, const char* message, ExecutorOutput& out, const ExecutorInput& in);
   void AddFault(ExecutorOutput& out, const ExecutorInput& in, FaultCode code, std::int8_t severity, bool stopped,
                 bool cleared, const char* message);
@@ -160,6 +161,7 @@ class Executor {
   std::int64_t hold_since_ns_ = 0;
   char hold_reason_[128] = {};
   char stop_reason_[128] = {};
+  char step_reason_[128] = {};
   FaultCode stop_code_ = FaultCode::kNone;
   bool estop_latched_ = false;
   Vec2 last_command_;

@@ -109,7 +109,7 @@ void ControllerBridge::PublishLoop() {
 void ControllerBridge::Drain() {
   FaultEvent fault;
   while (outbox_.faults.TryPop(fault)) {
-    fault_t m;
+    fault_t m{};
     m.utime = fault.utime;
     m.source = "controller";
     m.code = static_cast<std::int32_t>(fault.code);
@@ -155,7 +155,11 @@ void ControllerBridge::Drain() {
       if (t.mode == Mode::kDone) {
         spdlog::info("controller: strategy finished: {}", t.stop_reason);
       } else if (t.mode != Mode::kStopped) {
-        spdlog::info("controller: step {} mode {}", t.step_index, ToString(t.mode));
+        if (t.step_index != logged_step_ && t.step_reason[0] != '\0') {
+          spdlog::info("controller: step {} mode {} ({})", t.step_index, ToString(t.mode), t.step_reason);
+        } else {
+          spdlog::info("controller: step {} mode {}", t.step_index, ToString(t.mode));
+        }
       }
       logged_mode_ = t.mode;
       logged_step_ = t.step_index;

@@ -27,7 +27,17 @@ struct SimCli {
   double latency_ms = 20;
   double watchdog_ms = 100;
   double duration_s = 0;
+  std::vector<double> occlude, blackout, stale;
+  double stale_ms = 500;
 };
+
+FaultWindow Window(const std::vector<double>& v, const char* option) {
+  if (v.empty()) return {};
+  if (!(v[0] >= 0) || !(v[1] > 0)) {
+    throw InputError("command line", option, "give START and DURATION in seconds, START >= 0, DURATION > 0");
+  }
+  return {v[0], v[1]};
+}
 
 void RunSim(SimCli& cli) {
   LogToStderr();  // stdout carries only the JSON summary
@@ -37,6 +47,17 @@ void RunSim(SimCli& cli) {
     o.start = {cli.start[0], cli.start[1]};
   }
   o.latency_s = cli.latency_ms / 1000.0;
+  o.occlude = Window(cli.occlude, "--occlude");
+  o.blackout = Window(cli.blackout, "--blackout");
+  o.stale = Window(cli.stale, "--stale");
+  o.stale_s = cli.stale_ms / 1000.0;
+  const RenderedCameraConfig& r = o.render;
+  if (!r.objects_path.empty() && (r.calibration_path.empty() || r.extrinsics_path.empty())) {
+    throw InputError("command line", "--objects", "the rendered camera also needs --camera and --extrinsics");
+  }
+  if (r.objects_path.empty() && (!r.calibration_path.empty() || !r.extrinsics_path.empty())) {
+    throw InputError("command line", "--camera", "give --objects too (the models of what the camera renders)");
+  }
   if (!(cli.watchdog_ms > 0)) throw InputError("command line", "--watchdog-ms", "must be positive");
   o.driver.watchdog_us = static_cast<std::int64_t>(cli.watchdog_ms * 1000);
   SimSession session(o);
@@ -67,10 +88,13 @@ void RegisterSimCommands(CLI::App& app) {
       "sim",
       "Simulated robot and camera for `visco run`: the robot driver (LCM, or SocketCAN with --can) drives a robot "
       "that obeys SEMANTICS.md's motion model (actual direction inside the velocity cone chosen by a seeded random "
-      "adversary, Coulomb friction on the C-obstacles, sticking, bounds); a simulated camera publishes "
-      "VISCO_VISUAL_EVENTS (signed image distance of each CVC ray's CM vertex to its VC line) and "
-      "VISCO_ROBOT_ESTIMATE from the true pose, with noise, latency and frame drops on request. Runs until "
-      "SIGINT/SIGTERM or --duration; prints a JSON summary on exit.");
+      "adversary, Coulomb friction on the C-obstacles, sticking, bounds, a workspace-bounds fault when it leaves "
+      "them). The simulated camera either renders the AprilTags of robot and obstacles from the true poses "
+      "(--objects, --camera, --extrinsics: the files of `visco track`) and publishes image_t on "
+      "VISCO_CAMERA_IMAGE for the vision pipeline (`visco track --lcm`), with blur, image noise and frame drops on "
+      "request; or, without --objects, publishes VISCO_VISUAL_EVENTS (signed image distance of each CVC ray's CM "
+      "vertex to its VC line) and VISCO_ROBOT_ESTIMATE directly. Camera faults can be injected (--occlude, "
+      "--blackout, --stale). Runs until SIGINT/SIGTERM or --duration; prints a JSON summary on exit.");
   cmd->add_option("scene", o.scene_path, "scene file (CONTRACT.md)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--rays", o.rays_path, "`visco vcrays` output: the CVC rays to report visual events for")
       ->check(CLI::ExistingFile);
@@ -89,8 +113,31 @@ void RegisterSimCommands(CLI::App& app) {
   cmd->add_option("--noise-px", o.noise_px, "1-sigma noise of the signed image distances, px")->capture_default_str();
   cmd->add_option("--position-noise", o.position_noise_m, "1-sigma noise of the robot estimate, m")
       ->capture_default_str();
-  cmd->add_option("--drop-rate", o.drop_rate, "probability of dropping a frame")->capture_default_str();
+  cmd->add_option("--drop-rate", o.drop_rate, "probability of dropping a frame (both camera kinds)")
+      ->capture_default_str();
   cmd->add_option("--focal-px", o.focal_px, "simulated camera focal length, px")->capture_default_str();
+  cmd->add_option("--objects", o.render.objects_path,
+                  "render images: vision's object models (robot and obstacles with their AprilTags; obstacle "
+                  "polygons in world coordinates, the robot in its own frame)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--camera", o.render.calibration_path, "rendered camera: calibration (ViSP XML or OpenCV YAML)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--camera-name", o.render.camera_name, "rendered camera: camera in a multi-camera file");
+  cmd->add_option("--extrinsics", o.render.extrinsics_path, "rendered camera: camera pose wMc (JSON)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--blur-px", o.render.blur_sigma_px, "rendered camera: Gaussian blur sigma, px")
+      ->capture_default_str();
+  cmd->add_option("--image-noise", o.render.noise_gray, "rendered camera: 1-sigma pixel noise, grey levels")
+      ->capture_default_str();
+  cmd->add_option("--supersample", o.render.supersample, "rendered camera: sub-samples per pixel side")
+      ->capture_default_str();
+  cmd->add_option("--occlude", cli->occlude,
+                  "fault: hide the robot from the camera from START for DURATION seconds (after start-up)")
+      ->expected(2);
+  cmd->add_option("--blackout", cli->blackout, "fault: no camera frames from START for DURATION seconds")->expected(2);
+  cmd->add_option("--stale", cli->stale, "fault: frames from START for DURATION seconds carry an old capture time")
+      ->expected(2);
+  cmd->add_option("--stale-ms", cli->stale_ms, "age of the stale frames' capture time, ms")->capture_default_str();
   cmd->add_option("--duration", cli->duration_s, "stop after this many seconds (0: until a signal)")
       ->check(CLI::NonNegativeNumber);
   cmd->callback([cli] { RunSim(*cli); });

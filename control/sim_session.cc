@@ -28,6 +28,7 @@ struct SimSession::Impl {
   std::unique_ptr<drivers::Driver> driver;
   std::unique_ptr<lcm::LCM> lcm;
   std::unique_ptr<SyntheticCamera> camera;
+  std::unique_ptr<RenderedCamera> rendered;
 };
 
 std::string SimSummary::ToJson() const {
@@ -36,11 +37,14 @@ std::string SimSummary::ToJson() const {
   j["contact"] = contact;
   j["frames"] = frames;
   j["dropped_frames"] = dropped_frames;
+  j["camera"] = rendered ? "rendered" : "events";
+  if (rendered) j["mean_render_ms"] = mean_render_ms;
   j["driver"] = {{"state", driver_state},
                  {"commands_applied", driver.commands_applied},
                  {"bad_commands", driver.bad_commands},
                  {"out_of_sequence", driver.out_of_sequence},
                  {"watchdog_stops", driver.watchdog_stops},
+                 {"bounds_stops", driver.bounds_stops},
                  {"estops", driver.estops},
                  {"resets", driver.resets},
                  {"statuses_sent", driver.statuses_sent}};
@@ -83,6 +87,17 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
       throw InputError(o.rays_path, "cvc_rays", "more rays than the simulated camera's capacity");
     }
   }
+  for (const FaultWindow* w : {&o.occlude, &o.blackout, &o.stale}) {
+    if (w->start_s >= 0 && !(w->duration_s > 0)) {
+      throw InputError("command line", "--occlude/--blackout/--stale", "the duration must be positive");
+    }
+  }
+  if (!(o.stale_s > 0)) throw InputError("command line", "--stale-ms", "must be positive");
+  if (!o.render.objects_path.empty()) {
+    RenderedCameraConfig render = o.render;
+    render.seed = o.seed ^ 0x1a9e5ULL;
+    impl_->rendered = std::make_unique<RenderedCamera>(render);
+  }
   SyntheticCameraConfig camera_config{o.focal_px, o.on_line_band_px, o.noise_px};
   impl_->camera = std::make_unique<SyntheticCamera>(rays_, camera_config, o.seed ^ 0x5eedcafeULL);
 
@@ -97,9 +112,12 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
   if (!impl_->lcm->good()) throw JobFailed("LCM: cannot initialise provider '" + o.lcm_url + "'");
   spdlog::info(
       "sim: scene {} ({} C-obstacle part(s)), robot at ({:.3f}, {:.3f}), cone {:.1f} deg, seed {}, {} CVC "
-      "ray(s), camera {:.0f} Hz",
+      "ray(s), camera {:.0f} Hz ({})",
       scene.name, impl_->model->world().obstacles.size(), start.x, start.y,
-      scene.uncertainty.velocity_cone_rad * 180 / M_PI, o.seed, rays_.rays.size(), o.camera_hz);
+      scene.uncertainty.velocity_cone_rad * 180 / M_PI, o.seed, rays_.rays.size(), o.camera_hz,
+      impl_->rendered ? "rendered " + std::to_string(impl_->rendered->width()) + "x" +
+                            std::to_string(impl_->rendered->height()) + " images on " + channels::kCameraImage
+                      : std::string("synthetic visual events"));
 }
 
 SimSession::~SimSession() { Stop(); }
@@ -127,6 +145,9 @@ SimSummary SimSession::Summary() const {
   s.contact = f.contact;
   s.frames = frames_.load();
   s.dropped_frames = dropped_.load();
+  s.rendered = impl_->rendered != nullptr;
+  const std::uint64_t rendered_frames = s.frames;
+  s.mean_render_ms = rendered_frames > 0 ? static_cast<double>(render_us_.load()) / 1e3 / rendered_frames : 0.0;
   s.driver = impl_->driver->stats();
   s.driver_state = drivers::ToString(impl_->driver->state());
   return s;
@@ -137,28 +158,52 @@ void SimSession::CameraLoop() {
   std::mt19937_64 rng(o.seed ^ 0xca3e7aULL);
   std::bernoulli_distribution drop(o.drop_rate);
   std::normal_distribution<double> noise(0.0, 1.0);
-  const auto period =
-      std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(1.0 / o.camera_hz));
-  const auto latency =
-      std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(o.latency_s));
-  auto next = std::chrono::steady_clock::now();
+  using Clock = std::chrono::steady_clock;
+  const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / o.camera_hz));
+  const auto latency = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.latency_s));
+  const auto t0 = Clock::now();
+  auto next = t0;
   SimTruth truth;
   bool have_truth = false;
   std::int64_t seq = 0;
   VisualFrame frame;
+  image_t image;
+  bool occlusion_logged = false, blackout_logged = false, stale_logged = false;
+  auto log_window = [](bool active, bool& logged, const char* what) {
+    if (active != logged) spdlog::warn("sim camera: {} {}", what, active ? "begins" : "ends");
+    logged = active;
+  };
   while (!stop_camera_.load()) {
     next += period;
+    const auto now = Clock::now();
+    if (next < now - period) next = now;  // fell behind (slow rendering): no burst of catch-up frames
     std::this_thread::sleep_until(next);
     have_truth |= impl_->robot->truth().TryTake(truth);
     if (!have_truth || !camera_on_.load()) continue;
+    const double t = std::chrono::duration<double>(Clock::now() - t0).count();
+    const bool occluded = o.occlude.Active(t), blackout = o.blackout.Active(t), stale = o.stale.Active(t);
+    log_window(occluded, occlusion_logged, "the robot is occluded");
+    log_window(blackout, blackout_logged, "black-out (no frames)");
+    log_window(stale, stale_logged, "stale frames");
     ++seq;
-    if (drop(rng)) {
+    if (drop(rng) || blackout) {
       dropped_.fetch_add(1);
       continue;
     }
-    const std::int64_t capture_utime = WallUtime();
+    const auto capture_time = Clock::now();
+    const std::int64_t capture_utime =
+        WallUtime() - (stale ? static_cast<std::int64_t>(o.stale_s * 1e6) : std::int64_t{0});
+    if (impl_->rendered) {
+      impl_->rendered->Capture(truth.position, capture_utime, seq, CaptureConditions{occluded}, image);
+      render_us_.fetch_add(static_cast<std::uint64_t>(
+          std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - capture_time).count()));
+      std::this_thread::sleep_until(capture_time + latency);
+      impl_->lcm->publish(channels::kCameraImage, &image);
+      frames_.fetch_add(1);
+      continue;
+    }
     impl_->camera->Observe(truth.position, seq, MonotonicNs(), frame);
-    std::this_thread::sleep_for(latency);
+    std::this_thread::sleep_until(capture_time + latency);
     const std::int64_t now_utime = WallUtime();
     if (!rays_.rays.empty()) {
       visual_events_t events;
@@ -172,10 +217,10 @@ void SimSession::CameraLoop() {
         e.utime = capture_utime;
         e.cvc_ray = rays_.rays[static_cast<std::size_t>(obs.ray)].id;
         e.cm_vertex = rays_.rays[static_cast<std::size_t>(obs.ray)].cm_vertex;
-        e.signed_distance_px = obs.signed_distance_px;
+        e.signed_distance_px = occluded ? 0.0 : obs.signed_distance_px;
         e.distance_stddev_px = o.noise_px;
-        e.state = obs.state;
-        e.crossed = obs.crossed;
+        e.state = occluded ? visual_event_t::STATE_UNKNOWN : obs.state;
+        e.crossed = occluded ? false : obs.crossed;
         events.events.push_back(e);
       }
       events.num_events = static_cast<std::int32_t>(events.events.size());
@@ -184,7 +229,7 @@ void SimSession::CameraLoop() {
     robot_estimate_t estimate;
     estimate.utime = capture_utime;
     estimate.frame_seq = seq;
-    estimate.valid = true;
+    estimate.valid = !occluded;
     estimate.position[0] = truth.position.x + o.position_noise_m * noise(rng);
     estimate.position[1] = truth.position.y + o.position_noise_m * noise(rng);
     estimate.position_stddev = o.position_noise_m;

@@ -1,8 +1,11 @@
 #pragma once
 // `visco sim`: the simulated robot (SEMANTICS.md's motion model behind the robot driver of drivers/, over LCM or
-// SocketCAN) and a simulated camera that publishes what vision would: visual_events_t for every CVC ray (the
-// signed image distance of its CM vertex to its VC line, synthetic_camera.h) and robot_estimate_t, from the true
-// pose, with noise, latency and frame drops on request. Not real-time code; part of visco::control_sim.
+// SocketCAN) and a simulated camera. The camera either renders the AprilTags of robot and obstacles from the true
+// poses (sim_camera.h) and publishes image_t on VISCO_CAMERA_IMAGE for the real vision pipeline (`visco track
+// --lcm`), or -- without object models -- publishes what vision would: visual_events_t for every CVC ray (the
+// signed image distance of its CM vertex to its VC line, synthetic_camera.h) and robot_estimate_t. Noise, blur,
+// latency, frame drops, occlusion, black-outs and stale frames on request. Not real-time code; part of
+// visco::control_sim.
 
 #include <atomic>
 #include <cstdint>
@@ -10,11 +13,19 @@
 #include <string>
 #include <thread>
 
+#include "control/sim_camera.h"
 #include "control/synthetic_camera.h"
 #include "control/task.h"
 #include "drivers/driver.h"
 
 namespace visco::control {
+
+/// A time window of an injected camera fault, seconds after SimSession::Start (start < 0: never).
+struct FaultWindow {
+  double start_s = -1.0;
+  double duration_s = 0.0;
+  bool Active(double t) const { return start_s >= 0 && t >= start_s && t < start_s + duration_s; }
+};
 
 struct SimOptions {
   std::string scene_path;     // required: the contract's scene file
@@ -34,6 +45,13 @@ struct SimOptions {
   double drop_rate = 0.0;         // probability that a frame is dropped
   double focal_px = 800.0;        // the simulated camera's focal length (pixels per unit tangent)
   double on_line_band_px = 1.0;   // |d| within this reports STATE_ON_LINE
+  // Rendered camera: when render.objects_path is set, frames are rendered images (image_t) instead of events.
+  RenderedCameraConfig render;
+  // Injected camera faults.
+  FaultWindow occlude;   // the robot is hidden (rendered camera) / reported not seen (synthetic camera)
+  FaultWindow blackout;  // no frames at all
+  FaultWindow stale;     // frames carry a capture time `stale_s` in the past
+  double stale_s = 0.5;
   drivers::DriverConfig driver;
 };
 
@@ -42,6 +60,8 @@ struct SimSummary {
   bool contact = false;
   std::uint64_t frames = 0;
   std::uint64_t dropped_frames = 0;
+  bool rendered = false;
+  double mean_render_ms = 0.0;
   drivers::DriverStats driver;
   std::string driver_state;
   std::string ToJson() const;
@@ -79,6 +99,7 @@ class SimSession {
   std::atomic<bool> camera_on_{true};
   std::atomic<std::uint64_t> frames_{0};
   std::atomic<std::uint64_t> dropped_{0};
+  std::atomic<std::uint64_t> render_us_{0};
   std::thread driver_thread_;
   std::thread camera_thread_;
 };

@@ -35,6 +35,7 @@ struct DriverOptions {
   double quick_stop_deceleration = 50.0;
   std::vector<double> start = {0.0, 0.0};
   std::vector<double> bounds;
+  std::vector<double> workspace;
   double duration_s = 0.0;
 };
 
@@ -62,6 +63,13 @@ void RunDriver(const DriverOptions& o) {
     robot_config.bounds_min[1] = o.bounds[1];
     robot_config.bounds_max[0] = o.bounds[2];
     robot_config.bounds_max[1] = o.bounds[3];
+  }
+  if (!o.workspace.empty()) {
+    robot_config.workspace = true;
+    robot_config.workspace_min[0] = o.workspace[0];
+    robot_config.workspace_min[1] = o.workspace[1];
+    robot_config.workspace_max[0] = o.workspace[2];
+    robot_config.workspace_max[1] = o.workspace[3];
   }
   SimulatedRobot robot(robot_config);
 
@@ -96,14 +104,15 @@ void RunDriver(const DriverOptions& o) {
   const DriverStats& s = driver.stats();
   std::printf(
       "{\"commands_applied\": %llu, \"bad_commands\": %llu, \"out_of_sequence\": %llu, \"watchdog_stops\": %llu, "
-      "\"estops\": %llu, \"resets\": %llu, \"bus_offs\": %llu, \"statuses_sent\": %llu, \"faults_sent\": %llu, "
+      "\"bounds_stops\": %llu, \"estops\": %llu, \"resets\": %llu, \"bus_offs\": %llu, \"statuses_sent\": %llu, "
+      "\"faults_sent\": %llu, "
       "\"send_failures\": %llu, \"state\": \"%s\"}\n",
       static_cast<unsigned long long>(s.commands_applied), static_cast<unsigned long long>(s.bad_commands),
       static_cast<unsigned long long>(s.out_of_sequence), static_cast<unsigned long long>(s.watchdog_stops),
-      static_cast<unsigned long long>(s.estops), static_cast<unsigned long long>(s.resets),
-      static_cast<unsigned long long>(s.bus_offs), static_cast<unsigned long long>(s.statuses_sent),
-      static_cast<unsigned long long>(s.faults_sent), static_cast<unsigned long long>(s.send_failures),
-      ToString(driver.state()));
+      static_cast<unsigned long long>(s.bounds_stops), static_cast<unsigned long long>(s.estops),
+      static_cast<unsigned long long>(s.resets), static_cast<unsigned long long>(s.bus_offs),
+      static_cast<unsigned long long>(s.statuses_sent), static_cast<unsigned long long>(s.faults_sent),
+      static_cast<unsigned long long>(s.send_failures), ToString(driver.state()));
   std::fflush(stdout);
 }
 
@@ -136,6 +145,10 @@ void RegisterCommands(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--start", options->start, "initial position of the simulated robot, metres")->expected(2);
   cmd->add_option("--bounds", options->bounds, "walls of the simulated robot: XMIN YMIN XMAX YMAX, metres")
+      ->expected(4);
+  cmd->add_option("--workspace", options->workspace,
+                  "workspace of the simulated robot: XMIN YMIN XMAX YMAX, metres; leaving it stops the robot with "
+                  "the bounds fault (EMCY 0x8612)")
       ->expected(4);
   cmd->add_option("--duration", options->duration_s, "stop after this many seconds (0: run until a signal)")
       ->check(CLI::NonNegativeNumber);

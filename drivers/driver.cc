@@ -105,12 +105,17 @@ void Driver::Update(std::int64_t now_us) {
   if (last_update_us_ >= 0 && now_us > last_update_us_) robot_.Step((now_us - last_update_us_) * 1e-6);
   last_update_us_ = now_us;
   const RobotFeedback feedback = robot_.Read();
-  if (feedback.out_of_bounds) {
-    if (!(fault_bits_ & fault_bits::kBounds)) {
-      StopRobot(RobotState::kStopped);
-      SetFault(fault_bits::kBounds, can::kEmcyBounds, fault_t::CODE_LIMIT, true, "robot outside its workspace");
-    }
+  // Leaving the workspace stops the robot once per episode; after a reset it may move (back in) from outside,
+  // and the episode ends when it is inside again.
+  if (feedback.out_of_bounds && !out_of_bounds_) {
+    ++stats_.bounds_stops;
+    StopRobot(RobotState::kStopped);
+    char message[100];
+    std::snprintf(message, sizeof(message), "robot outside its workspace at (%.3f, %.3f) m: robot stopped",
+                  feedback.position[0], feedback.position[1]);
+    SetFault(fault_bits::kBounds, can::kEmcyBounds, fault_t::CODE_LIMIT, true, message);
   }
+  out_of_bounds_ = feedback.out_of_bounds;
 
   if (now_us >= next_status_us_) SendStatus(now_us);
   if (now_us >= next_heartbeat_us_) {

@@ -37,6 +37,7 @@ struct DriverStats {
   std::uint64_t out_of_sequence = 0;
   std::uint64_t sequence_gaps = 0;  // command numbers skipped (lost commands)
   std::uint64_t watchdog_stops = 0;
+  std::uint64_t bounds_stops = 0;  // the robot left its workspace
   std::uint64_t estops = 0;
   std::uint64_t resets = 0;
   std::uint64_t bus_offs = 0;
@@ -79,6 +80,7 @@ class Driver {
   RobotState state_ = RobotState::kReady;
   std::uint16_t fault_bits_ = 0;
   bool bus_off_ = false;
+  bool out_of_bounds_ = false;  // the robot reported itself outside its workspace (one fault per episode)
   bool have_seq_ = false;
   std::uint32_t last_seq_ = 0;
   std::int64_t last_valid_us_ = -1;  // -1: watchdog not armed

@@ -103,13 +103,13 @@ class LcmRobotLink final : public RobotLink {
     }
     Outgoing out;
     out.command = command;
-    out.seq = (seq_ + 1) % kLcmSeqModulus;
+    out.seq = seq_.Next();
     out.utime = WallMicros();
     if (!outgoing_.Push(out)) {
       ++counters_.send_failures;
       return LinkResult::kBufferFull;
     }
-    seq_ = out.seq;
+    seq_.Sent(out.seq);
     ++counters_.commands_sent;
     io_.Wake();
     return LinkResult::kOk;
@@ -124,6 +124,7 @@ class LcmRobotLink final : public RobotLink {
       }
       have_status_ever_ = true;
       s.receive_us = now_us;
+      seq_.OnStatus(s.command_seq);
       status_ = s;
       fresh_status_ = true;
       ++counters_.statuses_received;
@@ -156,7 +157,7 @@ class LcmRobotLink final : public RobotLink {
   }
   NmtState peer_nmt_state() const override { return static_cast<NmtState>(nmt_state_.load(std::memory_order_relaxed)); }
   BusState bus_state() const override { return BusState::kActive; }
-  std::uint32_t last_command_seq() const override { return seq_; }
+  std::uint32_t last_command_seq() const override { return seq_.last(); }
   LinkCounters counters() const override { return counters_; }
 
  private:
@@ -210,6 +211,8 @@ class LcmRobotLink final : public RobotLink {
     if (msg->source != "driver") return;
     LinkFault f;
     f.code = msg->code;
+    f.emcy_code = static_cast<std::uint16_t>(msg->emcy_code);
+    f.fault_bits = static_cast<std::uint16_t>(msg->fault_bits & fault_bits::kAll);
     f.robot_stopped = msg->robot_stopped;
     f.cleared = msg->cleared;
     incoming_faults_.Push(f);
@@ -224,7 +227,7 @@ class LcmRobotLink final : public RobotLink {
   std::atomic<std::uint8_t> nmt_state_{0};
   std::atomic<std::uint64_t> bad_messages_{0};
   // Real-time side only.
-  std::uint32_t seq_ = 0;
+  CommandSequence seq_{kLcmSeqModulus};
   std::uint64_t beats_seen_ = 0;
   bool have_status_ever_ = false;
   RobotStatus status_;
@@ -343,6 +346,8 @@ class LcmDriverTransport final : public DriverTransport {
           msg.robot_stopped = out.fault.robot_stopped;
           msg.cleared = out.fault.cleared;
           msg.message = out.fault.message;
+          msg.emcy_code = out.fault.emcy_code;
+          msg.fault_bits = out.fault.fault_bits;
           io_.lcm().publish(channels::kFault, &msg);
           break;
         }

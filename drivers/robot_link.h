@@ -121,6 +121,42 @@ struct LinkCounters {
 /// Bus state as the link sees it (always kActive for LCM).
 enum class BusState : std::uint8_t { kActive = 0, kWarning, kPassive, kBusOff };
 
+/// The controller's command numbering. A controller that (re)starts against a driver that is already running (the
+/// previous controller was killed) must continue the driver's numbering, or the driver rejects its commands as out of
+/// sequence (drivers/README.md). Until the driver has acknowledged one of this link's own commands (a status whose
+/// last-accepted number is one this link sent since it last synchronised), every status whose last-accepted number
+/// is foreign moves the numbering there; afterwards statuses are ignored. Real-time safe.
+class CommandSequence {
+ public:
+  explicit CommandSequence(std::uint32_t modulus) : modulus_(modulus) {}
+  /// The number of the next command; call Sent() once it went out.
+  std::uint32_t Next() const { return (last_ + 1) % modulus_; }
+  void Sent(std::uint32_t seq) {
+    last_ = seq;
+    ++sent_since_sync_;
+  }
+  /// A status from the driver with its last accepted command number.
+  void OnStatus(std::uint32_t accepted) {
+    if (acknowledged_) return;
+    const std::uint32_t back = (last_ + modulus_ - accepted) % modulus_;  // 0 = the newest sent
+    if (back < sent_since_sync_) {
+      acknowledged_ = true;  // one of ours
+    } else if (accepted != synced_to_) {
+      last_ = synced_to_ = accepted;  // foreign: continue from there
+      sent_since_sync_ = 0;
+    }
+  }
+  std::uint32_t last() const { return last_; }
+  bool acknowledged() const { return acknowledged_; }
+
+ private:
+  std::uint32_t modulus_;
+  std::uint32_t last_ = 0;
+  std::uint32_t synced_to_ = 0;
+  std::uint32_t sent_since_sync_ = 0;
+  bool acknowledged_ = false;
+};
+
 /// The controller side of the robot link.
 class RobotLink {
  public:

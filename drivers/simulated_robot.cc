@@ -23,6 +23,16 @@ SimulatedRobot::SimulatedRobot(const SimulatedRobotConfig& config) : config_(con
       }
     }
   }
+  if (config.workspace) {
+    for (int i = 0; i < 2; ++i) {
+      if (!(config.workspace_min[i] < config.workspace_max[i])) {
+        throw InputError("command line", "--workspace", "the workspace is empty (min must be below max on both axes)");
+      }
+      if (config.start[i] < config.workspace_min[i] || config.start[i] > config.workspace_max[i]) {
+        throw InputError("command line", "--start", "the start position lies outside the workspace");
+      }
+    }
+  }
   state_.position[0] = config.start[0];
   state_.position[1] = config.start[1];
 }
@@ -49,6 +59,13 @@ void SimulatedRobot::Step(double dt) {
     state_.velocity[i] += dv;
     state_.position[i] += state_.velocity[i] * dt;
     state_.contact_force[i] = 0.0;
+  }
+  if (config_.workspace) {
+    state_.out_of_bounds = false;
+    for (int i = 0; i < 2; ++i) {
+      state_.out_of_bounds |=
+          state_.position[i] < config_.workspace_min[i] || state_.position[i] > config_.workspace_max[i];
+    }
   }
   if (!config_.walls) return;
   for (int i = 0; i < 2; ++i) {

@@ -76,7 +76,7 @@ class SocketCanRobotLink final : public RobotLink {
 
   LinkResult SendCommand(const VelocityCommand& command, std::int64_t now_us) override {
     can::CommandFrame wire;
-    wire.seq = static_cast<std::uint8_t>(seq_ + 1);
+    wire.seq = static_cast<std::uint8_t>(seq_.Next());
     wire.estop = command.estop;
     wire.reset = command.reset;
     wire.velocity[0] = command.velocity[0];
@@ -89,7 +89,7 @@ class SocketCanRobotLink final : public RobotLink {
     const CanIo io = tx_.Write(frame);
     switch (io) {
       case CanIo::kOk:
-        seq_ = wire.seq;
+        seq_.Sent(wire.seq);
         ++counters_.commands_sent;
         Note(bus_.OnTraffic(), now_us);
         return LinkResult::kOk;
@@ -145,7 +145,7 @@ class SocketCanRobotLink final : public RobotLink {
   }
   NmtState peer_nmt_state() const override { return nmt_; }
   BusState bus_state() const override { return bus_.state(); }
-  std::uint32_t last_command_seq() const override { return seq_; }
+  std::uint32_t last_command_seq() const override { return seq_.last(); }
   LinkCounters counters() const override { return counters_; }
 
  private:
@@ -243,6 +243,7 @@ class SocketCanRobotLink final : public RobotLink {
     status_.receive_us = now_us;
     status_.seq = partial_.seq;
     status_.command_seq = partial_.command_seq;
+    seq_.OnStatus(status_.command_seq);
     for (int i = 0; i < 2; ++i) {
       status_.position[i] = partial_.position[i];
       status_.velocity[i] = partial_.velocity[i];
@@ -294,7 +295,7 @@ class SocketCanRobotLink final : public RobotLink {
   CanSocket rx_;
   CanSocket tx_;
   BusTracker bus_;
-  std::uint8_t seq_ = 0;
+  CommandSequence seq_{256};
   std::uint32_t dropped_seen_ = 0;
   can::StatusFrames partial_;
   std::uint8_t partial_seq_ = 0;

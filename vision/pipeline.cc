@@ -23,7 +23,7 @@ std::string Describe(const Frame& f) {
 
 visco::fault_t Fault(std::int64_t utime, std::int32_t code, std::int8_t severity, const std::string& message,
                      bool cleared = false) {
-  visco::fault_t f;
+  visco::fault_t f{};
   f.utime = utime;
   f.source = "vision";
   f.code = code;

@@ -123,6 +123,41 @@ TEST(Executor, VisualCompliantMotionServoesAlongTheRayUntilContact) {
   EXPECT_NEAR(h.plant.position.y, 0.1, 1e-6);
 }
 
+TEST(Executor, CompliantStepAfterAGuardedStopOnItsRayStartsEngaged) {
+  // VC ray from obstacle vertex (2, 0) up-right to the camera (4, 4). Step 0 moves right until the CM vertex (the
+  // reference point itself) reaches it; the stop overshoots to the right of the ray (camera latency). Step 1 moves
+  // down complying to the same ray: straight down would lead away from it, so it must start engaged and slide down
+  // the ray to its foot (2, 0) -- not fall straight to the floor at the overshoot's x.
+  Task task;
+  task.rays.push_back(MakeRay("vc0.cm0", {2.0, 0.0}, {4.0, 4.0}, 0, {0.0, 0.0}));
+  testing::IndexRays(task);
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kVisualGuarded, 0));
+  task.steps.push_back(MakeStep(-kPi / 2, TerminateKind::kContact, -1, {0}));
+  ExecutorConfig config = Config();
+  config.default_speed = 0.3;
+  config.limits.max_speed = 0.5;
+  Harness h(task, config, {1.0, 1.0});                // the camera's latency (20 ms) and frame period make it overshoot
+  h.plant.walls.push_back({{0.0, 0.0}, {0.0, 1.0}});  // the floor y >= 0
+  h.plant.friction = 80.0 * kPi / 180;                // sticks
+  h.Start();
+  bool compliant_right_away = false;
+  double overshoot_px = 0;
+  int step1_ticks = -1;
+  for (int total = 0; !h.executor().finished() && total < 30000; ++total) {
+    const ExecutorOutput& out = h.Tick();
+    if (out.step_index == 1 && step1_ticks < 0) step1_ticks = 0;
+    if (step1_ticks >= 0 && ++step1_ticks <= 3 && out.mode == Mode::kVisualCompliant) compliant_right_away = true;
+    if (step1_ticks >= 0 && step1_ticks < 250) {
+      overshoot_px = std::max(overshoot_px, std::abs(h.camera().SignedDistance(0, h.plant.position)));
+    }
+  }
+  ASSERT_EQ(h.executor().mode(), Mode::kDone) << h.executor().stop_reason();
+  EXPECT_GT(overshoot_px, 0.5);  // it did overshoot
+  EXPECT_TRUE(compliant_right_away);
+  EXPECT_NEAR(h.plant.position.x, 2.0, 0.03);  // the ray's foot, not the overshoot's x (~2.55)
+  EXPECT_NEAR(h.plant.position.y, 0.0, 1e-6);
+}
+
 TEST(Executor, ContactStepEndsWhenTheRobotSticks) {
   Task task;
   task.steps.push_back(MakeStep(-kPi / 2, TerminateKind::kContact));

@@ -235,6 +235,54 @@ TEST(Driver, SpeedLimitClampsAndReports) {
   EXPECT_EQ(rig.transport.faults.back().emcy_code, can::kEmcyVelocityLimit);
 }
 
+TEST(Driver, LeavingTheWorkspaceStopsAndReportsOncePerEpisode) {
+  SimulatedRobotConfig robot_config;
+  robot_config.workspace = true;
+  robot_config.workspace_max[0] = 1.0;
+  robot_config.workspace_max[1] = 1.0;
+  robot_config.start[0] = 0.95;
+  robot_config.start[1] = 0.5;
+  FakeTransport transport;
+  SimulatedRobot robot(robot_config);
+  Driver driver(DriverConfig{}, transport, robot);
+  std::int64_t now = 1'000'000;
+  driver.Start(now);
+  auto run = [&](std::uint32_t& seq, double vx, int ms) {
+    for (int i = 0; i < ms; ++i) {
+      if (i % 5 == 0) transport.Command(++seq, vx, 0.0);
+      now += 1000;
+      driver.Update(now);
+    }
+  };
+  std::uint32_t seq = 0;
+  run(seq, 0.2, 600);  // 0.2 m/s towards x = 1: out after ~0.3 s
+  EXPECT_EQ(driver.state(), RobotState::kStopped);
+  EXPECT_TRUE(driver.fault_bits() & fault_bits::kBounds);
+  EXPECT_EQ(driver.stats().bounds_stops, 1U);
+  const RobotFeedback f = robot.Read();
+  EXPECT_GT(f.position[0], 1.0);
+  EXPECT_LT(f.position[0], 1.0 + 0.2 * 0.002 + 0.2 * 0.2 / (2 * 50.0) + 1e-9);  // detected within a period
+  EXPECT_EQ(f.velocity[0], 0.0);
+  ASSERT_FALSE(transport.faults.empty());
+  const DriverFault& fault = transport.faults.back();
+  EXPECT_EQ(fault.emcy_code, can::kEmcyBounds);
+  EXPECT_EQ(fault.code, 7);  // fault_t::CODE_LIMIT
+  EXPECT_TRUE(fault.robot_stopped);
+  EXPECT_TRUE(fault.fault_bits & fault_bits::kBounds);
+  EXPECT_NE(std::string(fault.message).find("outside its workspace"), std::string::npos);
+  EXPECT_EQ(transport.statuses.back().fault_bits & fault_bits::kBounds, fault_bits::kBounds);
+
+  // A reset lets it move back in without a new fault; inside again ends the episode, leaving again stops again.
+  transport.Command(++seq, 0.0, 0.0, false, true);
+  run(seq, -0.2, 500);
+  EXPECT_EQ(driver.state(), RobotState::kMoving);
+  EXPECT_LT(robot.Read().position[0], 1.0);
+  EXPECT_EQ(driver.stats().bounds_stops, 1U);
+  run(seq, 0.4, 600);
+  EXPECT_EQ(driver.state(), RobotState::kStopped);
+  EXPECT_EQ(driver.stats().bounds_stops, 2U);
+}
+
 TEST(SimulatedRobot, WallsGiveContactAndForce) {
   SimulatedRobotConfig config;
   config.walls = true;
@@ -259,6 +307,12 @@ TEST(SimulatedRobot, RejectsBadConfiguration) {
   EXPECT_THROW(SimulatedRobot{config}, InputError);
   config.max_acceleration = 1.0;
   config.walls = true;
+  EXPECT_THROW(SimulatedRobot{config}, InputError);
+  config.walls = false;
+  config.workspace = true;  // empty
+  EXPECT_THROW(SimulatedRobot{config}, InputError);
+  config.workspace_max[0] = config.workspace_max[1] = 1.0;
+  config.start[0] = 2.0;  // outside
   EXPECT_THROW(SimulatedRobot{config}, InputError);
 }
 

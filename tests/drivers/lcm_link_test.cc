@@ -91,6 +91,10 @@ TEST_F(LcmLink, CommandsWatchdogResetAndHeartbeat) {
       500'000, [&] { return !faults_.empty(); }, false));
   EXPECT_EQ(faults_.front().code, 4);  // fault_t::CODE_PEER_TIMEOUT
   EXPECT_TRUE(faults_.front().robot_stopped);
+  // The same fields as the CAN path's EMCY frame: the CANopen error code and the driver's fault bits.
+  EXPECT_EQ(faults_.front().emcy_code, can::kEmcyRpdoTimeout);
+  EXPECT_EQ(faults_.front().fault_bits, fault_bits::kWatchdog);
+  EXPECT_FALSE(faults_.front().local);
 
   command_ = VelocityCommand{};
   command_.reset = true;
@@ -100,6 +104,62 @@ TEST_F(LcmLink, CommandsWatchdogResetAndHeartbeat) {
   StopDriver();
   ASSERT_TRUE(RunUntil(
       2'000'000, [&] { return link_->peer_state(MonotonicMicros()) == PeerState::kLost; }, false));
+}
+
+TEST_F(LcmLink, ARestartedControllerContinuesTheDriversNumbering) {
+  command_.velocity[0] = 0.1;
+  ASSERT_TRUE(RunUntil(
+      3'000'000, [&] { return last_.state == RobotState::kMoving && link_->last_command_seq() > 50; }, true));
+  // The controller dies; a new one (numbering from scratch) takes over: its reset and commands are accepted.
+  link_.reset();
+  RobotLinkConfig link_config;
+  link_config.lcm_url = Url();
+  link_config.heartbeat_timeout_us = 300'000;
+  link_ = MakeLcmRobotLink(link_config);
+  last_ = RobotStatus{};
+  command_ = VelocityCommand{};
+  command_.reset = true;
+  ASSERT_TRUE(RunUntil(
+      3'000'000,
+      [&] {
+        return last_.state == RobotState::kReady && last_.command_seq > 50 &&
+               link_->last_command_seq() - last_.command_seq < 10;  // the driver accepts the new link's commands
+      },
+      true));
+  command_ = VelocityCommand{};
+  command_.velocity[1] = 0.1;
+  ASSERT_TRUE(RunUntil(
+      2'000'000, [&] { return last_.state == RobotState::kMoving && last_.velocity[1] > 0.05; }, true));
+  EXPECT_GT(link_->last_command_seq(), 50U);  // it continued the old numbering
+  EXPECT_EQ(last_.fault_bits & fault_bits::kSequence, 0);
+}
+
+TEST(CommandSequence, SyncsToAForeignNumberingUntilAcknowledged) {
+  CommandSequence seq(256);
+  for (std::uint32_t i = 0; i < 3; ++i) seq.Sent(seq.Next());  // 1, 2, 3: rejected by a driver at 200
+  seq.OnStatus(200);
+  EXPECT_EQ(seq.Next(), 201U);
+  seq.Sent(seq.Next());
+  seq.OnStatus(200);  // a late answer to a rejected command: no change
+  EXPECT_EQ(seq.Next(), 202U);
+  seq.Sent(seq.Next());
+  seq.OnStatus(201);  // ours: acknowledged, the numbering is ours from now on
+  EXPECT_TRUE(seq.acknowledged());
+  seq.OnStatus(17);
+  EXPECT_EQ(seq.Next(), 203U);
+  // A fresh driver (nothing accepted yet: 0) does not move the numbering; wrapping works.
+  CommandSequence fresh(256);
+  fresh.Sent(fresh.Next());
+  fresh.OnStatus(0);
+  EXPECT_EQ(fresh.Next(), 2U);
+  fresh.OnStatus(1);
+  EXPECT_TRUE(fresh.acknowledged());
+  CommandSequence wrap(256);
+  wrap.OnStatus(255);
+  EXPECT_EQ(wrap.Next(), 0U);
+  wrap.Sent(wrap.Next());
+  wrap.OnStatus(0);
+  EXPECT_TRUE(wrap.acknowledged());
 }
 
 }  // namespace

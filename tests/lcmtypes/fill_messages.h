@@ -152,6 +152,8 @@ inline void Fill(fault_t& m) {
   m.robot_stopped = true;
   m.cleared = false;
   m.message = "robot estimate 25 ms old (> 10 ms)";
+  m.emcy_code = 0x8250;
+  m.fault_bits = 1;
 }
 inline void Fill(controller_telemetry_t& m) {
   m.utime = 1700000000000014;

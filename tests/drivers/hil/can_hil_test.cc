@@ -5,6 +5,7 @@
 // Every fault ends with the robot stopped within the watchdog period (plus the quick stop and one poll), the fault
 // reported (EMCY / fault bits / link state), and recovery once it clears.
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <sched.h>
 #include <signal.h>
@@ -101,11 +102,7 @@ class CanHil : public ::testing::Test {
     CPU_ZERO(&cpus);
     CPU_SET(0, &cpus);
     sched_setaffinity(0, sizeof(cpus), &cpus);  // the controller on CPU 0, the driver on CPU 1
-    RobotLinkConfig config;
-    config.node_id = kNode;
-    config.can_interface = "vcan0";
-    config.heartbeat_timeout_us = kHeartbeatTimeoutUs;
-    if (!link_) link_ = MakeSocketCanRobotLink(config);
+    if (!link_) link_ = MakeSocketCanRobotLink(LinkConfig());
     CanSocketOptions injector;
     injector.interface = "vcan0";
     injector.receive = false;
@@ -119,6 +116,13 @@ class CanHil : public ::testing::Test {
   }
 
   static std::int64_t Now() { return MonotonicMicros(); }
+  static RobotLinkConfig LinkConfig() {
+    RobotLinkConfig config;
+    config.node_id = kNode;
+    config.can_interface = "vcan0";
+    config.heartbeat_timeout_us = kHeartbeatTimeoutUs;
+    return config;
+  }
 
   // One controller cycle: poll, collect, optionally command; then sleep to the next period.
   void Cycle(bool send) {
@@ -378,6 +382,117 @@ TEST_F(CanHil, KilledDriverIsDetectedByItsHeartbeatAndRestartRecovers) {
       kStartTimeoutUs, [&] { return link_->peer_state(Now()) == PeerState::kAlive; }, false));
   RunUntil(1'000'000, [&] { return last_.utime > 0 && Stopped(); });
   EXPECT_TRUE(Stopped());
+  Reset();
+  Move(0.1, 0.0);
+}
+
+// A real controller process (`visco run --can vcan0`, odometry-terminated straight move) drives the robot; this test
+// only listens. kill -9 of the controller: the driver's watchdog stops the robot and says so (EMCY 0x8250), timed on
+// the bus from the controller's last command frame. A new controller (a fresh link, numbering from scratch) then
+// continues the driver's command numbering and recovers with a reset.
+TEST_F(CanHil, KilledControllerProcessTripsTheWatchdogAndANewControllerRecovers) {
+  const std::string dir = "/tmp/visco_hil_controller";
+  ASSERT_EQ(std::system(("mkdir -p " + dir).c_str()), 0);
+  {
+    std::FILE* f = std::fopen((dir + "/scene.json").c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs(R"({"name": "hil", "bounds": {"min": [0, 0], "max": [20, 20]},
+                  "robot": {"polygon": [[0, 0], [0.1, 0], [0.1, 0.1], [0, 0.1]]}, "obstacles": [],
+                  "goal": {"polygon": [[19, 19], [20, 19], [20, 20], [19, 20]]}})",
+               f);
+    std::fclose(f);
+    f = std::fopen((dir + "/strategy.json").c_str(), "w");
+    ASSERT_NE(f, nullptr);
+    std::fputs(R"({"feasible": true, "speed": 0.2, "steps": [{"theta_deg": 0, "active_rays": [],
+                  "terminate": {"kind": "goal", "ref": null}, "timeout_s": 600}]})",
+               f);
+    std::fclose(f);
+  }
+  // The controller's command frames, with kernel timestamps (the last one before the kill is the reference).
+  CanSocketOptions listen;
+  listen.interface = "vcan0";
+  listen.filters = {{can::kCommandBase + kNode, 0x7FF}};
+  CanSocket commands(listen);
+
+  const std::string bin = VisCo();
+  std::vector<std::string> args = {"/usr/bin/taskset",
+                                   "-c",
+                                   "0",
+                                   bin,
+                                   "run",
+                                   dir + "/strategy.json",
+                                   "--scene",
+                                   dir + "/scene.json",
+                                   "--can",
+                                   "vcan0",
+                                   "--node",
+                                   "1",
+                                   "--lcm-url",
+                                   "memq://",
+                                   "--goal-from-odometry",
+                                   "--no-realtime",
+                                   "--status-timeout-ms",
+                                   "500",
+                                   "--heartbeat-timeout-ms",
+                                   "1000"};
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, (dir + "/run.out").c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&actions, 2, (dir + "/run.log").c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  pid_t pid = -1;
+  ASSERT_EQ(posix_spawn(&pid, argv[0], &actions, nullptr, argv.data(), environ), 0) << bin;
+  posix_spawn_file_actions_destroy(&actions);
+  auto log = [&] {
+    std::string text;
+    if (std::FILE* f = std::fopen((dir + "/run.log").c_str(), "r")) {
+      char buffer[4096];
+      const std::size_t n = std::fread(buffer, 1, sizeof(buffer) - 1, f);
+      buffer[n] = '\0';
+      text = buffer;
+      std::fclose(f);
+    }
+    return text;
+  };
+
+  // Listen only (this test's link sends nothing) until the controller has the robot moving at its speed.
+  const bool moving = RunUntil(
+      kStartTimeoutUs, [&] { return last_.state == RobotState::kMoving && std::abs(last_.velocity[0] - 0.2) < 1e-3; },
+      false);
+  if (!moving) kill(pid, SIGKILL);
+  ASSERT_TRUE(moving) << "the controller process did not move the robot; its log:\n" << log();
+  RunFor(300'000, false);
+  EXPECT_EQ(last_.state, RobotState::kMoving);
+
+  seen_.faults.clear();  // the watchdog tripped once already while the controller process was starting
+  ASSERT_EQ(kill(pid, SIGKILL), 0);
+  int wait_status = 0;
+  ASSERT_EQ(waitpid(pid, &wait_status, 0), pid);
+  ASSERT_TRUE(WIFSIGNALED(wait_status) && WTERMSIG(wait_status) == SIGKILL);
+  std::int64_t last_command = 0;
+  std::uint64_t command_frames = 0;
+  ReceivedFrame frame;
+  while (commands.Read(frame) == CanIo::kOk) {
+    last_command = frame.utime;
+    ++command_frames;
+  }
+  ASSERT_GT(command_frames, 0U);
+  const std::int64_t took = TimeToStop(RobotState::kStopped, false, last_command);
+  ASSERT_GT(took, 0) << "the driver did not stop the robot after the controller was killed";
+  std::printf("hil: controller killed (kill -9): robot stopped %.1f ms after its last command (watchdog %.0f ms)\n",
+              took / 1e3, kWatchdogUs / 1e3);
+  EXPECT_LE(took, kWatchdogUs + kQuickStopUs + kStatusPeriodUs + kSlackUs);
+  EXPECT_GE(took, kWatchdogUs - kPeriodUs);
+  EXPECT_TRUE(last_.fault_bits & fault_bits::kWatchdog);
+  EXPECT_TRUE(SawFault(can::kEmcyRpdoTimeout, true)) << Faults();
+
+  // A new controller: a fresh link numbers from scratch, follows the driver's numbering, resets and moves.
+  link_.reset();
+  link_ = MakeSocketCanRobotLink(LinkConfig());
+  ASSERT_TRUE(RunUntil(
+      5'000'000, [&] { return link_->peer_state(Now()) == PeerState::kAlive; }, false));
   Reset();
   Move(0.1, 0.0);
 }
