@@ -44,8 +44,7 @@ class RenderedCamera {
 
   /// Renders the scene with the robot's reference point at `q` (metres) and fills `image` (GRAY8, row_stride =
   /// width). `utime`/`seq` go into the message unchanged.
-  void Capture(Vec2 q, std::int64_t utime, std::int64_t seq, const CaptureConditions& conditions,
-               image_t& image) const;
+  void Capture(Vec2 q, std::int64_t utime, std::int64_t seq, const CaptureConditions& conditions, image_t& image) const;
 
   int width() const;
   int height() const;

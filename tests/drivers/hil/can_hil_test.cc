@@ -49,7 +49,7 @@ constexpr std::int64_t kStatusPeriodUs = 10'000;
 
 std::string VisCo() {
   const char* bin = std::getenv("VISCO_BIN");
-  return bin != nullptr ? bin : "build/bin/visco";
+  return bin != nullptr ? bin : "build/bin/visco-rt";
 }
 
 // The `visco driver` process.
@@ -89,8 +89,8 @@ struct Observed {
 
 class CanHil : public ::testing::Test {
  protected:
-  // One driver process and one link for the whole suite: `visco` links every library, and starting it on the
-  // emulated CPU takes 10-30 s. Each test starts from a reset; the killed-driver test restarts the process.
+  // One driver process and one link for the whole suite (a process start on the emulated CPU is slow: `visco` took
+  // 10-30 s, `visco-rt` far less). Each test starts from a reset; the killed-driver test restarts the process.
   static void TearDownTestSuite() {
     driver_.reset();
     injector_.reset();

@@ -11,7 +11,9 @@ build="$1"
 bench="${2:-}"
 out="$build/hil-out"
 mkdir -p "$out"
-export VISCO_BIN="$build/bin/visco"
+# The real-time programs alone (`visco driver`, `visco run` without planner and vision): they start at once on the
+# emulated CPU, where the whole `visco` takes 10-30 s.
+export VISCO_BIN="$build/bin/visco-rt"
 py=/usr/bin/python3
 status=0
 step() { echo "== $*"; }
