@@ -96,7 +96,8 @@ void RegisterSimCommands(CLI::App& app) {
       "vertex to its VC line) and VISCO_ROBOT_ESTIMATE directly. Camera faults can be injected (--occlude, "
       "--blackout, --stale). Runs until SIGINT/SIGTERM or --duration; prints a JSON summary on exit.");
   cmd->add_option("scene", o.scene_path, "scene file (CONTRACT.md)")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--rays", o.rays_path, "`visco vcrays` output: the CVC rays to report visual events for")
+  cmd->add_option("--rays", o.rays_path,
+                  "synthetic events: `visco vcrays` output, the CVC rays to report visual events for")
       ->check(CLI::ExistingFile);
   cmd->add_option("--start", cli->start, "initial reference point X Y, metres (default: the start region's centroid)")
       ->expected(2);
@@ -110,12 +111,14 @@ void RegisterSimCommands(CLI::App& app) {
   cmd->add_option("--watchdog-ms", cli->watchdog_ms, "driver command watchdog, ms")->capture_default_str();
   cmd->add_option("--camera-hz", o.camera_hz, "camera frame rate, Hz")->capture_default_str();
   cmd->add_option("--latency-ms", cli->latency_ms, "capture-to-publication latency, ms")->capture_default_str();
-  cmd->add_option("--noise-px", o.noise_px, "1-sigma noise of the signed image distances, px")->capture_default_str();
-  cmd->add_option("--position-noise", o.position_noise_m, "1-sigma noise of the robot estimate, m")
+  cmd->add_option("--noise-px", o.noise_px, "synthetic events: 1-sigma noise of the signed image distances, px")
+      ->capture_default_str();
+  cmd->add_option("--position-noise", o.position_noise_m, "synthetic events: 1-sigma noise of the robot estimate, m")
       ->capture_default_str();
   cmd->add_option("--drop-rate", o.drop_rate, "probability of dropping a frame (both camera kinds)")
       ->capture_default_str();
-  cmd->add_option("--focal-px", o.focal_px, "simulated camera focal length, px")->capture_default_str();
+  cmd->add_option("--focal-px", o.focal_px, "synthetic events: the planar camera's focal length, px")
+      ->capture_default_str();
   cmd->add_option("--objects", o.render.objects_path,
                   "render images: vision's object models (robot and obstacles with their AprilTags; obstacle "
                   "polygons in world coordinates, the robot in its own frame)")

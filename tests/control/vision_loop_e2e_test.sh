@@ -41,6 +41,18 @@ else
   camera_hz=15 age_ms=400 speed=() supersample=2
 fi
 "$visco" vcrays "$scene" >"$tmp/rays.json" || { echo "FAIL: visco vcrays"; exit 1; }
+# The strategy's compliant step is the planner's: its active rays are those of the VC backprojection of the goal
+# kernel at its direction, and the guarded step stops on one of them.
+"$visco" backproject "$scene" --theta -90 --kernel >"$tmp/backprojection.json" || { echo "FAIL: visco backproject"; exit 1; }
+python3 -S -c '
+import json, sys
+plan = json.load(open(sys.argv[1]))
+planner = sorted(json.load(open(sys.argv[2]))["vc"]["active_rays"])
+steps = plan["steps"]
+ok = steps[1]["theta_deg"] == -90 and sorted(steps[1]["active_rays"]) == planner and steps[0]["terminate"]["ref"] in planner
+print("planner: active rays at -90 deg %s; strategy step 1 %s, step 0 stops on %s" %
+      (planner, steps[1]["active_rays"], steps[0]["terminate"]["ref"]))
+sys.exit(0 if ok else 1)' "$plan" "$tmp/backprojection.json" || fail "the strategy does not match the planner's backprojection"
 
 # Runs one closed loop; $1 = name, then extra `visco sim` options. Leaves $tmp/$1.{run.json,run.log,sim.json,...}.
 loop() {
