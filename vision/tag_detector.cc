@@ -8,6 +8,7 @@
 #include <apriltag/tagStandard41h12.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <opencv2/calib3d.hpp>
@@ -200,8 +201,11 @@ std::vector<TagObservation> TagDetector::Detect(const GrayImageView& image) {
   return DetectInRegion(image, 0, 0, image.width, image.height);
 }
 
-std::vector<TagObservation> TagDetector::DetectInRegion(const GrayImageView& image, int x0, int y0, int w, int h) {
+std::vector<TagObservation> TagDetector::DetectInRegion(const GrayImageView& image, int x0, int y0, int w, int h,
+                                                        float quad_decimate) {
   impl_->rejected = 0;
+  const float decimate = quad_decimate > 0.0f ? std::max(1.0f, quad_decimate) : options_.quad_decimate;
+  impl_->detector->quad_decimate = decimate;
   std::vector<TagObservation> out;
   if (image.empty()) return out;
   const int xa = std::clamp(x0, 0, image.width), ya = std::clamp(y0, 0, image.height);
@@ -212,7 +216,7 @@ std::vector<TagObservation> TagDetector::DetectInRegion(const GrayImageView& ima
   // into a scratch buffer owned by the detector.
   const int rw = xb - xa, rh = yb - ya;
   const std::uint8_t* origin = image.data + static_cast<std::ptrdiff_t>(ya) * image.stride + xa;
-  const bool copy = options_.quad_sigma != 0.0f && options_.quad_decimate <= 1.0f;
+  const bool copy = options_.quad_sigma != 0.0f && decimate <= 1.0f;
   if (copy) {
     impl_->scratch.resize(static_cast<std::size_t>(rw) * static_cast<std::size_t>(rh));
     for (int v = 0; v < rh; ++v) {
@@ -235,11 +239,108 @@ std::vector<TagObservation> TagDetector::DetectInRegion(const GrayImageView& ima
     o.decision_margin = d->decision_margin;
     o.hamming = d->hamming;
     for (int k = 0; k < 4; ++k) o.corners[k] = {d->p[k][0] + xa, d->p[k][1] + ya};
+    if (decimate > 1.0f) RefineCorners(image, o.corners, decimate, 2);
     out.push_back(std::move(o));
   }
   apriltag_detections_destroy(dets);
   std::sort(out.begin(), out.end(), [](const TagObservation& a, const TagObservation& b) { return a.id < b.id; });
   return out;
+}
+
+namespace {
+
+// Grey level at a continuous point, bilinear, pixel centres at +0.5 (the AprilTag library's convention). False outside.
+bool Sample(const GrayImageView& im, const Eigen::Vector2d& p, double* value) {
+  const double fx = p.x() - 0.5, fy = p.y() - 0.5;
+  const double x0 = std::floor(fx), y0 = std::floor(fy);
+  if (!(x0 >= 0 && y0 >= 0 && x0 + 1 < im.width && y0 + 1 < im.height)) return false;
+  const double ax = fx - x0, ay = fy - y0;
+  const std::uint8_t* r0 = im.data + static_cast<std::ptrdiff_t>(y0) * im.stride + static_cast<std::ptrdiff_t>(x0);
+  const std::uint8_t* r1 = r0 + im.stride;
+  *value = (1 - ay) * ((1 - ax) * r0[0] + ax * r0[1]) + ay * ((1 - ax) * r1[0] + ax * r1[1]);
+  return true;
+}
+
+// Locates the edge from corner a to corner b; returns the fitted line as (point, unit direction).
+bool FitEdge(const GrayImageView& im, const Eigen::Vector2d& a, const Eigen::Vector2d& b, double range,
+             Eigen::Vector2d* point, Eigen::Vector2d* dir) {
+  constexpr double kStep = 0.25;  // profile resolution along the normal, pixels
+  constexpr int kHalf = 4;        // gradient = I(t + 1 px) - I(t - 1 px)
+  constexpr int kMaxProfile = 128;
+  const double len = (b - a).norm();
+  const int nt = static_cast<int>(std::floor(range / kStep));
+  const int np = 2 * (nt + kHalf) + 1;  // profile samples
+  if (!(len > 4 * range) || np > kMaxProfile) return false;
+  const Eigen::Vector2d d = (b - a) / len, n(d.y(), -d.x());
+  // Samples about two pixels apart, away from the corners (the other edges' contrast is within `range` of them).
+  const double margin = range + 1;
+  const int ns = std::max(8, static_cast<int>((len - 2 * margin) / 2));
+  double profile[kMaxProfile];
+  double sx = 0, sy = 0, sxx = 0, sxy = 0, syy = 0, sw = 0;
+  double sign = 0;
+  for (int pass = 0; pass < 2; ++pass) {  // pass 0: the border's contrast sign; pass 1: the edge points
+    for (int s = 0; s < ns; ++s) {
+      const Eigen::Vector2d p0 = a + d * (margin + (len - 2 * margin) * (s + 0.5) / ns);
+      bool ok = true;
+      for (int i = 0; i < np && ok; ++i) ok = Sample(im, p0 + ((i - nt - kHalf) * kStep) * n, &profile[i]);
+      if (!ok) continue;
+      double wsum = 0, tsum = 0;
+      for (int t = -nt; t <= nt; ++t) {
+        const double g = profile[t + nt + 2 * kHalf] - profile[t + nt];
+        if (pass == 0) {
+          sign += g;
+          continue;
+        }
+        // The border's contrast has one sign along the whole edge (dark inside for most families); inner bit edges
+        // and clutter of the other sign are ignored.
+        const double v = sign >= 0 ? g : -g;
+        if (v <= 0) continue;
+        wsum += v * v;
+        tsum += v * v * t * kStep;
+      }
+      if (pass == 0 || wsum <= 0) continue;
+      const Eigen::Vector2d p = p0 + (tsum / wsum) * n;
+      sx += p.x(), sy += p.y(), sxx += p.x() * p.x(), sxy += p.x() * p.y(), syy += p.y() * p.y(), sw += 1;
+    }
+  }
+  if (sw < 4) return false;
+  const Eigen::Vector2d mean(sx / sw, sy / sw);
+  Eigen::Matrix2d cov;
+  cov << sxx / sw - mean.x() * mean.x(), sxy / sw - mean.x() * mean.y(), sxy / sw - mean.x() * mean.y(),
+      syy / sw - mean.y() * mean.y();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+  *point = mean;
+  *dir = eig.eigenvectors().col(1);
+  return true;
+}
+
+}  // namespace
+
+bool RefineCorners(const GrayImageView& image, Corners& corners, double range_px, int passes) {
+  if (image.empty()) return false;
+  Corners c = corners;
+  double range = std::max(1.0, range_px);
+  for (int pass = 0; pass < passes; ++pass, range = std::max(1.0, range / 2)) {
+    std::array<Eigen::Vector2d, 4> p, d;
+    for (int k = 0; k < 4; ++k) {
+      if (!FitEdge(image, c[k], c[(k + 1) % 4], range, &p[k], &d[k])) return false;
+    }
+    // Corner k is where edge k-1 (corner k-1 to k) meets edge k (corner k to k+1).
+    for (int k = 0; k < 4; ++k) {
+      const int e = (k + 3) % 4;
+      Eigen::Matrix2d m;
+      m.col(0) = d[e];
+      m.col(1) = -d[k];
+      if (std::abs(m.determinant()) < 1e-3) return false;
+      const Eigen::Vector2d st = m.inverse() * (p[k] - p[e]);
+      c[k] = p[e] + st.x() * d[e];
+    }
+  }
+  for (const auto& q : c) {
+    if (!q.allFinite()) return false;
+  }
+  corners = c;
+  return true;
 }
 
 std::array<Eigen::Vector3d, 4> TagCornersInTagFrame(double s) {

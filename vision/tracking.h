@@ -79,7 +79,15 @@ enum class TagTrackingMode {
 struct TagTrackerOptions {
   TagTrackingMode mode = TagTrackingMode::kRoiDetection;
   int full_detection_every = 30;  ///< frames between full detections (new tags appear); 1 = always
-  double roi_margin = 0.6;        ///< window = corners' bounding box grown by this fraction of its size + 8 px
+  /// Window around each tag = the bounding box of its predicted corners (last corners moved by the last
+  /// frame-to-frame motion) grown by this fraction of its size + 8 px.
+  double roi_margin = 0.6;
+  /// Overlapping windows are merged (one detection per merged window) while the merged window is no larger than the
+  /// two it replaces: adjacent tags are then not segmented several times.
+  bool merge_windows = true;
+  /// A window whose smallest predicted tag side is at least this many pixels is searched with quad_decimate 2 (the
+  /// quads are found at half resolution; edges are refined and bits decoded at full resolution). 0: never.
+  double decimate_min_side_px = 24;
   /// Ids that should be in view (the object models' tags): while one of them is not tracked, every frame gets a
   /// full detection so that it is found again as soon as it reappears.
   std::vector<int> expected_ids;
@@ -101,11 +109,14 @@ class TagTracker {
   void Reset() { since_full_ = -1; }
 
  private:
+  std::vector<TagObservation> DetectInWindows(const GrayImageView& image);
+
   struct Impl;
   std::unique_ptr<Impl> impl_;
   TagTrackerOptions options_;
   int since_full_ = -1;
   std::vector<TagObservation> last_;
+  std::vector<TagObservation> before_last_;  // the frame before, for the motion prediction
   std::vector<int> lost_;
 };
 

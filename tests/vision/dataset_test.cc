@@ -9,6 +9,7 @@
 #include <sstream>
 #include <string>
 
+#include "tests/vision/visp_ground_truth.h"
 #include "vision/camera.h"
 #include "vision/image.h"
 #include "vision/tag_detector.h"
@@ -139,6 +140,45 @@ TEST(AprilTagPgm, DetectionLeavesTheImageUntouched) {
   TagDetector detector(o);
   for (int i = 0; i < 5; ++i) EXPECT_EQ(detector.Detect(image.view()).size(), 12u) << "pass " << i;
   EXPECT_TRUE(image.pixels == before);
+}
+
+}  // namespace
+}  // namespace visco::vision
+
+namespace visco::vision {
+namespace {
+
+// Decimated detection (quads at half resolution, corners refined at full resolution: what the tracker does for big
+// tags) against full detection, on the benchmark image's true poses.
+TEST(AprilTagBenchmark640x480, DecimatedDetectionKeepsThePoseAccuracy) {
+  const GrayImage image = ReadGrayImage(testdata::kBenchmarkDir + "tag36_11_640x480.png");
+  const auto reference = testdata::BenchmarkCorners();
+  TagDetector detector;
+  const auto full = detector.Detect(image.view());
+  const auto dec = detector.DetectInRegion(image.view(), 0, 0, image.width, image.height, 2.0f);
+  ASSERT_EQ(full.size(), 5u);
+  ASSERT_EQ(dec.size(), 5u);
+  double corner_diff = 0, et[2] = {0, 0}, er[2] = {0, 0};
+  for (int t = 0; t < 5; ++t) {
+    ASSERT_EQ(full[t].id, t);
+    ASSERT_EQ(dec[t].id, t);
+    for (int k = 0; k < 4; ++k) corner_diff = std::max(corner_diff, (dec[t].corners[k] - reference.at(t)[k]).norm());
+    const Eigen::Isometry3d truth = testdata::BenchmarkCmo(t);
+    const Corners* c[2] = {&full[t].corners, &dec[t].corners};
+    for (int m = 0; m < 2; ++m) {
+      const auto pose = EstimateTagPose(testdata::BenchmarkCamera(), *c[m], testdata::BenchmarkTagSize(t));
+      ASSERT_TRUE(pose.has_value());
+      et[m] = std::max(et[m], (pose->cMo.translation() - truth.translation()).norm());
+      er[m] = std::max(er[m], Eigen::AngleAxisd(pose->cMo.linear().transpose() * truth.linear()).angle());
+    }
+  }
+  std::printf(
+      "benchmark 640x480 tag36h11: decimated+refined corners within %.3f px of the full detection; worst pose error vs "
+      "cMo: full %.1f mm %.2f mrad, decimated+refined %.1f mm %.2f mrad\n",
+      corner_diff, 1e3 * et[0], 1e3 * er[0], 1e3 * et[1], 1e3 * er[1]);
+  EXPECT_LT(corner_diff, 0.3);
+  EXPECT_LT(et[1], 1.5 * et[0]);
+  EXPECT_LT(er[1], 1.5 * er[0]);
 }
 
 }  // namespace
