@@ -107,13 +107,15 @@ double SignedImageDistance(const CameraModel& camera, const Eigen::Isometry3d& w
 }
 
 FeatureEstimator::FeatureEstimator(const CameraModel& camera, const Eigen::Isometry3d& wMc, const ObjectModels& models,
-                                   const NoiseModel& noise, const PoseOptions& pose_options)
+                                   const NoiseModel& noise, const PoseOptions& pose_options,
+                                   const ContactOptions& contact_options)
     : camera_(camera),
       wMc_(wMc),
       cMw_(wMc.inverse()),
       models_(models),
       noise_(noise),
       pose_options_(pose_options),
+      contact_options_(contact_options),
       k_(HysteresisThresholds(noise)),
       sigma2_(noise.corner_sigma_px * noise.corner_sigma_px) {
   if (models_.robot.tags.empty()) throw InputError("object models", "robot.tags", "the robot carries no tag");
@@ -200,6 +202,30 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
   finish_object(f.robot_pose, models_.robot, f.robot_pose.tag_id);
   for (std::size_t k = 0; k < models_.obstacles.size(); ++k) {
     finish_object(f.obstacle_poses[k], models_.obstacles[k], f.obstacle_poses[k].tag_id);
+  }
+
+  // Face contacts: the poses made flush with the table and with each other (the tag poses cMt stay as measured).
+  {
+    std::vector<ContactObject> objs;
+    std::vector<ObjectEstimate*> ests;
+    auto add = [&](ObjectEstimate& o, const ObjectModel& m) {
+      if (!o.valid) return;
+      objs.push_back({&m, o.wMo, o.position_stddev, o.orientation_stddev});
+      ests.push_back(&o);
+    };
+    add(f.robot_pose, models_.robot);
+    for (std::size_t k = 0; k < models_.obstacles.size(); ++k) add(f.obstacle_poses[k], models_.obstacles[k]);
+    if (contact_options_.enabled && !objs.empty()) {
+      f.contact = RefineContacts(objs, contact_options_);
+      if (f.contact.ok) {
+        for (std::size_t i = 0; i < ests.size(); ++i) {
+          if (!f.contact.in_contact[i]) continue;
+          ests[i]->wMo = f.contact.wMo[i];
+          ests[i]->cMo = cMw_ * ests[i]->wMo;
+          ests[i]->contact_refined = true;
+        }
+      }
+    }
   }
 
   // The robot on the motion plane.

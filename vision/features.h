@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "vision/camera.h"
+#include "vision/contact_refinement.h"
 #include "vision/object_model.h"
 #include "vision/tag_detector.h"
 
@@ -54,6 +55,9 @@ struct ObjectEstimate {
   bool ambiguous = false;
   double position_stddev = 0;     ///< metres, world position of the object origin, 1 sigma (largest axis)
   double orientation_stddev = 0;  ///< radians, 1 sigma (largest axis)
+  /// cMo / wMo were made flush with the table and the touching objects (contact_refinement.h); cMt stays the tag's
+  /// own measurement.
+  bool contact_refined = false;
 };
 
 /// The robot on the motion plane.
@@ -86,6 +90,7 @@ struct FrameFeatures {
   std::vector<PairMeasurement> pairs;      ///< in ObjectModels::events order
   double corner_sigma_px = 0;              ///< noise estimate used in this frame
   int tags_used = 0;
+  ContactRefinement contact;  ///< the face-contact refinement of this frame's poses
 };
 
 /// Hysteresis thresholds (in units of sigma_d) derived from the noise model.
@@ -104,7 +109,8 @@ class FeatureEstimator {
  public:
   /// @throws InputError if the models are inconsistent with the camera (no tags, bad sizes).
   FeatureEstimator(const CameraModel& camera, const Eigen::Isometry3d& wMc, const ObjectModels& models,
-                   const NoiseModel& noise = {}, const PoseOptions& pose_options = {});
+                   const NoiseModel& noise = {}, const PoseOptions& pose_options = {},
+                   const ContactOptions& contact_options = {});
 
   /// Processes the tag observations of one frame (detected or tracked corners, AprilTag convention).
   const FrameFeatures& Update(const std::vector<TagObservation>& tags);
@@ -129,6 +135,7 @@ class FeatureEstimator {
   ObjectModels models_;
   NoiseModel noise_;
   PoseOptions pose_options_;
+  ContactOptions contact_options_;
   Thresholds k_;
   double sigma2_;
   std::vector<std::optional<Eigen::Isometry3d>> robot_priors_;                  // per robot tag

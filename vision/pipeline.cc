@@ -254,7 +254,7 @@ VisionPipeline::VisionPipeline(const CameraModel& camera, const Eigen::Isometry3
     : camera_(camera),
       options_(options),
       tracker_(options.detector, WithExpectedIds(options.tracker, models)),
-      features_(camera, wMc, models, options.noise, options.pose) {}
+      features_(camera, wMc, models, options.noise, options.pose, options.contact) {}
 
 visco::fault_t VisionPipeline::BadFrame(const Frame& frame, const std::string& error) const {
   return Fault(frame.utime, visco::fault_t::CODE_BAD_MESSAGE, visco::fault_t::SEVERITY_WARNING,
@@ -334,7 +334,7 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
     ToQuaternion(o.wMo.linear(), op.orientation);
     op.position_stddev = o.position_stddev;
     op.orientation_stddev = o.orientation_stddev;
-    op.contact_refined = false;  // face-contact refinement (planning) is not applied here yet
+    op.contact_refined = o.contact_refined;
     p.poses.push_back(op);
   };
   add_pose(f.robot_pose, models.robot.id);

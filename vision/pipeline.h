@@ -92,6 +92,7 @@ struct PipelineOptions {
   TagTrackerOptions tracker;
   NoiseModel noise;
   PoseOptions pose;
+  ContactOptions contact;  ///< face-contact refinement of the object poses
   std::string camera_name = "camera";
 };
 

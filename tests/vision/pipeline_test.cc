@@ -131,6 +131,15 @@ TEST(Pipeline, OutOfOrderFramesAndLostRobotAreReported) {
   ASSERT_TRUE(a.processed);
   EXPECT_TRUE(a.robot.valid);
   EXPECT_TRUE(a.faults.empty());
+  // Robot and block stand on the table: their published poses are made flush with it (z = 0, upright).
+  ASSERT_EQ(a.poses.num_poses, 2);
+  for (const auto& p : a.poses.poses) {
+    EXPECT_TRUE(p.contact_refined) << p.object_id;
+    EXPECT_NEAR(p.position[2], 0, 1e-9) << p.object_id;
+    // Quaternion (w, x, y, z) of a rotation about z only.
+    EXPECT_NEAR(p.orientation[1], 0, 1e-9) << p.object_id;
+    EXPECT_NEAR(p.orientation[2], 0, 1e-9) << p.object_id;
+  }
   auto b = pipeline.Process(frame(2, 3000, true), 0);
   ASSERT_TRUE(b.processed);
   auto c = pipeline.Process(frame(1, 2000, true), 0);

@@ -1,0 +1,59 @@
+#pragma once
+// Object poses made mutually consistent with their face contacts (Suehiro & Ikeuchi 1991): the poses measured from
+// the tags are moved, as little as possible, until the faces that touch (each object's base on the table, obstacles
+// side by side, the robot against an obstacle) are exactly flush. The work is planning's MakeFlush
+// (planning/flush_poses.h); this is the glue from vision's object models (vertical prisms standing on the table,
+// world z = 0) to planning's polyhedra. Plain Eigen types only.
+//
+// Dependency: vision -> planning (planning does not depend on vision). planning's headers are C++20 and vision is
+// compiled as C++17 for ViSP 3.5's headers, so contact_refinement.cc alone is compiled as C++20 (it includes no
+// ViSP or OpenCV header).
+
+#include <Eigen/Geometry>
+#include <string>
+#include <vector>
+
+#include "vision/object_model.h"
+
+namespace visco::vision {
+
+/// When two faces count as touching: within `k_sigma` standard deviations of the poses' own uncertainty (a gap or
+/// tilt the measurement cannot tell from zero), and never below planning's defaults (3 mm, 3 degrees).
+struct ContactOptions {
+  bool enabled = true;
+  double k_sigma = 3.29;  ///< the hysteresis k_hi (alpha = 1e-3; docs/vision.md)
+  double min_distance_m = 0.003;
+  double min_angle_deg = 3.0;
+  double table_thickness_m = 0.05;  ///< the table, a stable box whose top face is the plane z = 0
+};
+
+/// One object as measured.
+struct ContactObject {
+  const ObjectModel* model = nullptr;
+  Eigen::Isometry3d wMo = Eigen::Isometry3d::Identity();
+  double position_stddev = 0;     ///< metres, 1 sigma
+  double orientation_stddev = 0;  ///< radians, 1 sigma
+};
+
+struct ContactRefinement {
+  bool ok = false;                     ///< every contact found holds; `wMo` are the flush poses
+  std::vector<Eigen::Isometry3d> wMo;  ///< same order as the input (the measured ones if !ok)
+  std::vector<bool> in_contact;        ///< the object takes part in at least one face contact
+  int contacts = 0;                    ///< face contacts found (table contacts included)
+  double observed_gap_m = 0;           ///< largest |gap| of the contacts as measured
+  double max_residue_m = 0;            ///< largest |gap| after the correction
+  std::string message;
+};
+
+/// The vertical prism of `model` as a polyhedron (object frame: polygon in x y, z from 0 to height), as planning's
+/// vertices and faces: bottom, top, then one side per polygon edge. Exposed for tests.
+struct PrismMesh {
+  std::vector<Eigen::Vector3d> vertices;
+  std::vector<std::vector<int>> faces;
+};
+PrismMesh ObjectPrism(const ObjectModel& model);
+
+/// Makes the objects flush with the table (z = 0) and with each other. Not real-time safe (allocates).
+ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, const ContactOptions& options = {});
+
+}  // namespace visco::vision
