@@ -237,7 +237,10 @@ void RegisterCommands(CLI::App& app) {
   track->add_option("--images", targs->images, "folder of image files, processed in name order");
   track->add_option("--video", targs->video, "video file (OpenCV)");
   track->add_flag("--lcm", targs->lcm_input, "read image_t frames from VISCO_CAMERA_IMAGE until interrupted");
-  track->add_option("--lcm-url", targs->lcm_url, "LCM provider URL (default: LCM's default)");
+  track->add_option("--lcm-url", targs->lcm_url,
+                    "LCM provider URL (default: LCM's default). With --lcm over UDP multicast, add recv_buf_size "
+                    "(e.g. udpm://239.255.76.67:7667?ttl=0&recv_buf_size=2097152): a 640x480 frame is larger than "
+                    "the kernel's default receive buffer and frames are dropped without it");
   track->add_flag("!--no-publish", targs->publish, "do not publish on LCM (print only)");
   track->add_option("--fps", targs->fps, "frame rate of an image folder (timestamps)")->capture_default_str();
   track->add_option("--mode", targs->mode, "tag tracking between full detections: roi, klt or detect")

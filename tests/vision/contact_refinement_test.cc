@@ -36,7 +36,7 @@ ObjectModels Models() {
       {"id": "wall", "polygon": [[0, 0], [0.06, 0], [0.06, 0.16], [0, 0.16]], "height": 0.04,
        "tags": [{"family": "tag36h11", "id": 2, "size": 0.05, "t": [0.03, 0.08, 0.04], "rpy_deg": [0, 0, 90]}]}
     ]})",
-                            "test models");
+                           "test models");
 }
 
 TEST(ObjectPrism, IsAClosedOutwardPrism) {
