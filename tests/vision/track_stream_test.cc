@@ -92,16 +92,11 @@ std::filesystem::path TempDir(const std::string& name) {
 }
 
 std::vector<std::string> TrackArgs() {
-  return {VISCO_BIN,
-          "track",
-          "--camera",
-          "data/vision/synthetic_camera.xml",
-          "--extrinsics",
-          "data/vision/demo_extrinsics.json",
-          "--objects",
-          "data/vision/demo_objects.json",
-          "--quad-sigma",
-          "0.8"};
+  return {VISCO_BIN,      "track",
+          "--camera",     "data/vision/synthetic_camera.xml",
+          "--extrinsics", "data/vision/demo_extrinsics.json",
+          "--objects",    "data/vision/demo_objects.json",
+          "--quad-sigma", "0.8"};
 }
 
 pid_t Spawn(const std::vector<std::string>& args) {
@@ -164,8 +159,7 @@ TEST(TrackCommand, VideoFile) {
     const Eigen::Vector2d p(l["robot"]["position"][0].get<double>(), l["robot"]["position"][1].get<double>());
     worst = std::max(worst, (p - w.Robot(i).translation().head<2>()).norm());
     for (const auto& e : l.at("events")) {
-      if (e.at("cvc_ray") == "block.v0.cm1" && Truthy(e.at("crossed")) && e.at("state") != "on_line" &&
-          crossing < 0) {
+      if (e.at("cvc_ray") == "block.v0.cm1" && Truthy(e.at("crossed")) && e.at("state") != "on_line" && crossing < 0) {
         crossing = i;
       }
     }
@@ -188,9 +182,9 @@ struct Latest {
   std::vector<std::int64_t> at;  // arrival, microseconds (steady clock)
   void Handle(const lcm::ReceiveBuffer*, const std::string&, const T* m) {
     got.push_back(*m);
-    at.push_back(std::chrono::duration_cast<std::chrono::microseconds>(
-                     std::chrono::steady_clock::now().time_since_epoch())
-                     .count());
+    at.push_back(
+        std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now().time_since_epoch())
+            .count());
   }
 };
 
@@ -319,7 +313,8 @@ TEST(TrackCommand, LcmCameraChannel) {
         crossing = frame_of_seq[e.frame_seq];
       }
     }
-    if (sent_at.count(e.frame_seq)) latency_ms.push_back(1e-3 * static_cast<double>(events.at[k] - sent_at[e.frame_seq]));
+    if (sent_at.count(e.frame_seq))
+      latency_ms.push_back(1e-3 * static_cast<double>(events.at[k] - sent_at[e.frame_seq]));
     internal_ms.push_back(1e3 * e.latency_s);
   }
   std::sort(latency_ms.begin(), latency_ms.end());

@@ -61,14 +61,20 @@ TEST(Cube, KltFeaturesThroughTheSequence) {
   KltTracker klt;
   klt.InitAuto(img.view());
   const int start = static_cast<int>(klt.points().size());
-  int n = start, frames = 1;
+  int n = start, frames = 1, worst_step = 0, worst_frame = -1;
+  std::string trace;
   for (int i = 1; i < 80; ++i) {
     img = ReadGrayImage(Frame("cube", i));
+    const int before = n;
     n = klt.Track(img.view());
+    if (before - n > worst_step) worst_step = before - n, worst_frame = i;
+    if (i % 20 == 0) trace += " " + std::to_string(i) + ":" + std::to_string(n);
     ++frames;
   }
-  std::printf("cube: %d frames, %d KLT features at start, %d still tracked at the end (%d lost)\n", frames, start, n,
-              start - n);
+  std::printf(
+      "cube: %d frames, %d KLT features at start, %d still tracked at the end (%d lost; tracked at frame%s; most lost "
+      "in one frame: %d at frame %d)\n",
+      frames, start, n, start - n, trace.c_str(), worst_step, worst_frame);
   EXPECT_EQ(frames, 80);
   EXPECT_GE(start, 100);
   EXPECT_GE(n, start * 2 / 5);  // the camera moves: features leave the view or are occluded (loss reported)
