@@ -11,7 +11,8 @@
 # them, at the border of that VC backprojection). Checked against ground truth: the simulated robot ends in the goal.
 # Faults: stale frames (hold, then resume and finish) and the robot's tag lost (occluded: hold, then stop with the
 # fault reported).
-# usage: vision_loop_e2e_test.sh VISCO [--sanitized]   (slower settings for sanitizer builds)
+# usage: vision_loop_e2e_test.sh VISCO [--sanitized]   (slower settings for sanitizer builds; CTest registers the
+# test in the normal build only: under ASan vision loses most frames on LCM and the run stops, docs/control.md)
 set -uo pipefail
 visco="$1"
 sanitized="${2:-}"
