@@ -65,7 +65,8 @@ loop() {
     --image-noise 2 --blur-px 0.5 --seed 7 --lcm-url "$url" --duration 90 --watchdog-ms 500 "$@" \
     >"$tmp/$name.sim.json" 2>"$tmp/$name.sim.log" &
   local sim=$!
-  "$visco" track --lcm --lcm-url "$url" "${cam[@]}" >"$tmp/$name.track.jsonl" 2>"$tmp/$name.track.log" &
+  # recv_buf_size: a 640x480 frame (307 kB) is larger than the kernel's default UDP receive buffer (212 kB).
+  "$visco" track --lcm --lcm-url "$url&recv_buf_size=4194304" "${cam[@]}" >"$tmp/$name.track.jsonl" 2>"$tmp/$name.track.log" &
   local track=$!
   pids=($sim $track)
   local t0=$SECONDS
