@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "tests/vision/demo_world.h"
 #include "vision/camera.h"
 #include "vision/features.h"
 #include "vision/tag_renderer.h"
@@ -17,14 +18,9 @@
 namespace visco::vision {
 namespace {
 
-const CameraModel kCam = CameraModel::Pinhole(600, 600, 319.5, 239.5, 640, 480);
+const CameraModel& kCam = test_world::kDemoCamera;
 
-Eigen::Isometry3d Planar(double x, double y, double yaw) {
-  Eigen::Isometry3d m = Eigen::Isometry3d::Identity();
-  m.linear() = RotationFromRpy(0, 0, yaw);
-  m.translation() = Eigen::Vector3d(x, y, 0);
-  return m;
-}
+using test_world::Planar;
 
 ObjectModels Models() {
   return ParseObjectModels(R"({

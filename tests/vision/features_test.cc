@@ -11,6 +11,7 @@
 #include <random>
 
 #include "common/error.h"
+#include "tests/vision/demo_world.h"
 #include "vision/camera.h"
 #include "vision/object_model.h"
 #include "vision/tag_detector.h"
@@ -19,14 +20,9 @@
 namespace visco::vision {
 namespace {
 
-const CameraModel kCam = CameraModel::Pinhole(600, 600, 319.5, 239.5, 640, 480);
+const CameraModel& kCam = test_world::kDemoCamera;
 
-Eigen::Isometry3d Planar(double x, double y, double yaw) {
-  Eigen::Isometry3d m = Eigen::Isometry3d::Identity();
-  m.linear() = RotationFromRpy(0, 0, yaw);
-  m.translation() = Eigen::Vector3d(x, y, 0);
-  return m;
-}
+using test_world::Planar;
 
 TEST(Hysteresis, ThresholdsFollowFromTheNoiseModel) {
   const Thresholds k = HysteresisThresholds(NoiseModel{});

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "lcmtypes/channels.h"
+#include "tests/vision/demo_world.h"
 #include "visco/fault_t.hpp"
 #include "visco/image_t.hpp"
 #include "visco/object_poses_t.hpp"
@@ -42,15 +43,10 @@ extern char** environ;
 namespace visco::vision {
 namespace {
 
-const CameraModel kCam = CameraModel::Pinhole(600, 600, 319.5, 239.5, 640, 480);
+const CameraModel& kCam = test_world::kDemoCamera;
 constexpr int kFrames = 24;
 
-Eigen::Isometry3d Planar(double x, double y, double yaw) {
-  Eigen::Isometry3d m = Eigen::Isometry3d::Identity();
-  m.linear() = RotationFromRpy(0, 0, yaw);
-  m.translation() = Eigen::Vector3d(x, y, 0);
-  return m;
-}
+using test_world::Planar;
 
 struct World {
   ObjectModels models = LoadObjectModels("data/vision/demo_objects.json");
