@@ -18,8 +18,8 @@ py=/usr/bin/python3
 status=0
 step() { echo "== $*"; }
 
-step "candump -L vcan0,0:0,#FFFFFFFF (data and error frames, 4 MB socket buffer, to tmpfs)"
-candump -L -r 4194304 "vcan0,0:0,#FFFFFFFF" >/tmp/candump.log 2>&1 &
+step "candump -L -D vcan0,0:0,#FFFFFFFF (data and error frames, 4 MB socket buffer, to tmpfs, kept through interface down)"
+candump -L -D -r 4194304 "vcan0,0:0,#FFFFFFFF" >/tmp/candump.log 2>&1 &
 dump=$!
 sleep 0.3
 
