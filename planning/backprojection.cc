@@ -48,6 +48,7 @@
 #include <unordered_map>
 #include <utility>
 
+#include "planning/geometry.h"
 #include "planning/motion_model.h"
 
 namespace visco::planning {
@@ -62,8 +63,8 @@ using SegTraits = CGAL::Arr_segment_traits_2<K>;
 using Traits = CGAL::Arr_consolidated_curve_data_traits_2<SegTraits, int>;
 using Dcel = CGAL::Arr_face_extended_dcel<Traits, int>;
 using Arr = CGAL::Arrangement_2<Traits, Dcel>;
-using Polygon = CGAL::Polygon_2<K>;
-using PolygonWithHoles = CGAL::Polygon_with_holes_2<K>;
+using ExactPolygon = CGAL::Polygon_2<K>;
+using ExactPolygonWithHoles = CGAL::Polygon_with_holes_2<K>;
 using PolygonSet = CGAL::Polygon_set_2<K>;
 
 using Eigen::Vector2d;
@@ -900,19 +901,6 @@ std::vector<ExactRing> Sweep::Assemble() const {
   return rings;
 }
 
-bool PointInRing(const Vector2d& p, const std::vector<Vector2d>& poly) {
-  bool inside = false;
-  for (size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const Vector2d& a = poly[i];
-    const Vector2d& b = poly[j];
-    if ((a.y() > p.y()) != (b.y() > p.y())) {
-      const double x = a.x() + (p.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
-      if (p.x() < x) inside = !inside;
-    }
-  }
-  return inside;
-}
-
 Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
   Region region;
   FT total = 0;
@@ -952,7 +940,7 @@ Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
     int best = -1;
     double best_area = 1e300;
     for (size_t i = 0; i < outer_d.size(); ++i) {
-      if (!PointInRing(probe, outer_d[i])) continue;
+      if (!InsideEvenOdd(outer_d[i], probe)) continue;
       const double ar = std::abs(SignedAreaD(outer_d[i]));
       if (ar < best_area) {
         best_area = ar;
@@ -980,9 +968,9 @@ SweepResult RunSweep(const BackprojectionProblem& problem, const std::vector<int
 
 PolygonSet ToPolygonSet(const std::vector<ExactRing>& rings) {
   PolygonSet set;
-  std::vector<Polygon> outers, holes;
+  std::vector<ExactPolygon> outers, holes;
   for (const auto& r : rings) {
-    Polygon poly(r.vertices.begin(), r.vertices.end());
+    ExactPolygon poly(r.vertices.begin(), r.vertices.end());
     (CGAL::sign(r.area2) == CGAL::POSITIVE ? outers : holes).push_back(poly);
   }
   for (const auto& o : outers) set.join(o);
@@ -1013,9 +1001,9 @@ const char* EdgeKindName(EdgeKind kind) {
 
 bool Region::Contains(const Vector2d& p) const {
   for (const auto& poly : polygons) {
-    if (!PointInRing(p, poly.outer.vertices)) continue;
+    if (!InsideEvenOdd(poly.outer.vertices, p)) continue;
     bool in_hole = false;
-    for (const auto& h : poly.holes) in_hole |= PointInRing(p, h.vertices);
+    for (const auto& h : poly.holes) in_hole |= InsideEvenOdd(h.vertices, p);
     if (!in_hole) return true;
   }
   return false;
@@ -1119,7 +1107,7 @@ std::vector<NamedPolygon> GoalKernel(const std::vector<NamedPolygon>& goal, doub
   const double r = position_uncertainty / std::cos(M_PI / sides);  // circumscribes the disc
   for (size_t gi = 0; gi < goal.size(); ++gi) {
     const auto& g = goal[gi];
-    Polygon poly;
+    ExactPolygon poly;
     for (const auto& v : g.vertices) poly.push_back(P2(v.x(), v.y()));
     if (poly.is_clockwise_oriented()) poly.reverse_orientation();
     PolygonSet kernel(poly);
@@ -1135,13 +1123,13 @@ std::vector<NamedPolygon> GoalKernel(const std::vector<NamedPolygon>& goal, doub
       }
       std::vector<P2> hull;
       CGAL::convex_hull_2(pts.begin(), pts.end(), std::back_inserter(hull));
-      kernel.difference(Polygon(hull.begin(), hull.end()));
+      kernel.difference(ExactPolygon(hull.begin(), hull.end()));
     }
-    std::vector<PolygonWithHoles> parts;
+    std::vector<ExactPolygonWithHoles> parts;
     kernel.polygons_with_holes(std::back_inserter(parts));
     for (size_t pi = 0; pi < parts.size(); ++pi) {
       NamedPolygon np;
-      const Polygon& ob = parts[pi].outer_boundary();
+      const ExactPolygon& ob = parts[pi].outer_boundary();
       size_t k = 0;
       for (auto v = ob.vertices_begin(); v != ob.vertices_end(); ++v, ++k) {
         np.vertices.emplace_back(CGAL::to_double(v->x()), CGAL::to_double(v->y()));

@@ -91,6 +91,10 @@ enum class Location { kOutside, kBoundary, kInside };
 /// Locates p relative to a simple polygon (either orientation). Exact. O(n).
 Location Locate(const Polygon& polygon, const Point& p);
 
+/// Even-odd (crossing-number) test of p against a closed ring of vertices, in rounded arithmetic: for sampling and
+/// simulation, where a point within rounding of an edge may go either way (use Locate when it must not). O(n).
+bool InsideEvenOdd(const std::vector<Point>& ring, const Point& p);
+
 /// Whether the direction from `apex` towards `towards` points strictly into the open angular sector that is swept
 /// counter-clockwise from the direction apex->first to the direction apex->second (the interior angle at a vertex of
 /// a counter-clockwise polygon is the sector from apex->next to apex->previous). A straight sector (first and second

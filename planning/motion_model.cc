@@ -5,6 +5,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "planning/geometry.h"
+
 namespace visco::planning {
 namespace {
 
@@ -39,19 +41,6 @@ double DistanceToSegment(const Vector2d& p, const Vector2d& a, const Vector2d& b
   double s = len2 > 0.0 ? (p - a).dot(ab) / len2 : 0.0;
   s = std::clamp(s, 0.0, 1.0);
   return (p - (a + s * ab)).norm();
-}
-
-bool PointInPolygon(const Vector2d& p, const std::vector<Vector2d>& poly) {
-  bool inside = false;
-  for (size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
-    const Vector2d& a = poly[i];
-    const Vector2d& b = poly[j];
-    if ((a.y() > p.y()) != (b.y() > p.y())) {
-      const double x = a.x() + (p.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
-      if (p.x() < x) inside = !inside;
-    }
-  }
-  return inside;
 }
 
 // Intersection of the path p + t m (m unit) with segment [a, b]: returns t, or NaN when they do not meet (parallel
@@ -129,7 +118,7 @@ bool MotionModel::InBounds(const Vector2d& p) const {
 
 bool MotionModel::InGoal(const Vector2d& p) const {
   for (const auto& g : world_.goal) {
-    if (PointInPolygon(p, g)) return true;
+    if (InsideEvenOdd(g, p)) return true;
     for (size_t i = 0; i < g.size(); ++i) {
       if (DistanceToSegment(p, g[i], g[(i + 1) % g.size()]) <= tol_) return true;
     }
@@ -139,7 +128,7 @@ bool MotionModel::InGoal(const Vector2d& p) const {
 
 bool MotionModel::InObstacleInterior(const Vector2d& p) const {
   for (const auto& o : world_.obstacles) {
-    if (!PointInPolygon(p, o)) continue;
+    if (!InsideEvenOdd(o, p)) continue;
     bool near = false;
     for (size_t i = 0; i < o.size() && !near; ++i) near = DistanceToSegment(p, o[i], o[(i + 1) % o.size()]) <= tol_;
     if (!near) return true;

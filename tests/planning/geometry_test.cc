@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -126,6 +127,36 @@ TEST(Geometry, PredicatesAgreeWithNaiveAwayFromDegeneracy) {
       EXPECT_EQ(Orientation(a, b, c), o > 0 ? 1 : -1);
     }
   }
+}
+
+// Property: the rounded even-odd test agrees with the exact Locate on random simple polygons (star-shaped around
+// the origin, either orientation) for points not within rounding of the boundary.
+TEST(Geometry, InsideEvenOddAgreesWithLocate) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int inside = 0;
+  int outside = 0;
+  for (int shape = 0; shape < 200; ++shape) {
+    const int n = 3 + static_cast<int>(unit(rng) * 12);
+    Polygon polygon;
+    for (int i = 0; i < n; ++i) {
+      const double angle = 2.0 * M_PI * (i + 0.8 * unit(rng)) / n;
+      const double radius = 0.5 + 2.0 * unit(rng);
+      polygon.vertices.emplace_back(radius * std::cos(angle), radius * std::sin(angle));
+    }
+    if (shape % 2 == 1) std::reverse(polygon.vertices.begin(), polygon.vertices.end());
+    for (int k = 0; k < 50; ++k) {
+      const Point p(6.0 * unit(rng) - 3.0, 6.0 * unit(rng) - 3.0);
+      const Location where = Locate(polygon, p);
+      if (where == Location::kBoundary) continue;
+      EXPECT_EQ(InsideEvenOdd(polygon.vertices, p), where == Location::kInside)
+          << "shape " << shape << " point (" << p.x() << ", " << p.y() << ")";
+      ++(where == Location::kInside ? inside : outside);
+    }
+  }
+  EXPECT_GT(inside, 1000);
+  EXPECT_GT(outside, 1000);
+  EXPECT_FALSE(InsideEvenOdd({}, Point(0, 0)));
 }
 
 }  // namespace
