@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 #include <time.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -138,7 +139,7 @@ void Driver::OnCommand(const DriverEvent& event, std::int64_t now_us) {
   if (have_seq_) stats_.sequence_gaps += (event.seq + modulus - last_seq_) % modulus - 1;
   have_seq_ = true;
   last_seq_ = event.seq;
-  last_valid_us_ = now_us;
+  last_valid_us_ = std::max(now_us, event.receive_us);
   ClearFault(fault_bits::kBadFrame);
   ClearFault(fault_bits::kSequence);
 
@@ -173,7 +174,7 @@ void Driver::OnReset(std::int64_t now_us) {
   robot_.SetVelocity(zero);
   fault_bits_ = 0;
   state_ = RobotState::kReady;
-  last_valid_us_ = now_us;
+  last_valid_us_ = std::max(last_valid_us_, now_us);  // a reset command already set it to its arrival
   if (was_latched) Announce(can::kEmcyNoError, fault_t::CODE_NONE, false, true, "reset: faults cleared, ready");
 }
 

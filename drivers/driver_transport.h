@@ -26,7 +26,7 @@ const char* ToString(DriverEventKind kind);
 
 struct DriverEvent {
   DriverEventKind kind = DriverEventKind::kCommand;
-  std::int64_t receive_us = 0;                        // monotonic clock of the driver
+  std::int64_t receive_us = 0;                        // arrival, monotonic clock of the driver (>= now_us)
   std::uint32_t seq = 0;                              // kCommand: the command's sequence number
   VelocityCommand command;                            // kCommand
   can::DecodeStatus decode = can::DecodeStatus::kOk;  // kBadCommand

@@ -1,5 +1,6 @@
 // SocketCAN implementations of RobotLink (controller side) and DriverTransport (driver side).
 
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 
@@ -338,7 +339,7 @@ class SocketCanDriverTransport final : public DriverTransport {
         ++counters_.io_errors;
         return false;
       }
-      if (Handle(in.frame, now_us, out)) return true;
+      if (Handle(in.frame, ArrivalMicros(in, now_us), out)) return true;
     }
     return false;
   }
@@ -443,6 +444,16 @@ class SocketCanDriverTransport final : public DriverTransport {
         return true;
     }
     return false;
+  }
+
+  // When a frame arrived, on the monotonic clock (its kernel timestamp moved by the wall-to-monotonic offset), but
+  // never before `now_us`: a frame that waited in the queue counts from when the driver looked, as the caller's
+  // clock says; one that arrived while this thread was preempted after reading `now_us` (a starved CPU) counts from
+  // its arrival, or the command watchdog would measure from before the command came and fire early.
+  static std::int64_t ArrivalMicros(const ReceivedFrame& in, std::int64_t now_us) {
+    if (in.utime <= 0) return now_us;
+    const std::int64_t age = std::max<std::int64_t>(WallMicros() - in.utime, 0);
+    return std::max(now_us, MonotonicMicros() - age);
   }
 
   // Turns one received frame into an event; false if it carries none.
