@@ -246,7 +246,9 @@ TEST(RealtimeLoop, SteadyStateIsAllocationLockExceptionAndIoFree) {
   }
   EXPECT_TRUE(held);
   EXPECT_TRUE(resumed);
-  EXPECT_GT(loop.cycles(), 1000);
+  // ~2800 periods at 1 kHz on an idle machine; a loaded one (CI runs tests two at a time, ASan too) wakes this
+  // unprivileged thread late and runs far fewer (689 seen at load 6). Enough to have cycled through every mode.
+  EXPECT_GT(loop.cycles(), 300);
   EXPECT_EQ(counts.allocations, 0);
   EXPECT_EQ(counts.frees, 0);
   EXPECT_EQ(counts.locks, 0);
