@@ -379,8 +379,9 @@ TEST(RealtimeLoop, RealLcmLinkAgainstTheDriverIsAllocationLockAndExceptionFree) 
   driver_thread.join();
 
   EXPECT_EQ(executor.mode(), Mode::kDone) << executor.stop_reason();
-  EXPECT_GT(link->counters().statuses_received, 500U);
-  EXPECT_GT(driver.stats().commands_applied, 500U);
+  // ~1400 of each on an idle machine (1.4 s at 1 kHz); 400 seen at load 6. Enough for a steady state.
+  EXPECT_GT(link->counters().statuses_received, 100U);
+  EXPECT_GT(driver.stats().commands_applied, 100U);
   EXPECT_EQ(counts.allocations, 0);
   EXPECT_EQ(counts.frees, 0);
   EXPECT_EQ(counts.locks, 0);
