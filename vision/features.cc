@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "vision/multi_tag_pose.h"
 
 namespace visco::vision {
 namespace {
@@ -126,16 +127,21 @@ void FeatureEstimator::Reset() {
   robot_priors_.assign(models_.robot.tags.size(), std::nullopt);
   obstacle_priors_.clear();
   for (const auto& o : models_.obstacles) obstacle_priors_.emplace_back(o.tags.size(), std::nullopt);
+  robot_object_prior_.reset();
+  obstacle_object_priors_.assign(models_.obstacles.size(), std::nullopt);
   states_.assign(models_.events.size(), SideState::kUnknown);
   last_ = FrameFeatures();
 }
 
 ObjectEstimate FeatureEstimator::EstimateObject(const ObjectModel& model, const std::vector<TagObservation>& tags,
-                                                std::vector<std::optional<Eigen::Isometry3d>>& priors) {
-  ObjectEstimate best;
-  double best_var = std::numeric_limits<double>::infinity();
-  // The table normal in the camera frame resolves the planar ambiguity of face-up tags without a prior.
+                                                std::vector<std::optional<Eigen::Isometry3d>>& priors,
+                                                std::optional<Eigen::Isometry3d>& object_prior) {
+  ObjectEstimate out;
+  // The table normal in the camera frame resolves the planar ambiguity of face-up tags without a prior, and that of
+  // the object (its z axis is up: it stands on the table).
   const Eigen::Vector3d table_normal_c = cMw_.linear() * Eigen::Vector3d::UnitZ();
+  std::vector<ObjectTagObservation> seen;
+  std::vector<std::size_t> mount_index;
   for (std::size_t i = 0; i < model.tags.size(); ++i) {
     const TagMount& mount = model.tags[i];
     const TagObservation* obs = nullptr;
@@ -154,55 +160,97 @@ ObjectEstimate FeatureEstimator::EstimateObject(const ObjectModel& model, const 
       continue;
     }
     priors[i] = pose->cMo;
-    // Online noise estimate: E[4 rms^2] = E[SSR] = (8 - 6) sigma^2.
+    // Online noise estimate from each tag's own fit: E[4 rms^2] = E[SSR] = (8 - 6) sigma^2.
     if (noise_.estimate_online) {
       const double s2 = 2 * pose->rms_error_px * pose->rms_error_px;
       sigma2_ = (1 - noise_.online_weight) * sigma2_ + noise_.online_weight * s2;
       sigma2_ = std::max(sigma2_, noise_.min_corner_sigma_px * noise_.min_corner_sigma_px);
     }
-    ++last_.tags_used;
-    const double var = pose->unit_covariance.block<3, 3>(3, 3).trace();
-    if (var < best_var) {
-      best_var = var;
-      best.valid = true;
-      best.tag_id = mount.id;
-      best.cMt = pose->cMo;
-      best.cov_cMt = pose->unit_covariance;  // scaled by sigma^2 below
-      best.cMo = pose->cMo * mount.oMt.inverse();
-      best.wMo = wMc_ * best.cMo;
-      best.rms_error_px = pose->rms_error_px;
-      best.ambiguous = pose->ambiguous;
+    ObjectTagObservation o;
+    o.id = mount.id;
+    o.corners = obs->corners;
+    o.size = mount.size;
+    o.oMt = mount.oMt;
+    o.pose = *pose;
+    seen.push_back(o);
+    mount_index.push_back(i);
+  }
+  if (seen.empty()) {
+    object_prior.reset();
+    return out;
+  }
+  std::optional<ObjectPoseFit> fit;
+  if (pose_options_.joint_fit || seen.size() == 1) {
+    fit = EstimateObjectPose(camera_, seen, pose_options_, std::sqrt(sigma2_), object_prior, table_normal_c);
+  } else {
+    // The single best tag (smallest translation variance of its own pose), the others unused.
+    std::size_t best = 0;
+    for (std::size_t k = 1; k < seen.size(); ++k) {
+      if (seen[k].pose.unit_covariance.block<3, 3>(3, 3).trace() <
+          seen[best].pose.unit_covariance.block<3, 3>(3, 3).trace()) {
+        best = k;
+      }
+    }
+    fit = EstimateObjectPose(camera_, {seen[best]}, pose_options_, std::sqrt(sigma2_), object_prior, table_normal_c);
+    if (fit) {
+      fit->reference = static_cast<int>(best);
+      fit->inliers = {static_cast<int>(best)};
+      fit->outliers.clear();
+      fit->tag_rms_px.assign(seen.size(), 0);
+      for (std::size_t k = 0; k < seen.size(); ++k) {
+        fit->tag_rms_px[k] = TagRmsAtObjectPose(camera_, seen[k], fit->cMo, pose_options_.corner_offset_px);
+      }
     }
   }
-  return best;
+  if (!fit) {
+    object_prior.reset();
+    return out;
+  }
+  out.valid = true;
+  out.tag_id = seen[fit->reference].id;
+  out.cMo = out.cMo_measured = fit->cMo;
+  out.wMo = wMc_ * out.cMo;
+  out.cov_cMo = fit->unit_covariance;  // scaled by sigma^2 in Update
+  out.rms_error_px = fit->rms_error_px;
+  out.ambiguous = fit->ambiguous;
+  out.tags_used = static_cast<int>(fit->inliers.size());
+  object_prior = fit->cMo;
+  for (std::size_t k = 0; k < seen.size(); ++k) {
+    TagEstimate te;
+    te.id = seen[k].id;
+    te.cMt = seen[k].pose.cMo;
+    te.rms_error_px = seen[k].pose.rms_error_px;
+    te.joint_rms_px = fit->tag_rms_px[k];
+    te.outlier = std::find(fit->outliers.begin(), fit->outliers.end(), static_cast<int>(k)) != fit->outliers.end();
+    // A tag in the fit takes the object's pose as its prior (the object's branch of its planar ambiguity).
+    if (pose_options_.joint_fit && !te.outlier && seen.size() > 1) priors[mount_index[k]] = fit->cMo * seen[k].oMt;
+    out.tags.push_back(te);
+  }
+  last_.tags_used += out.tags_used;
+  return out;
 }
 
 const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>& tags) {
   FrameFeatures f;
   last_.tags_used = 0;
-  f.robot_pose = EstimateObject(models_.robot, tags, robot_priors_);
+  f.robot_pose = EstimateObject(models_.robot, tags, robot_priors_, robot_object_prior_);
   for (std::size_t k = 0; k < models_.obstacles.size(); ++k) {
-    f.obstacle_poses.push_back(EstimateObject(models_.obstacles[k], tags, obstacle_priors_[k]));
+    f.obstacle_poses.push_back(
+        EstimateObject(models_.obstacles[k], tags, obstacle_priors_[k], obstacle_object_priors_[k]));
   }
   f.tags_used = last_.tags_used;
   f.corner_sigma_px = std::sqrt(sigma2_);
   const double s2 = sigma2_;
-  auto finish_object = [&](ObjectEstimate& o, const ObjectModel& model, int tag_id) {
+  auto finish_object = [&](ObjectEstimate& o) {
     if (!o.valid) return;
-    o.cov_cMt *= s2;
-    Eigen::Isometry3d tMo = Eigen::Isometry3d::Identity();
-    for (const auto& m : model.tags) {
-      if (m.id == tag_id) tMo = m.oMt.inverse();
-    }
+    o.cov_cMo *= s2;
     const auto jp = NumericJacobian<3>(
-        [&](const Vec6& d) -> Eigen::Vector3d { return (wMc_ * Perturb(o.cMt, d) * tMo).translation(); });
-    o.position_stddev = LargestStddev(jp * o.cov_cMt * jp.transpose());
-    o.orientation_stddev = LargestStddev(o.cov_cMt.block<3, 3>(0, 0));
+        [&](const Vec6& d) -> Eigen::Vector3d { return (wMc_ * Perturb(o.cMo_measured, d)).translation(); });
+    o.position_stddev = LargestStddev(jp * o.cov_cMo * jp.transpose());
+    o.orientation_stddev = LargestStddev(o.cov_cMo.block<3, 3>(0, 0));
   };
-  finish_object(f.robot_pose, models_.robot, f.robot_pose.tag_id);
-  for (std::size_t k = 0; k < models_.obstacles.size(); ++k) {
-    finish_object(f.obstacle_poses[k], models_.obstacles[k], f.obstacle_poses[k].tag_id);
-  }
+  finish_object(f.robot_pose);
+  for (auto& o : f.obstacle_poses) finish_object(o);
 
   // Face contacts: the poses made flush with the table and with each other (the tag poses cMt stay as measured).
   {
@@ -229,19 +277,15 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
   }
 
   // The robot on the motion plane.
-  Eigen::Isometry3d rtMo = Eigen::Isometry3d::Identity();
-  for (const auto& m : models_.robot.tags) {
-    if (m.id == f.robot_pose.tag_id) rtMo = m.oMt.inverse();
-  }
   if (f.robot_pose.valid) {
     f.robot.valid = true;
     const Eigen::Isometry3d wMr = f.robot_pose.wMo;
     f.robot.position = wMr.translation().head<2>();
     f.robot.heading = std::atan2(wMr.linear()(1, 0), wMr.linear()(0, 0));
     const auto j = NumericJacobian<2>([&](const Vec6& d) -> Eigen::Vector2d {
-      return (wMc_ * Perturb(f.robot_pose.cMt, d) * rtMo).translation().head<2>();
+      return (wMc_ * Perturb(f.robot_pose.cMo_measured, d)).translation().head<2>();
     });
-    f.robot.covariance = j * f.robot_pose.cov_cMt * j.transpose();
+    f.robot.covariance = j * f.robot_pose.cov_cMo * j.transpose();
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(f.robot.covariance);
     f.robot.position_stddev = std::sqrt(std::max(0.0, es.eigenvalues().maxCoeff()));
     for (const auto& v : models_.robot.polygon) {
@@ -262,22 +306,18 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
       states_[e] = SideState::kUnknown;  // never a silently stale state: the next known state is not a crossing
       continue;
     }
-    Eigen::Isometry3d otMo = Eigen::Isometry3d::Identity();
-    for (const auto& m : om.tags) {
-      if (m.id == ob.tag_id) otMo = m.oMt.inverse();
-    }
     pm.valid = true;
     pm.signed_distance_px = SignedImageDistance(camera_, wMc_, models_.robot, f.robot_pose.cMo, ev.cm_vertex, om,
                                                 ob.cMo, ev.vertex, &pm.vc_line, &pm.cm_image);
     const auto gr = NumericJacobian<1>([&](const Vec6& d) -> Eigen::Matrix<double, 1, 1> {
       return Eigen::Matrix<double, 1, 1>(SignedImageDistance(
-          camera_, wMc_, models_.robot, Perturb(f.robot_pose.cMt, d) * rtMo, ev.cm_vertex, om, ob.cMo, ev.vertex));
+          camera_, wMc_, models_.robot, Perturb(f.robot_pose.cMo_measured, d), ev.cm_vertex, om, ob.cMo, ev.vertex));
     });
     const auto go = NumericJacobian<1>([&](const Vec6& d) -> Eigen::Matrix<double, 1, 1> {
       return Eigen::Matrix<double, 1, 1>(SignedImageDistance(camera_, wMc_, models_.robot, f.robot_pose.cMo,
-                                                             ev.cm_vertex, om, Perturb(ob.cMt, d) * otMo, ev.vertex));
+                                                             ev.cm_vertex, om, Perturb(ob.cMo_measured, d), ev.vertex));
     });
-    const double var = (gr * f.robot_pose.cov_cMt * gr.transpose())(0, 0) + (go * ob.cov_cMt * go.transpose())(0, 0);
+    const double var = (gr * f.robot_pose.cov_cMo * gr.transpose())(0, 0) + (go * ob.cov_cMo * go.transpose())(0, 0);
     pm.stddev_px = std::sqrt(std::max(var, 1e-12));
     const SideState prev = states_[e];
     pm.state = NextSideState(prev, pm.signed_distance_px, pm.stddev_px, k_);

@@ -43,20 +43,33 @@ struct NoiseModel {
 /// Event state of a pair after hysteresis (values of visual_event_t::STATE_*).
 enum class SideState : std::int8_t { kUnknown = 0, kNegative = 1, kOnLine = 2, kPositive = 3 };
 
+/// One tag of an object that gave a pose in one frame.
+struct TagEstimate {
+  int id = -1;
+  Eigen::Isometry3d cMt = Eigen::Isometry3d::Identity();  ///< its own pose (EstimateTagPose), as measured
+  double rms_error_px = 0;                                ///< of its own pose
+  double joint_rms_px = 0;                                ///< RMS of its corners at the object's pose (the joint fit)
+  bool outlier = false;  ///< inconsistent with the object's other tags: left out of the object's pose
+};
+
 /// The pose of one object in one frame.
 struct ObjectEstimate {
   bool valid = false;
-  int tag_id = -1;                                                            ///< the tag the pose comes from
-  Eigen::Isometry3d cMo = Eigen::Isometry3d::Identity();                      ///< object in the camera frame
-  Eigen::Isometry3d wMo = Eigen::Isometry3d::Identity();                      ///< object in the world
-  Eigen::Isometry3d cMt = Eigen::Isometry3d::Identity();                      ///< its tag in the camera frame
-  Eigen::Matrix<double, 6, 6> cov_cMt = Eigen::Matrix<double, 6, 6>::Zero();  ///< of cMt (left perturbation)
-  double rms_error_px = 0;
+  int tag_id = -1;  ///< the tag whose pose seeded the fit (with several tags the pose comes from all inliers)
+  Eigen::Isometry3d cMo = Eigen::Isometry3d::Identity();  ///< object in the camera frame
+  Eigen::Isometry3d wMo = Eigen::Isometry3d::Identity();  ///< object in the world
+  /// cMo as measured from the tags (before the contact refinement) and its covariance (rotation vector perturbation
+  /// on the left in the camera frame, then translation; sigma_c^2 (J^T J)^-1 of the fit over all inlier corners).
+  Eigen::Isometry3d cMo_measured = Eigen::Isometry3d::Identity();
+  Eigen::Matrix<double, 6, 6> cov_cMo = Eigen::Matrix<double, 6, 6>::Zero();
+  std::vector<TagEstimate> tags;  ///< every tag of the object that gave a pose, in model order
+  int tags_used = 0;              ///< tags in the fit (inliers)
+  double rms_error_px = 0;        ///< of the fit, over the inlier tags' corners
   bool ambiguous = false;
   double position_stddev = 0;     ///< metres, world position of the object origin, 1 sigma (largest axis)
   double orientation_stddev = 0;  ///< radians, 1 sigma (largest axis)
-  /// cMo / wMo were made flush with the table and the touching objects (contact_refinement.h); cMt stays the tag's
-  /// own measurement.
+  /// cMo / wMo were made flush with the table and the touching objects (contact_refinement.h); cMo_measured and the
+  /// tags' cMt stay the measurements.
   bool contact_refined = false;
 };
 
@@ -89,8 +102,8 @@ struct FrameFeatures {
   std::vector<Eigen::Vector2d> cm_images;  ///< ideal pixels of every robot vertex (top), empty if not seen
   std::vector<PairMeasurement> pairs;      ///< in ObjectModels::events order
   double corner_sigma_px = 0;              ///< noise estimate used in this frame
-  int tags_used = 0;
-  ContactRefinement contact;  ///< the face-contact refinement of this frame's poses
+  int tags_used = 0;                       ///< tags in the objects' fits (outliers not counted)
+  ContactRefinement contact;               ///< the face-contact refinement of this frame's poses
 };
 
 /// Hysteresis thresholds (in units of sigma_d) derived from the noise model.
@@ -127,7 +140,8 @@ class FeatureEstimator {
 
  private:
   ObjectEstimate EstimateObject(const ObjectModel& model, const std::vector<TagObservation>& tags,
-                                std::vector<std::optional<Eigen::Isometry3d>>& priors);
+                                std::vector<std::optional<Eigen::Isometry3d>>& priors,
+                                std::optional<Eigen::Isometry3d>& object_prior);
 
   CameraModel camera_;
   Eigen::Isometry3d wMc_;
@@ -140,6 +154,8 @@ class FeatureEstimator {
   double sigma2_;
   std::vector<std::optional<Eigen::Isometry3d>> robot_priors_;                  // per robot tag
   std::vector<std::vector<std::optional<Eigen::Isometry3d>>> obstacle_priors_;  // per obstacle, per tag
+  std::optional<Eigen::Isometry3d> robot_object_prior_;                         // last measured cMo
+  std::vector<std::optional<Eigen::Isometry3d>> obstacle_object_priors_;
   std::vector<SideState> states_;
   FrameFeatures last_;
 };

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <deque>
 #include <filesystem>
 #include <lcm/lcm-cpp.hpp>
@@ -306,15 +307,17 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
     td.tracked = !out.full_detection;
     // The pose of the tag as estimated by the features (same prior and rejection), if it belongs to an object.
     auto fill = [&](const ObjectEstimate& o) {
-      if (o.valid && o.tag_id == t.id) {
-        td.position[0] = o.cMt.translation().x(), td.position[1] = o.cMt.translation().y();
-        td.position[2] = o.cMt.translation().z();
-        ToQuaternion(o.cMt.linear(), td.orientation);
-        td.reprojection_error = o.rms_error_px;
+      if (!o.valid) return;
+      for (const TagEstimate& te : o.tags) {
+        if (te.id != t.id || te.outlier) continue;
+        td.position[0] = te.cMt.translation().x(), td.position[1] = te.cMt.translation().y();
+        td.position[2] = te.cMt.translation().z();
+        ToQuaternion(te.cMt.linear(), td.orientation);
+        td.reprojection_error = te.rms_error_px;
       }
     };
     td.orientation[0] = 1;
-    td.reprojection_error = -1;  // no pose: not a tag of the models, or rejected
+    td.reprojection_error = -1;  // no pose: not a tag of the models, rejected, or an outlier of its object
     fill(f.robot_pose);
     for (const auto& o : f.obstacle_poses) fill(o);
     d.detections.push_back(td);
@@ -360,6 +363,37 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
     out.faults.push_back(Fault(frame.utime, visco::fault_t::CODE_VISION_LOST, visco::fault_t::SEVERITY_INFO,
                                "robot seen again in " + Describe(frame), true));
   }
+
+  // Tags inconsistent with the other tags of their object: left out of its pose; reported once, cleared when the tag
+  // agrees again.
+  auto report_outliers = [&](const ObjectEstimate& o, const std::string& id) {
+    if (!o.valid) return;
+    std::string inliers;
+    for (const TagEstimate& te : o.tags) {
+      if (!te.outlier) inliers += (inliers.empty() ? "" : ", ") + std::to_string(te.id);
+    }
+    for (const TagEstimate& te : o.tags) {
+      const auto key = std::make_pair(id, te.id);
+      const bool reported = outlier_reported_.count(key) > 0;
+      if (te.outlier && !reported) {
+        outlier_reported_.insert(key);
+        char rms[32];
+        std::snprintf(rms, sizeof rms, "%.2f", te.joint_rms_px);
+        out.faults.push_back(Fault(frame.utime, visco::fault_t::CODE_VISION_LOST, visco::fault_t::SEVERITY_WARNING,
+                                   "tag " + std::to_string(te.id) + " of " + id + " is inconsistent with its tag(s) " +
+                                       inliers + " (" + rms + " px RMS at their pose): left out of the pose in " +
+                                       Describe(frame)));
+      } else if (!te.outlier && reported) {
+        outlier_reported_.erase(key);
+        out.faults.push_back(
+            Fault(frame.utime, visco::fault_t::CODE_VISION_LOST, visco::fault_t::SEVERITY_INFO,
+                  "tag " + std::to_string(te.id) + " of " + id + " consistent again in " + Describe(frame), true));
+      }
+    }
+  };
+  report_outliers(f.robot_pose, models.robot.id);
+  for (std::size_t k = 0; k < f.obstacle_poses.size(); ++k)
+    report_outliers(f.obstacle_poses[k], models.obstacles[k].id);
 
   // Events.
   auto& e = out.events;

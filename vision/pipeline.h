@@ -11,6 +11,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -126,6 +127,7 @@ class VisionPipeline {
   FeatureEstimator features_;
   std::optional<std::int64_t> last_utime_, last_seq_;
   bool robot_lost_reported_ = false;
+  std::set<std::pair<std::string, int>> outlier_reported_;  // (object id, tag id) reported as inconsistent
 };
 
 /// Microseconds since the epoch (system clock).

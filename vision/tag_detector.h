@@ -95,6 +95,14 @@ struct TagPose {
   Eigen::Matrix<double, 6, 6> unit_covariance = Eigen::Matrix<double, 6, 6>::Identity();
 };
 
+/// Least-squares solver for the pose of an object from the corners of several tags (multi_tag_pose.h). Started from
+/// the pose of one of its tags, except SQPnP (global, needs no start).
+enum class JointPoseSolver {
+  kOpenCvIterative,  ///< cv::solvePnP SOLVEPNP_ITERATIVE with the start as extrinsic guess (Levenberg-Marquardt)
+  kOpenCvSqpnp,      ///< cv::solvePnP SOLVEPNP_SQPNP (globally optimal for its object-space cost; no start)
+  kVispVirtualVs,    ///< ViSP vpPose::VIRTUAL_VS (Gauss-Newton virtual visual servoing) from the start
+};
+
 /// Pose-estimation settings and rejection rules.
 struct PoseOptions {
   /// The AprilTag library puts pixel centres at +0.5 (its corners are 0.5 px larger than in the convention of ViSP's
@@ -106,6 +114,17 @@ struct PoseOptions {
   /// this many times the corner noise (below it the data cannot decide: the pose is ambiguous).
   double corner_noise_px = 0.3;
   double ambiguity_sigmas = 3.0;
+  // Objects with several tags (multi_tag_pose.h): one pose from all their tags' corners at once.
+  /// Fit one pose to all tags of an object seen in a frame; false keeps the old rule (the single best tag).
+  bool joint_fit = true;
+  /// The solver of the joint fit (chosen by measurement: docs/vision.md, "Objects with several tags").
+  JointPoseSolver joint_solver = JointPoseSolver::kOpenCvIterative;
+  /// Consistency test of a tag with the joint pose: its corners' residual sum of squares against the chi-square
+  /// quantile (8 degrees of freedom) at this false-alarm probability for the current corner noise.
+  double tag_outlier_alpha = 1e-3;
+  /// Never reject a tag whose RMS residual at the joint pose is below this (pixels): the tags' mounting on the
+  /// object (position, rotation, flatness) is known to within about this much in the image.
+  double mount_tolerance_px = 0.5;
 };
 
 /// Estimates the pose of a square tag of side `tag_size` (metres) from its corners: both planar solutions (IPPE),

@@ -1,3 +1,6 @@
+// Objects with several tags (BM_TagPoses, BM_ObjectPoseFit, BM_ObjectPose): the joint fit per solver against the
+// baseline of the object's tags' own poses, on a rendered box with 4 tags (tests/vision/multi_tag_pose_test.cc).
+//
 // Per-frame cost on 640x480 frames: full AprilTag detection (the baseline) against tracking between detections (ROI
 // detection around the predicted corners; KLT on the corners), measured in the same run and on the same frames, with
 // the ratio as a counter (goal: tracked frames cost <= 0.3x a full detection) and the accuracy of the tracked corners
@@ -25,10 +28,12 @@
 #include <cstring>
 #include <ctime>
 #include <map>
+#include <stdexcept>
 
 #include "tests/vision/visp_ground_truth.h"
 #include "vision/camera.h"
 #include "vision/image.h"
+#include "vision/multi_tag_pose.h"
 #include "vision/object_model.h"
 #include "vision/pipeline.h"
 #include "vision/tag_renderer.h"
@@ -325,11 +330,97 @@ BENCHMARK(BM_EventLatency)
     ->Arg(static_cast<int>(TagTrackingMode::kRoiDetection))
     ->Unit(benchmark::kMillisecond);
 
+// A box with four tags (two on top, one on each side face seen), rendered once; its tags' own poses.
+struct BoxTags {
+  CameraModel cam = kCam;
+  std::vector<ObjectTagObservation> tags;
+  BoxTags() {
+    const ObjectModels m = ParseObjectModels(R"({
+      "robot": {"id": "box", "polygon": [[-0.06, -0.06], [0.06, -0.06], [0.06, 0.06], [-0.06, 0.06]], "height": 0.08,
+                "tags": [{"id": 10, "size": 0.04, "t": [-0.03, -0.025, 0.08], "rpy_deg": [0, 0, 0]},
+                         {"id": 11, "size": 0.04, "t": [0.03, 0.03, 0.08], "rpy_deg": [0, 0, 30]},
+                         {"id": 12, "size": 0.05, "t": [0, -0.06, 0.04], "rpy_deg": [90, 0, 0]},
+                         {"id": 13, "size": 0.05, "t": [0.06, 0, 0.04], "rpy_deg": [90, 0, 90]}]}})",
+                                             "box");
+    const Eigen::Isometry3d wMc = LoadExtrinsics("data/vision/demo_extrinsics.json");
+    Eigen::Isometry3d wMo = Eigen::Isometry3d::Identity();
+    wMo.linear() = RotationFromRpy(0, 0, -0.75);
+    wMo.translation() = Eigen::Vector3d(0.03, 0.08, 0);
+    RenderScene scene;
+    scene.polygons.push_back({{{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}}, 120});
+    AddPrism(scene, m.robot.polygon, m.robot.height, wMo, 200, 170);
+    for (const auto& t : m.robot.tags) scene.tags.push_back({t.family, t.id, t.size, wMo * t.oMt});
+    RenderOptions ro;
+    ro.noise_stddev = 2;
+    ro.blur_sigma = 0.6;
+    TagDetector detector;
+    const auto seen = detector.Detect(Render(kCam, wMc, scene, ro).view());
+    for (const auto& t : m.robot.tags) {
+      for (const auto& o : seen) {
+        if (o.id != t.id) continue;
+        ObjectTagObservation ot;
+        ot.id = t.id;
+        ot.corners = o.corners;
+        ot.size = t.size;
+        ot.oMt = t.oMt;
+        ot.pose = *EstimateTagPose(kCam, o.corners, t.size);
+        tags.push_back(ot);
+      }
+    }
+    if (tags.size() != 4) throw std::runtime_error("the benchmark box: not all 4 tags detected");
+  }
+};
+
+const BoxTags& GetBox() {
+  static const BoxTags b;
+  return b;
+}
+
+const char* SolverName(int s) { return s == 0 ? "OpenCV ITERATIVE" : s == 1 ? "OpenCV SQPNP" : "ViSP VIRTUAL_VS"; }
+
+// Baseline: the four tags' own poses (what every frame computes anyway).
+void BM_TagPoses(benchmark::State& state) {
+  const BoxTags& b = GetBox();
+  for (auto _ : state) {
+    for (const auto& t : b.tags) benchmark::DoNotOptimize(EstimateTagPose(b.cam, t.corners, t.size));
+  }
+  state.SetLabel(std::to_string(b.tags.size()) + " tags");
+}
+BENCHMARK(BM_TagPoses)->Unit(benchmark::kMicrosecond);
+
+// One joint fit over all four tags' corners from the first tag's pose.
+void BM_ObjectPoseFit(benchmark::State& state) {
+  const BoxTags& b = GetBox();
+  const auto solver = static_cast<JointPoseSolver>(state.range(0));
+  const std::vector<int> all{0, 1, 2, 3};
+  const Eigen::Isometry3d start = b.tags[0].pose.cMo * b.tags[0].oMt.inverse();
+  double rms = 0;
+  for (auto _ : state) {
+    Eigen::Isometry3d cMo = start;
+    rms = FitObjectPose(b.cam, b.tags, all, solver, cMo);
+    benchmark::DoNotOptimize(cMo);
+  }
+  state.counters["rms_px"] = rms;
+  state.SetLabel(SolverName(static_cast<int>(state.range(0))));
+}
+BENCHMARK(BM_ObjectPoseFit)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
+
+// The whole object pose: consensus over the tags' solutions, ambiguity rule, covariance.
+void BM_ObjectPose(benchmark::State& state) {
+  const BoxTags& b = GetBox();
+  PoseOptions o;
+  o.joint_solver = static_cast<JointPoseSolver>(state.range(0));
+  for (auto _ : state) benchmark::DoNotOptimize(EstimateObjectPose(b.cam, b.tags, o, 0.1));
+  state.SetLabel(SolverName(static_cast<int>(state.range(0))));
+}
+BENCHMARK(BM_ObjectPose)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
+
 }  // namespace
 }  // namespace visco::vision
 
 int main(int argc, char** argv) {
   visco::vision::GetFrames();  // read and render the frames before any timing
+  visco::vision::GetBox();
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::RunSpecifiedBenchmarks();

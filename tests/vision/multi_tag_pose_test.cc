@@ -1,0 +1,381 @@
+// Objects with several AprilTags: the joint fit over all their tags' corners against ground truth. A box (the robot)
+// with four tags, two on its top face and one on each of the two side faces the camera sees, rendered at seeded
+// random poses on the table (noise, blur): the joint pose against the single best tag's, per solver; the stated
+// position uncertainty against the actual errors; one tag occluded; a tag stuck on wrongly and a tag with corrupted
+// corners left out as outliers and reported (also by the pipeline, as faults).
+
+#include "vision/multi_tag_pose.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <random>
+
+#include "tests/vision/demo_world.h"
+#include "vision/camera.h"
+#include "vision/features.h"
+#include "vision/object_model.h"
+#include "vision/pipeline.h"
+#include "vision/tag_detector.h"
+#include "vision/tag_renderer.h"
+
+namespace visco::vision {
+namespace {
+
+const CameraModel& kCam = test_world::kDemoCamera;
+using test_world::Planar;
+
+constexpr double kPi = 3.14159265358979323846;
+
+// The box: 12 x 12 x 8 cm; tags 10 and 11 on the top face, 12 on the -y face, 13 on the +x face.
+ObjectModels BoxModels() {
+  return ParseObjectModels(R"({
+    "robot": {"id": "box", "polygon": [[-0.06, -0.06], [0.06, -0.06], [0.06, 0.06], [-0.06, 0.06]], "height": 0.08,
+              "tags": [{"id": 10, "size": 0.04, "t": [-0.03, -0.025, 0.08], "rpy_deg": [0, 0, 0]},
+                       {"id": 11, "size": 0.04, "t": [0.03, 0.03, 0.08], "rpy_deg": [0, 0, 30]},
+                       {"id": 12, "size": 0.05, "t": [0, -0.06, 0.04], "rpy_deg": [90, 0, 0]},
+                       {"id": 13, "size": 0.05, "t": [0.06, 0, 0.04], "rpy_deg": [90, 0, 90]}]}})",
+                           "box model");
+}
+
+Eigen::Isometry3d WorldMc() { return LoadExtrinsics("data/vision/demo_extrinsics.json"); }
+
+struct SceneOptions {
+  int skip_tag = -1;                                                   // not rendered (occluded)
+  int misplaced_tag = -1;                                              // rendered at `misplaced` instead of its mount
+  Eigen::Isometry3d misplaced = Eigen::Isometry3d::Identity();         // oMt actually used for it
+  std::uint32_t seed = 1;
+};
+
+GrayImage RenderBox(const ObjectModel& box, const Eigen::Isometry3d& wMo, const SceneOptions& so) {
+  RenderScene scene;
+  scene.polygons.push_back({{{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}}, 120});
+  AddPrism(scene, box.polygon, box.height, wMo, 200, 170);
+  for (const auto& t : box.tags) {
+    if (t.id == so.skip_tag) continue;
+    scene.tags.push_back({t.family, t.id, t.size, wMo * (t.id == so.misplaced_tag ? so.misplaced : t.oMt)});
+  }
+  RenderOptions ro;
+  ro.noise_stddev = 2;
+  ro.blur_sigma = 0.6;
+  ro.seed = so.seed;
+  return Render(kCam, WorldMc(), scene, ro);
+}
+
+// Random box poses in view with both side faces visible from the camera.
+Eigen::Isometry3d RandomPose(std::mt19937& rng) {
+  std::uniform_real_distribution<double> x(-0.12, 0.12), y(0.0, 0.15), yaw(-1.0, -0.55);
+  return Planar(x(rng), y(rng), yaw(rng));
+}
+
+double RotationError(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
+  return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle();
+}
+
+TEST(ChiSquare, QuantilesOfEvenDegreesOfFreedom) {
+  EXPECT_NEAR(ChiSquareQuantileEven(2, 0.05), 5.9915, 1e-3);
+  EXPECT_NEAR(ChiSquareQuantileEven(8, 0.05), 15.507, 1e-3);
+  EXPECT_NEAR(ChiSquareQuantileEven(8, 1e-3), 26.124, 1e-3);
+}
+
+// The joint fit against the single best tag on the same detections, over seeded frames; and the solvers compared.
+TEST(MultiTagPose, JointFitBeatsTheBestSingleTagOnRenderedFrames) {
+  const ObjectModels m = BoxModels();
+  const Eigen::Isometry3d wMc = WorldMc();
+  DetectorOptions dopt;
+  TagDetector detector(dopt);
+  ContactOptions no_contact;
+  no_contact.enabled = false;  // the raw fits, not their flush refinement
+  PoseOptions single_opt;
+  single_opt.joint_fit = false;
+  FeatureEstimator single(kCam, wMc, m, NoiseModel{}, single_opt, no_contact);
+  FeatureEstimator joint(kCam, wMc, m, NoiseModel{}, PoseOptions{}, no_contact);
+  const JointPoseSolver solvers[] = {JointPoseSolver::kOpenCvIterative, JointPoseSolver::kOpenCvSqpnp,
+                                     JointPoseSolver::kVispVirtualVs};
+  const char* solver_names[] = {"OpenCV ITERATIVE", "OpenCV SQPNP", "ViSP VIRTUAL_VS"};
+  std::vector<FeatureEstimator> by_solver;
+  for (const auto s : solvers) {
+    PoseOptions o;
+    o.joint_solver = s;
+    by_solver.emplace_back(kCam, wMc, m, NoiseModel{}, o, no_contact);
+  }
+  std::mt19937 rng(2026);
+  const int frames = 40;
+  double single_t = 0, single_r = 0, joint_t = 0, joint_r = 0, joint_t_max = 0, joint_r_max = 0;
+  double solver_t[3] = {0, 0, 0}, solver_r[3] = {0, 0, 0}, solver_ms[3] = {0, 0, 0};
+  double nees = 0, single_sd = 0, joint_sd = 0, single_ms = 0;
+  int used = 0, tags_in_fit = 0;
+  for (int i = 0; i < frames; ++i) {
+    const Eigen::Isometry3d wMo = RandomPose(rng);
+    SceneOptions so;
+    so.seed = 500 + i;
+    const GrayImage img = RenderBox(m.robot, wMo, so);
+    const auto tags = detector.Detect(img.view());
+    single.Reset();
+    joint.Reset();
+    const auto s0 = std::chrono::steady_clock::now();
+    const FrameFeatures fs = single.Update(tags);
+    single_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - s0).count();
+    const FrameFeatures fj = joint.Update(tags);
+    ASSERT_TRUE(fs.robot_pose.valid) << i;
+    ASSERT_TRUE(fj.robot_pose.valid) << i;
+    ASSERT_GE(fj.robot_pose.tags.size(), 3u) << "frame " << i << ": too few tags detected";
+    EXPECT_EQ(fj.robot_pose.tags_used, static_cast<int>(fj.robot_pose.tags.size())) << "frame " << i;
+    tags_in_fit += fj.robot_pose.tags_used;
+    ++used;
+    const double ts = (fs.robot_pose.wMo.translation() - wMo.translation()).norm();
+    const double tj = (fj.robot_pose.wMo.translation() - wMo.translation()).norm();
+    const double rj = RotationError(fj.robot_pose.wMo, wMo);
+    single_t += ts;
+    single_r += RotationError(fs.robot_pose.wMo, wMo);
+    joint_t += tj;
+    joint_r += rj;
+    joint_t_max = std::max(joint_t_max, tj);
+    joint_r_max = std::max(joint_r_max, rj);
+    // The robot's planar position: error against its stated covariance (normalised estimation error squared).
+    const Eigen::Vector2d e = fj.robot.position - wMo.translation().head<2>();
+    nees += e.dot(fj.robot.covariance.ldlt().solve(e));
+    single_sd += fs.robot.position_stddev;
+    joint_sd += fj.robot.position_stddev;
+    for (int s = 0; s < 3; ++s) {
+      by_solver[s].Reset();
+      const auto t0 = std::chrono::steady_clock::now();
+      const FrameFeatures& f = by_solver[s].Update(tags);
+      solver_ms[s] += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      ASSERT_TRUE(f.robot_pose.valid);
+      solver_t[s] += (f.robot_pose.wMo.translation() - wMo.translation()).norm();
+      solver_r[s] += RotationError(f.robot_pose.wMo, wMo);
+    }
+  }
+  single_t /= used, single_r /= used, joint_t /= used, joint_r /= used, nees /= used;
+  single_sd /= used, joint_sd /= used;
+  std::printf("%d frames, %.2f tags per fit; mean position error single best tag %.2f mm, joint %.2f mm (max %.2f)\n",
+              used, static_cast<double>(tags_in_fit) / used, single_t * 1e3, joint_t * 1e3, joint_t_max * 1e3);
+  std::printf("mean rotation error single best tag %.2f mrad, joint %.2f mrad (max %.2f)\n", single_r * 1e3,
+              joint_r * 1e3, joint_r_max * 1e3);
+  std::printf("stated robot position stddev: single %.2f mm, joint %.2f mm; joint NEES %.2f (2 if consistent)\n",
+              single_sd * 1e3, joint_sd * 1e3, nees);
+  std::printf("single best tag: %.3f ms per frame (features)\n", single_ms / used);
+  for (int s = 0; s < 3; ++s) {
+    std::printf("solver %-17s mean error %.3f mm %.3f mrad, %.3f ms per frame (features, all 4 tags)\n",
+                solver_names[s], solver_t[s] / used * 1e3, solver_r[s] / used * 1e3, solver_ms[s] / used);
+  }
+  EXPECT_LT(joint_t, 0.6 * single_t);
+  EXPECT_LT(joint_r, 0.6 * single_r);
+  EXPECT_LT(joint_t, 0.002);
+  EXPECT_LT(joint_r, 0.005);
+  EXPECT_LT(joint_t_max, 0.005);
+  EXPECT_LT(joint_sd, 0.8 * single_sd);
+  EXPECT_GT(nees, 0.3);
+  EXPECT_LT(nees, 8.0);
+}
+
+// Three tags spread on a flat plate (coplanar: the joint fit keeps the planar-ambiguity rule).
+TEST(MultiTagPose, PlateWithThreeCoplanarTags) {
+  const ObjectModels m = ParseObjectModels(R"({
+    "robot": {"id": "plate", "polygon": [[-0.1, -0.07], [0.1, -0.07], [0.1, 0.07], [-0.1, 0.07]], "height": 0.005,
+              "tags": [{"id": 20, "size": 0.04, "t": [-0.07, -0.04, 0.005], "rpy_deg": [0, 0, 0]},
+                       {"id": 21, "size": 0.04, "t": [0.07, -0.04, 0.005], "rpy_deg": [0, 0, 0]},
+                       {"id": 22, "size": 0.04, "t": [0, 0.045, 0.005], "rpy_deg": [0, 0, 90]}]}})",
+                                           "plate model");
+  const Eigen::Isometry3d wMc = WorldMc();
+  TagDetector detector;
+  ContactOptions no_contact;
+  no_contact.enabled = false;
+  PoseOptions single_opt;
+  single_opt.joint_fit = false;
+  FeatureEstimator single(kCam, wMc, m, NoiseModel{}, single_opt, no_contact);
+  FeatureEstimator joint(kCam, wMc, m, NoiseModel{}, PoseOptions{}, no_contact);
+  std::mt19937 rng(99);
+  std::uniform_real_distribution<double> x(-0.1, 0.1), y(0.0, 0.15), yaw(-3, 3);
+  const int frames = 12;
+  double single_t = 0, single_r = 0, joint_t = 0, joint_r = 0;
+  int ambiguous = 0;
+  for (int i = 0; i < frames; ++i) {
+    const Eigen::Isometry3d wMo = Planar(x(rng), y(rng), yaw(rng));
+    SceneOptions so;
+    so.seed = 300 + i;
+    const auto tags = detector.Detect(RenderBox(m.robot, wMo, so).view());
+    single.Reset();
+    joint.Reset();
+    const FrameFeatures fs = single.Update(tags);
+    const FrameFeatures& fj = joint.Update(tags);
+    ASSERT_TRUE(fs.robot_pose.valid && fj.robot_pose.valid) << i;
+    ASSERT_EQ(fj.robot_pose.tags_used, 3) << i;
+    ambiguous += fj.robot_pose.ambiguous ? 1 : 0;
+    single_t += (fs.robot_pose.wMo.translation() - wMo.translation()).norm() / frames;
+    single_r += RotationError(fs.robot_pose.wMo, wMo) / frames;
+    joint_t += (fj.robot_pose.wMo.translation() - wMo.translation()).norm() / frames;
+    joint_r += RotationError(fj.robot_pose.wMo, wMo) / frames;
+    EXPECT_LT(RotationError(fj.robot_pose.wMo, wMo), 0.01) << i;  // never the mirrored pose
+  }
+  std::printf("plate, %d frames: mean position error single best tag %.2f mm, joint %.2f mm; rotation %.2f / %.2f "
+              "mrad; joint fit ambiguous in %d frames\n",
+              frames, single_t * 1e3, joint_t * 1e3, single_r * 1e3, joint_r * 1e3, ambiguous);
+  EXPECT_LT(joint_t, 0.6 * single_t);
+  EXPECT_LT(joint_r, 0.6 * single_r);
+  EXPECT_LT(joint_t, 0.002);
+}
+
+// A tag occluded: the pose from the remaining tags.
+TEST(MultiTagPose, OneTagOccluded) {
+  const ObjectModels m = BoxModels();
+  const Eigen::Isometry3d wMc = WorldMc();
+  TagDetector detector;
+  ContactOptions no_contact;
+  no_contact.enabled = false;
+  FeatureEstimator est(kCam, wMc, m, NoiseModel{}, PoseOptions{}, no_contact);
+  std::mt19937 rng(77);
+  for (int i = 0; i < 8; ++i) {
+    const Eigen::Isometry3d wMo = RandomPose(rng);
+    SceneOptions so;
+    so.seed = 900 + i;
+    so.skip_tag = 10 + i % 4;
+    const FrameFeatures& f = est.Update(detector.Detect(RenderBox(m.robot, wMo, so).view()));
+    ASSERT_TRUE(f.robot_pose.valid) << i;
+    EXPECT_GE(f.robot_pose.tags_used, 2) << i;
+    EXPECT_EQ(f.robot_pose.tags_used, static_cast<int>(f.robot_pose.tags.size())) << i;  // no outlier
+    for (const auto& t : f.robot_pose.tags) EXPECT_NE(t.id, so.skip_tag);
+    EXPECT_LT((f.robot_pose.wMo.translation() - wMo.translation()).norm(), 0.004) << i;
+    EXPECT_LT(RotationError(f.robot_pose.wMo, wMo), 0.01) << i;
+    est.Reset();
+  }
+}
+
+// A tag stuck on wrongly (turned by 90 degrees and 1.5 cm off its place in the model) or with corrupted corners is an
+// outlier: left out, flagged, and the pose from the others is correct.
+TEST(MultiTagPose, WrongTagIsRejectedAsOutlier) {
+  const ObjectModels m = BoxModels();
+  const Eigen::Isometry3d wMc = WorldMc();
+  TagDetector detector;
+  ContactOptions no_contact;
+  no_contact.enabled = false;
+  FeatureEstimator est(kCam, wMc, m, NoiseModel{}, PoseOptions{}, no_contact);
+  std::mt19937 rng(31);
+  int misplaced_rejected = 0, corrupted_rejected = 0;
+  const int frames = 6;
+  for (int i = 0; i < frames; ++i) {
+    const Eigen::Isometry3d wMo = RandomPose(rng);
+    // Misplaced: tag 13 (or 10) turned by 90 degrees about its normal and moved 1.5 cm along its face.
+    const int bad = i % 2 == 0 ? 13 : 10;
+    SceneOptions so;
+    so.seed = 700 + i;
+    so.misplaced_tag = bad;
+    for (const auto& t : m.robot.tags) {
+      if (t.id != bad) continue;
+      Eigen::Isometry3d turn = Eigen::Isometry3d::Identity();
+      turn.linear() = Eigen::AngleAxisd(kPi / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      turn.translation() = Eigen::Vector3d(0.015, 0, 0);
+      so.misplaced = t.oMt * turn;
+    }
+    est.Reset();
+    const FrameFeatures f = est.Update(detector.Detect(RenderBox(m.robot, wMo, so).view()));
+    ASSERT_TRUE(f.robot_pose.valid) << i;
+    ASSERT_GE(f.robot_pose.tags.size(), 3u) << i;
+    ASSERT_TRUE(std::any_of(f.robot_pose.tags.begin(), f.robot_pose.tags.end(),
+                            [&](const TagEstimate& t) { return t.id == bad; }))
+        << i;
+    for (const auto& t : f.robot_pose.tags) {
+      EXPECT_EQ(t.outlier, t.id == bad) << "frame " << i << " tag " << t.id << " joint rms " << t.joint_rms_px;
+      if (t.outlier) {
+        ++misplaced_rejected;
+        std::printf("frame %d: misplaced tag %d left out, %.2f px RMS at the joint pose\n", i, t.id, t.joint_rms_px);
+      }
+    }
+    EXPECT_EQ(f.robot_pose.tags_used, static_cast<int>(f.robot_pose.tags.size()) - 1);
+    EXPECT_LT((f.robot_pose.wMo.translation() - wMo.translation()).norm(), 0.004) << i;
+    EXPECT_LT(RotationError(f.robot_pose.wMo, wMo), 0.01) << i;
+
+    // Corrupted corners: tag 11's detected quad displaced by (3, -2) px.
+    SceneOptions good;
+    good.seed = 800 + i;
+    auto tags = detector.Detect(RenderBox(m.robot, wMo, good).view());
+    for (auto& t : tags) {
+      if (t.id != 11) continue;
+      for (auto& c : t.corners) c += Eigen::Vector2d(3, -2);
+    }
+    est.Reset();
+    const FrameFeatures g = est.Update(tags);
+    ASSERT_TRUE(g.robot_pose.valid) << i;
+    for (const auto& t : g.robot_pose.tags) {
+      EXPECT_EQ(t.outlier, t.id == 11) << "frame " << i << " tag " << t.id << " joint rms " << t.joint_rms_px;
+      corrupted_rejected += t.outlier ? 1 : 0;
+    }
+    EXPECT_LT((g.robot_pose.wMo.translation() - wMo.translation()).norm(), 0.004) << i;
+  }
+  EXPECT_EQ(misplaced_rejected, frames);
+  EXPECT_EQ(corrupted_rejected, frames);
+}
+
+// Two tags that disagree: the one consistent with the previous frame's pose is kept, the other reported.
+TEST(MultiTagPose, TwoTagsDisagreeThePriorDecides) {
+  const ObjectModels m = BoxModels();
+  const Eigen::Isometry3d wMc = WorldMc();
+  TagDetector detector;
+  ContactOptions no_contact;
+  no_contact.enabled = false;
+  FeatureEstimator est(kCam, wMc, m, NoiseModel{}, PoseOptions{}, no_contact);
+  const Eigen::Isometry3d wMo = Planar(0.02, 0.06, -0.6);
+  SceneOptions so;
+  so.seed = 42;
+  ASSERT_TRUE(est.Update(detector.Detect(RenderBox(m.robot, wMo, so).view())).robot_pose.valid);
+  // Next frame: only tags 12 and 13 visible, 13 stuck on wrongly.
+  auto tags = detector.Detect(RenderBox(m.robot, wMo, [&] {
+                                SceneOptions s;
+                                s.seed = 43;
+                                s.misplaced_tag = 13;
+                                s.misplaced = m.robot.tags[3].oMt;
+                                s.misplaced.translation() += Eigen::Vector3d(0, 0.02, 0);
+                                return s;
+                              }())
+                                  .view());
+  tags.erase(std::remove_if(tags.begin(), tags.end(), [](const TagObservation& t) { return t.id == 10 || t.id == 11; }),
+             tags.end());
+  ASSERT_EQ(tags.size(), 2u);
+  const FrameFeatures& f = est.Update(tags);
+  ASSERT_TRUE(f.robot_pose.valid);
+  ASSERT_EQ(f.robot_pose.tags.size(), 2u);
+  EXPECT_FALSE(f.robot_pose.tags[0].outlier);  // 12
+  EXPECT_TRUE(f.robot_pose.tags[1].outlier);   // 13
+  EXPECT_LT((f.robot_pose.wMo.translation() - wMo.translation()).norm(), 0.004);
+}
+
+// The pipeline reports an outlier tag once as a fault naming it, and clears it when the tag agrees again.
+TEST(MultiTagPose, PipelineReportsOutlierTag) {
+  const ObjectModels m = BoxModels();
+  PipelineOptions po;
+  po.tracker.mode = TagTrackingMode::kDetectEveryFrame;
+  VisionPipeline pipeline(kCam, WorldMc(), m, po);
+  const Eigen::Isometry3d wMo = Planar(-0.02, 0.08, -0.5);
+  std::vector<std::string> messages;
+  for (int i = 0; i < 4; ++i) {
+    SceneOptions so;
+    so.seed = 60 + i;
+    if (i < 3) {
+      so.misplaced_tag = 12;
+      so.misplaced = m.robot.tags[2].oMt;
+      so.misplaced.translation() += Eigen::Vector3d(0.015, 0, 0);
+    }
+    Frame frame;
+    frame.seq = i;
+    frame.utime = 1'000'000 + 100'000 * i;
+    frame.image = RenderBox(m.robot, wMo, so);
+    const PipelineOutput out = pipeline.Process(frame, NowUtime());
+    ASSERT_TRUE(out.processed);
+    ASSERT_TRUE(out.robot.valid);
+    for (const auto& d : out.detections.detections) {
+      if (d.id == 12) {
+        EXPECT_EQ(d.reprojection_error < 0, i < 3) << i;  // an outlier's pose is not published
+      }
+    }
+    for (const auto& fault : out.faults) messages.push_back(std::to_string(i) + ": " + fault.message);
+  }
+  ASSERT_EQ(messages.size(), 2u);
+  EXPECT_EQ(messages[0].rfind("0: tag 12 of box is inconsistent with its tag(s) 10, 11, 13", 0), 0u) << messages[0];
+  EXPECT_EQ(messages[1].rfind("3: tag 12 of box consistent again", 0), 0u) << messages[1];
+}
+
+}  // namespace
+}  // namespace visco::vision
