@@ -58,7 +58,8 @@ double Ssr(const CameraModel& cam, const Points& p, const Eigen::Isometry3d& cMo
     const Eigen::Vector3d c = rx + cMo.translation();
     if (!(c.z() > 0)) return std::numeric_limits<double>::infinity();
     const double iz = 1.0 / c.z();
-    const Eigen::Vector2d r(cam.u0 + cam.px * c.x() * iz - p.ideal[i].x(), cam.v0 + cam.py * c.y() * iz - p.ideal[i].y());
+    const Eigen::Vector2d r(cam.u0 + cam.px * c.x() * iz - p.ideal[i].x(),
+                            cam.v0 + cam.py * c.y() * iz - p.ideal[i].y());
     ssr += r.squaredNorm();
     if (jtj != nullptr) {
       Eigen::Matrix<double, 2, 3> dproj;
@@ -232,7 +233,8 @@ double FitObjectPose(const CameraModel& camera, const std::vector<ObjectTagObser
   return std::sqrt(ssr / static_cast<double>(p.obj.size()));
 }
 
-std::optional<ObjectPoseFit> EstimateObjectPose(const CameraModel& camera, const std::vector<ObjectTagObservation>& tags,
+std::optional<ObjectPoseFit> EstimateObjectPose(const CameraModel& camera,
+                                                const std::vector<ObjectTagObservation>& tags,
                                                 const PoseOptions& options, double corner_sigma_px,
                                                 const std::optional<Eigen::Isometry3d>& prior_cMo,
                                                 const std::optional<Eigen::Vector3d>& expected_up_c) {
@@ -327,8 +329,9 @@ std::optional<ObjectPoseFit> EstimateObjectPose(const CameraModel& camera, const
     if (c.set.size() != best_size) continue;
     bool dup = false;
     for (auto& o : top) {
-      if (o.set == c.set && RotationDistance(o.cMo.linear(), c.cMo.linear()) < 1e-4 &&
-          (o.cMo.translation() - c.cMo.translation()).norm() < 1e-5) {
+      // The same minimum reached from two seeds (to the solver's tolerance); mirrored poses differ far more.
+      if (o.set == c.set && RotationDistance(o.cMo.linear(), c.cMo.linear()) < 1e-3 &&
+          (o.cMo.translation() - c.cMo.translation()).norm() < 1e-4) {
         dup = true;
         if (c.rms < o.rms) o = c;
       }
@@ -355,6 +358,7 @@ std::optional<ObjectPoseFit> EstimateObjectPose(const CameraModel& camera, const
     Choice ch;
     if (best_size == 1) {
       // One tag: its own decision (EstimateTagPose's rule with its prior and the table normal).
+      ch.c = group.front();
       for (const auto& g : group) {
         if (g.seed_chosen) ch.c = g;
       }

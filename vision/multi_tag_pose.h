@@ -41,10 +41,10 @@ struct ObjectTagObservation {
 struct ObjectPoseFit {
   Eigen::Isometry3d cMo = Eigen::Isometry3d::Identity();  ///< object frame in the camera frame
   double rms_error_px = 0;                                ///< RMS over the inlier tags' corners, ideal pixels
-  bool ambiguous = false;        ///< another pose of the same tags fits within the noise; prior / "up" decided
-  int reference = -1;            ///< index of the tag whose solution seeded the chosen fit
-  std::vector<int> inliers;      ///< indices into the observations, ascending
-  std::vector<int> outliers;     ///< indices of the tags inconsistent with the chosen pose
+  bool ambiguous = false;          ///< another pose of the same tags fits within the noise; prior / "up" decided
+  int reference = -1;              ///< index of the tag whose solution seeded the chosen fit
+  std::vector<int> inliers;        ///< indices into the observations, ascending
+  std::vector<int> outliers;       ///< indices of the tags inconsistent with the chosen pose
   std::vector<double> tag_rms_px;  ///< per observation: RMS of its corners at cMo
   double gate_px = 0;              ///< the consistency gate used (RMS, pixels)
   /// Covariance of cMo for an isotropic corner noise of 1 pixel (rotation vector perturbation on the left in the
@@ -56,7 +56,8 @@ struct ObjectPoseFit {
 /// (for the consistency gate); `prior_cMo` the previous frame's object pose, if any; `expected_up_c` the direction
 /// the object's z axis should have in the camera frame (the table normal), if known. Returns nullopt if `tags` is
 /// empty. Not real-time safe (allocates).
-std::optional<ObjectPoseFit> EstimateObjectPose(const CameraModel& camera, const std::vector<ObjectTagObservation>& tags,
+std::optional<ObjectPoseFit> EstimateObjectPose(const CameraModel& camera,
+                                                const std::vector<ObjectTagObservation>& tags,
                                                 const PoseOptions& options, double corner_sigma_px,
                                                 const std::optional<Eigen::Isometry3d>& prior_cMo = std::nullopt,
                                                 const std::optional<Eigen::Vector3d>& expected_up_c = std::nullopt);

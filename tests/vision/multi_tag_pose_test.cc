@@ -43,9 +43,9 @@ ObjectModels BoxModels() {
 Eigen::Isometry3d WorldMc() { return LoadExtrinsics("data/vision/demo_extrinsics.json"); }
 
 struct SceneOptions {
-  int skip_tag = -1;                                                   // not rendered (occluded)
-  int misplaced_tag = -1;                                              // rendered at `misplaced` instead of its mount
-  Eigen::Isometry3d misplaced = Eigen::Isometry3d::Identity();         // oMt actually used for it
+  int skip_tag = -1;                                            // not rendered (occluded)
+  int misplaced_tag = -1;                                       // rendered at `misplaced` instead of its mount
+  Eigen::Isometry3d misplaced = Eigen::Isometry3d::Identity();  // oMt actually used for it
   std::uint32_t seed = 1;
 };
 
@@ -211,9 +211,10 @@ TEST(MultiTagPose, PlateWithThreeCoplanarTags) {
     joint_r += RotationError(fj.robot_pose.wMo, wMo) / frames;
     EXPECT_LT(RotationError(fj.robot_pose.wMo, wMo), 0.01) << i;  // never the mirrored pose
   }
-  std::printf("plate, %d frames: mean position error single best tag %.2f mm, joint %.2f mm; rotation %.2f / %.2f "
-              "mrad; joint fit ambiguous in %d frames\n",
-              frames, single_t * 1e3, joint_t * 1e3, single_r * 1e3, joint_r * 1e3, ambiguous);
+  std::printf(
+      "plate, %d frames: mean position error single best tag %.2f mm, joint %.2f mm; rotation %.2f / %.2f "
+      "mrad; joint fit ambiguous in %d frames\n",
+      frames, single_t * 1e3, joint_t * 1e3, single_r * 1e3, joint_r * 1e3, ambiguous);
   EXPECT_LT(joint_t, 0.6 * single_t);
   EXPECT_LT(joint_r, 0.6 * single_r);
   EXPECT_LT(joint_t, 0.002);
@@ -274,9 +275,9 @@ TEST(MultiTagPose, WrongTagIsRejectedAsOutlier) {
     const FrameFeatures f = est.Update(detector.Detect(RenderBox(m.robot, wMo, so).view()));
     ASSERT_TRUE(f.robot_pose.valid) << i;
     ASSERT_GE(f.robot_pose.tags.size(), 3u) << i;
-    ASSERT_TRUE(std::any_of(f.robot_pose.tags.begin(), f.robot_pose.tags.end(),
-                            [&](const TagEstimate& t) { return t.id == bad; }))
-        << i;
+    ASSERT_TRUE(std::any_of(f.robot_pose.tags.begin(), f.robot_pose.tags.end(), [&](const TagEstimate& t) {
+      return t.id == bad;
+    })) << i;
     for (const auto& t : f.robot_pose.tags) {
       EXPECT_EQ(t.outlier, t.id == bad) << "frame " << i << " tag " << t.id << " joint rms " << t.joint_rms_px;
       if (t.outlier) {
@@ -322,14 +323,15 @@ TEST(MultiTagPose, TwoTagsDisagreeThePriorDecides) {
   so.seed = 42;
   ASSERT_TRUE(est.Update(detector.Detect(RenderBox(m.robot, wMo, so).view())).robot_pose.valid);
   // Next frame: only tags 12 and 13 visible, 13 stuck on wrongly.
-  auto tags = detector.Detect(RenderBox(m.robot, wMo, [&] {
-                                SceneOptions s;
-                                s.seed = 43;
-                                s.misplaced_tag = 13;
-                                s.misplaced = m.robot.tags[3].oMt;
-                                s.misplaced.translation() += Eigen::Vector3d(0, 0.02, 0);
-                                return s;
-                              }())
+  auto tags = detector.Detect(RenderBox(m.robot, wMo,
+                                        [&] {
+                                          SceneOptions s;
+                                          s.seed = 43;
+                                          s.misplaced_tag = 13;
+                                          s.misplaced = m.robot.tags[3].oMt;
+                                          s.misplaced.translation() += Eigen::Vector3d(0, 0.02, 0);
+                                          return s;
+                                        }())
                                   .view());
   tags.erase(std::remove_if(tags.begin(), tags.end(), [](const TagObservation& t) { return t.id == 10 || t.id == 11; }),
              tags.end());
@@ -372,6 +374,7 @@ TEST(MultiTagPose, PipelineReportsOutlierTag) {
     }
     for (const auto& fault : out.faults) messages.push_back(std::to_string(i) + ": " + fault.message);
   }
+  for (const auto& msg : messages) std::printf("fault %s\n", msg.c_str());
   ASSERT_EQ(messages.size(), 2u);
   EXPECT_EQ(messages[0].rfind("0: tag 12 of box is inconsistent with its tag(s) 10, 11, 13", 0), 0u) << messages[0];
   EXPECT_EQ(messages[1].rfind("3: tag 12 of box consistent again", 0), 0u) << messages[1];
