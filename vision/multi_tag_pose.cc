@@ -42,34 +42,19 @@ Points Gather(const CameraModel& cam, const std::vector<ObjectTagObservation>& t
   return p;
 }
 
-Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
-}
-
 // Sum of squared residuals (ideal pixels) and, optionally, J^T J for a left perturbation (rotation vector, then
 // translation) of cMo.
 double Ssr(const CameraModel& cam, const Points& p, const Eigen::Isometry3d& cMo, Mat6* jtj) {
   double ssr = 0;
   if (jtj != nullptr) jtj->setZero();
+  Eigen::Vector2d r;
+  Eigen::Matrix<double, 2, 6> j;
   for (std::size_t i = 0; i < p.obj.size(); ++i) {
-    const Eigen::Vector3d rx = cMo.linear() * p.obj[i];
-    const Eigen::Vector3d c = rx + cMo.translation();
-    if (!(c.z() > 0)) return std::numeric_limits<double>::infinity();
-    const double iz = 1.0 / c.z();
-    const Eigen::Vector2d r(cam.u0 + cam.px * c.x() * iz - p.ideal[i].x(),
-                            cam.v0 + cam.py * c.y() * iz - p.ideal[i].y());
-    ssr += r.squaredNorm();
-    if (jtj != nullptr) {
-      Eigen::Matrix<double, 2, 3> dproj;
-      dproj << cam.px * iz, 0, -cam.px * c.x() * iz * iz, 0, cam.py * iz, -cam.py * c.y() * iz * iz;
-      Eigen::Matrix<double, 3, 6> dp;
-      dp.leftCols<3>() = -Skew(rx);
-      dp.rightCols<3>() = Eigen::Matrix3d::Identity();
-      const Eigen::Matrix<double, 2, 6> j = dproj * dp;
-      *jtj += j.transpose() * j;
+    if (!ReprojectPoint(cam, cMo, p.obj[i], p.ideal[i], r, jtj != nullptr ? &j : nullptr)) {
+      return std::numeric_limits<double>::infinity();
     }
+    ssr += r.squaredNorm();
+    if (jtj != nullptr) *jtj += j.transpose() * j;
   }
   return ssr;
 }

@@ -60,19 +60,11 @@ using Mat86 = Eigen::Matrix<double, 8, 6>;
 void Residuals(const CameraModel& cam, const std::array<Eigen::Vector3d, 4>& obj,
                const std::array<Eigen::Vector2d, 4>& ideal, const Eigen::Isometry3d& cMo, Vec8& r, Mat86* jac) {
   for (int i = 0; i < 4; ++i) {
-    const Eigen::Vector3d rx = cMo.linear() * obj[i];
-    const Eigen::Vector3d p = rx + cMo.translation();
-    const double iz = 1.0 / p.z();
-    r(2 * i) = cam.u0 + cam.px * p.x() * iz - ideal[i].x();
-    r(2 * i + 1) = cam.v0 + cam.py * p.y() * iz - ideal[i].y();
-    if (jac != nullptr) {
-      Eigen::Matrix<double, 2, 3> dproj;
-      dproj << cam.px * iz, 0, -cam.px * p.x() * iz * iz, 0, cam.py * iz, -cam.py * p.y() * iz * iz;
-      Eigen::Matrix<double, 3, 6> dp;
-      dp.leftCols<3>() = -Skew(rx);
-      dp.rightCols<3>() = Eigen::Matrix3d::Identity();
-      jac->block<2, 6>(2 * i, 0) = dproj * dp;
-    }
+    Eigen::Vector2d ri;
+    Eigen::Matrix<double, 2, 6> ji;
+    ReprojectPoint(cam, cMo, obj[i], ideal[i], ri, jac != nullptr ? &ji : nullptr);
+    r.segment<2>(2 * i) = ri;
+    if (jac != nullptr) jac->block<2, 6>(2 * i, 0) = ji;
   }
 }
 
@@ -341,6 +333,24 @@ bool RefineCorners(const GrayImageView& image, Corners& corners, double range_px
   }
   corners = c;
   return true;
+}
+
+bool ReprojectPoint(const CameraModel& camera, const Eigen::Isometry3d& cMo, const Eigen::Vector3d& point_o,
+                    const Eigen::Vector2d& ideal, Eigen::Vector2d& residual, Eigen::Matrix<double, 2, 6>* jacobian) {
+  const Eigen::Vector3d rx = cMo.linear() * point_o;
+  const Eigen::Vector3d c = rx + cMo.translation();
+  const double iz = 1.0 / c.z();
+  residual =
+      Eigen::Vector2d(camera.u0 + camera.px * c.x() * iz - ideal.x(), camera.v0 + camera.py * c.y() * iz - ideal.y());
+  if (jacobian != nullptr) {
+    Eigen::Matrix<double, 2, 3> dproj;
+    dproj << camera.px * iz, 0, -camera.px * c.x() * iz * iz, 0, camera.py * iz, -camera.py * c.y() * iz * iz;
+    Eigen::Matrix<double, 3, 6> dp;
+    dp.leftCols<3>() = -Skew(rx);
+    dp.rightCols<3>() = Eigen::Matrix3d::Identity();
+    *jacobian = dproj * dp;
+  }
+  return c.z() > 0;
 }
 
 std::array<Eigen::Vector3d, 4> TagCornersInTagFrame(double s) {

@@ -141,6 +141,13 @@ std::optional<TagPose> EstimateTagPose(const CameraModel& camera, const Corners&
 /// The tag's corners in its own frame (ViSP convention, AprilTag order), metres.
 std::array<Eigen::Vector3d, 4> TagCornersInTagFrame(double tag_size);
 
+/// Reprojection of the object point `point_o` under `cMo` against its observation `ideal` (undistorted pixels):
+/// `residual` = projected minus observed and, when `jacobian` is given, its derivative for a left perturbation of cMo
+/// (rotation vector, then translation). Returns whether the point is in front of the camera (z > 0); the outputs are
+/// computed either way.
+bool ReprojectPoint(const CameraModel& camera, const Eigen::Isometry3d& cMo, const Eigen::Vector3d& point_o,
+                    const Eigen::Vector2d& ideal, Eigen::Vector2d& residual, Eigen::Matrix<double, 2, 6>* jacobian);
+
 /// RMS reprojection error (ideal pixels) of `cMo` for observed `corners` (AprilTag convention, see PoseOptions).
 double ReprojectionRms(const CameraModel& camera, const Corners& corners, double tag_size, const Eigen::Isometry3d& cMo,
                        double corner_offset_px = 0.5);

@@ -74,6 +74,13 @@ double RotationError(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle();
 }
 
+// The features of the demo camera with contact refinement off: the raw fits, not their flush refinement.
+FeatureEstimator RawEstimator(const ObjectModels& m, const PoseOptions& pose = {}) {
+  ContactOptions no_contact;
+  no_contact.enabled = false;
+  return FeatureEstimator(kCam, WorldMc(), m, NoiseModel{}, pose, no_contact);
+}
+
 TEST(ChiSquare, QuantilesOfEvenDegreesOfFreedom) {
   EXPECT_NEAR(ChiSquareQuantileEven(2, 0.05), 5.9915, 1e-3);
   EXPECT_NEAR(ChiSquareQuantileEven(8, 0.05), 15.507, 1e-3);
@@ -83,15 +90,12 @@ TEST(ChiSquare, QuantilesOfEvenDegreesOfFreedom) {
 // The joint fit against the single best tag on the same detections, over seeded frames; and the solvers compared.
 TEST(MultiTagPose, JointFitBeatsTheBestSingleTagOnRenderedFrames) {
   const ObjectModels m = BoxModels();
-  const Eigen::Isometry3d wMc = WorldMc();
   DetectorOptions dopt;
   TagDetector detector(dopt);
-  ContactOptions no_contact;
-  no_contact.enabled = false;  // the raw fits, not their flush refinement
   PoseOptions single_opt;
   single_opt.joint_fit = false;
-  FeatureEstimator single(kCam, wMc, m, NoiseModel{}, single_opt, no_contact);
-  FeatureEstimator joint(kCam, wMc, m, NoiseModel{}, PoseOptions{}, no_contact);
+  FeatureEstimator single = RawEstimator(m, single_opt);
+  FeatureEstimator joint = RawEstimator(m);
   const JointPoseSolver solvers[] = {JointPoseSolver::kOpenCvIterative, JointPoseSolver::kOpenCvSqpnp,
                                      JointPoseSolver::kVispVirtualVs};
   const char* solver_names[] = {"OpenCV ITERATIVE", "OpenCV SQPNP", "ViSP VIRTUAL_VS"};
@@ -99,7 +103,7 @@ TEST(MultiTagPose, JointFitBeatsTheBestSingleTagOnRenderedFrames) {
   for (const auto s : solvers) {
     PoseOptions o;
     o.joint_solver = s;
-    by_solver.emplace_back(kCam, wMc, m, NoiseModel{}, o, no_contact);
+    by_solver.push_back(RawEstimator(m, o));
   }
   std::mt19937 rng(2026);
   const int frames = 40;
@@ -180,14 +184,11 @@ TEST(MultiTagPose, PlateWithThreeCoplanarTags) {
                        {"id": 21, "size": 0.04, "t": [0.07, -0.04, 0.005], "rpy_deg": [0, 0, 0]},
                        {"id": 22, "size": 0.04, "t": [0, 0.045, 0.005], "rpy_deg": [0, 0, 90]}]}})",
                                            "plate model");
-  const Eigen::Isometry3d wMc = WorldMc();
   TagDetector detector;
-  ContactOptions no_contact;
-  no_contact.enabled = false;
   PoseOptions single_opt;
   single_opt.joint_fit = false;
-  FeatureEstimator single(kCam, wMc, m, NoiseModel{}, single_opt, no_contact);
-  FeatureEstimator joint(kCam, wMc, m, NoiseModel{}, PoseOptions{}, no_contact);
+  FeatureEstimator single = RawEstimator(m, single_opt);
+  FeatureEstimator joint = RawEstimator(m);
   std::mt19937 rng(99);
   std::uniform_real_distribution<double> x(-0.1, 0.1), y(0.0, 0.15), yaw(-3, 3);
   const int frames = 12;
@@ -223,11 +224,8 @@ TEST(MultiTagPose, PlateWithThreeCoplanarTags) {
 // A tag occluded: the pose from the remaining tags.
 TEST(MultiTagPose, OneTagOccluded) {
   const ObjectModels m = BoxModels();
-  const Eigen::Isometry3d wMc = WorldMc();
   TagDetector detector;
-  ContactOptions no_contact;
-  no_contact.enabled = false;
-  FeatureEstimator est(kCam, wMc, m, NoiseModel{}, PoseOptions{}, no_contact);
+  FeatureEstimator est = RawEstimator(m);
   std::mt19937 rng(77);
   for (int i = 0; i < 8; ++i) {
     const Eigen::Isometry3d wMo = RandomPose(rng);
@@ -249,11 +247,8 @@ TEST(MultiTagPose, OneTagOccluded) {
 // outlier: left out, flagged, and the pose from the others is correct.
 TEST(MultiTagPose, WrongTagIsRejectedAsOutlier) {
   const ObjectModels m = BoxModels();
-  const Eigen::Isometry3d wMc = WorldMc();
   TagDetector detector;
-  ContactOptions no_contact;
-  no_contact.enabled = false;
-  FeatureEstimator est(kCam, wMc, m, NoiseModel{}, PoseOptions{}, no_contact);
+  FeatureEstimator est = RawEstimator(m);
   std::mt19937 rng(31);
   int misplaced_rejected = 0, corrupted_rejected = 0;
   const int frames = 6;
@@ -313,11 +308,8 @@ TEST(MultiTagPose, WrongTagIsRejectedAsOutlier) {
 // Two tags that disagree: the one consistent with the previous frame's pose is kept, the other reported.
 TEST(MultiTagPose, TwoTagsDisagreeThePriorDecides) {
   const ObjectModels m = BoxModels();
-  const Eigen::Isometry3d wMc = WorldMc();
   TagDetector detector;
-  ContactOptions no_contact;
-  no_contact.enabled = false;
-  FeatureEstimator est(kCam, wMc, m, NoiseModel{}, PoseOptions{}, no_contact);
+  FeatureEstimator est = RawEstimator(m);
   const Eigen::Isometry3d wMo = Planar(0.02, 0.06, -0.6);
   SceneOptions so;
   so.seed = 42;
