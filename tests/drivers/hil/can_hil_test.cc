@@ -376,11 +376,16 @@ TEST_F(CanHil, KilledDriverIsDetectedByItsHeartbeatAndRestartRecovers) {
   std::printf("hil: killed driver detected after %.1f ms (heartbeat timeout %.0f ms)\n", took / 1e3,
               kHeartbeatTimeoutUs / 1e3);
   EXPECT_LE(took, kHeartbeatTimeoutUs + 100'000 + kSlackUs);
-  // A restarted driver boots into READY with zero velocity and is usable after a reset.
+  // A restarted driver boots into READY with zero velocity and is usable after a reset. Listen only until its first
+  // status: a READY driver accepts velocity commands, so commanding here would race the boot status (CI saw that).
+  last_ = RobotStatus{};
   driver_->Start();
   ASSERT_TRUE(RunUntil(
       kStartTimeoutUs, [&] { return link_->peer_state(Now()) == PeerState::kAlive; }, false));
-  RunUntil(1'000'000, [&] { return last_.utime > 0 && Stopped(); });
+  ASSERT_TRUE(RunUntil(
+      1'000'000, [&] { return last_.utime > 0; }, false))
+      << "no status from the restarted driver";
+  EXPECT_EQ(last_.state, RobotState::kReady);
   EXPECT_TRUE(Stopped());
   Reset();
   Move(0.1, 0.0);
