@@ -134,7 +134,10 @@ class CanHil : public ::testing::Test {
     }
     LinkFault fault;
     while (link_->TakeFault(fault) == LinkResult::kOk) seen_.faults.push_back(fault);
-    if (send) link_->SendCommand(command_, Now());
+    if (send) {
+      last_send_wall_ = WallMicros();  // before the write: the driver cannot receive the frame earlier than this
+      link_->SendCommand(command_, Now());
+    }
     std::this_thread::sleep_until(next_);
     next_ += std::chrono::microseconds(kPeriodUs);
     if (next_ < std::chrono::steady_clock::now()) next_ = std::chrono::steady_clock::now();
@@ -214,6 +217,7 @@ class CanHil : public ::testing::Test {
   RobotStatus last_;
   Observed seen_;
   std::chrono::steady_clock::time_point next_;
+  std::int64_t last_send_wall_ = 0;
 };
 
 TEST_F(CanHil, CommandsMoveTheRobotAndEveryCommandIsAnswered) {
@@ -240,7 +244,9 @@ TEST_F(CanHil, CommandsMoveTheRobotAndEveryCommandIsAnswered) {
 
 TEST_F(CanHil, SilentControllerTripsTheWatchdogAndResetRecovers) {
   Move(0.3, 0.0);
-  const std::int64_t silent = WallMicros();  // right after the last command was sent
+  // From the last command's write: timing from after Move() returned would count a preemption of this process
+  // against the driver.
+  const std::int64_t silent = last_send_wall_;
   const std::int64_t took = TimeToStop(RobotState::kStopped, false, silent);
   ASSERT_GT(took, 0) << "the driver did not stop the robot";
   std::printf("hil: watchdog stop %.1f ms after the last command (watchdog %.0f ms)\n", took / 1e3, kWatchdogUs / 1e3);
@@ -296,7 +302,7 @@ TEST_F(CanHil, MalformedAndOutOfSequenceFramesAreIgnoredAndReported) {
 
   // Now the controller is replaced by garbage: only malformed frames. The watchdog stops the robot.
   const std::int64_t since = Now();
-  const std::int64_t since_wall = WallMicros();
+  const std::int64_t since_wall = last_send_wall_;  // the last valid command
   next_ = std::chrono::steady_clock::now();
   std::int64_t took = -1;
   while (Now() - since < 2'000'000) {
