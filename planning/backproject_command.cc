@@ -143,6 +143,7 @@ struct Args {
   std::string scene;
   double theta_deg = 0;
   bool kernel = false;
+  int exact_limit = kExactRaySelectionLimit;
   std::string out, svg;
 };
 
@@ -161,7 +162,9 @@ void Run(const Args& a) {
                     "uncertainty)");
   }
   const Region classic = ClassicBackprojection(pr);
-  const VcBackprojection vc = VcEnlargedBackprojection(pr);
+  VcSelectionOptions options;
+  options.exact_limit = a.exact_limit;
+  const VcBackprojection vc = VcEnlargedBackprojection(pr, options);
   WriteText(BackprojectionToJson(a.theta_deg, classic, vc), a.out);
   if (!a.svg.empty()) WriteText(BackprojectionToSvg(scene, cspace, pr, classic, vc), a.svg);
 }
@@ -219,6 +222,10 @@ std::string BackprojectionToJson(double theta_deg, const Region& classic, const 
   doc["classic"] = RegionJson(classic);
   nlohmann::json v = RegionJson(vc.region);
   v["active_rays"] = vc.active_rays;
+  // How the active rays were chosen (an addition to CONTRACT.md's fields): "exact" (every subset of the reliable
+  // candidates swept: an admissible set of largest area), "greedy" (above the exact limit), "none" (no candidate).
+  v["ray_selection"] = {
+      {"method", RaySelectionName(vc.selection)}, {"candidates", vc.candidates}, {"sweeps", vc.sweeps}};
   doc["vc"] = v;
   return doc.dump();
 }
@@ -245,13 +252,22 @@ void RegisterBackprojectCommand(CLI::App& app) {
       "backproject",
       "Directional backprojections of the scene's goal for commanded direction THETA (Fox & Hutchinson sections IV-V): "
       "the classic B_theta(G) (Donald-Canny plane sweep) and the VC-enlarged B_vctheta(G), with the CVC rays the "
-      "robot complies to chosen so that the region stays sound and contains the classic one. Prints JSON "
-      "{\"theta_deg\", \"classic\": REGION, \"vc\": REGION + {\"active_rays\"}}, REGION = {\"area\", \"regions\": "
-      "[{\"outer\": {\"vertices\", \"edges\": [{\"kind\", \"ref\"}]}, \"holes\"}]} (CONTRACT.md).");
+      "robot complies to chosen so that the region stays sound and contains the classic one, with the largest area "
+      "over "
+      "all subsets of the reliable candidate rays (exact search up to " +
+          std::to_string(kExactRaySelectionLimit) +
+          " candidates, greedy above). Prints JSON "
+          "{\"theta_deg\", \"classic\": REGION, \"vc\": REGION + {\"active_rays\", \"ray_selection\": {\"method\", "
+          "\"candidates\", \"sweeps\"}}}, REGION = {\"area\", \"regions\": "
+          "[{\"outer\": {\"vertices\", \"edges\": [{\"kind\", \"ref\"}]}, \"holes\"}]} (CONTRACT.md).");
   cmd->add_option("SCENE", args->scene, "scene file (JSON, see CONTRACT.md)")->required();
   cmd->add_option("--theta", args->theta_deg, "commanded direction, degrees counter-clockwise from +x")->required();
   cmd->add_flag("--kernel", args->kernel,
                 "backproject the goal kernel (the goal eroded by the position uncertainty) instead of the goal");
+  cmd->add_option("--exact-limit", args->exact_limit,
+                  "search all subsets of the reliable candidate rays when there are at most N of them, else choose "
+                  "greedily (negative: always greedy)")
+      ->capture_default_str();
   cmd->add_option("--out", args->out, "write the JSON to FILE instead of stdout");
   cmd->add_option("--svg", args->svg, "draw classic and VC-enlarged side by side (Fig. 13 style) into FILE (SVG)");
   cmd->callback([args] { Run(*args); });

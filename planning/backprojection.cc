@@ -1045,34 +1045,45 @@ Region BackprojectionWithActiveRays(const BackprojectionProblem& problem, const 
   return RunSweep(problem, idx).region;
 }
 
-VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem) {
-  VcBackprojection out;
-  std::vector<int> candidates;
-  for (size_t i = 0; i < problem.rays.size(); ++i) {
-    bool reliable = !problem.rays[i].segments.empty();
-    for (const auto& s : problem.rays[i].segments) {
-      reliable = reliable && IsReliableRay(s[0], s[1], problem.theta, problem.velocity_cone);
-    }
-    if (reliable) {
-      candidates.push_back(static_cast<int>(i));
-    } else {
-      out.unreliable_rays.push_back(problem.rays[i].id);
-    }
+const char* RaySelectionName(RaySelection selection) {
+  switch (selection) {
+    case RaySelection::kNone:
+      return "none";
+    case RaySelection::kExact:
+      return "exact";
+    case RaySelection::kGreedy:
+      return "greedy";
   }
-  std::sort(candidates.begin(), candidates.end(),
-            [&](int a, int b) { return problem.rays[a].id < problem.rays[b].id; });
+  return "?";
+}
+
+namespace {
+
+bool LargerArea(const SweepResult& a, const SweepResult& b) {
+  return a.region.area > b.region.area * (1 + 1e-12) + 1e-15;
+}
+
+// True if the region of `rings` contains `set` (exact polygon difference).
+bool ContainsSet(const PolygonSet& set, const std::vector<ExactRing>& rings) {
+  PolygonSet diff = set;
+  diff.difference(ToPolygonSet(rings));
+  return diff.is_empty();
+}
+
+// Greedy choice: single candidates in order, then pairs of rejected ones; a set is kept only if its region contains
+// the current region and is strictly larger.
+std::vector<int> GreedySelection(const BackprojectionProblem& problem, const std::vector<int>& candidates,
+                                 SweepResult& current, int& sweeps) {
   std::vector<int> active;
-  SweepResult current = RunSweep(problem, active);
   PolygonSet current_set = ToPolygonSet(current.rings);
   auto try_add = [&](const std::vector<int>& add) {
     std::vector<int> trial_set = active;
     trial_set.insert(trial_set.end(), add.begin(), add.end());
     SweepResult trial = RunSweep(problem, trial_set);
-    if (!(trial.region.area > current.region.area * (1 + 1e-12) + 1e-15)) return false;
+    ++sweeps;
+    if (!LargerArea(trial, current)) return false;
     // The new region must contain the old one (B_θ ⊆ B_vcθ, and every earlier claim stays valid).
-    PolygonSet diff = current_set;
-    diff.difference(ToPolygonSet(trial.rings));
-    if (!diff.is_empty()) return false;
+    if (!ContainsSet(current_set, trial.rings)) return false;
     active = trial_set;
     current = std::move(trial);
     current_set = ToPolygonSet(current.rings);
@@ -1091,10 +1102,75 @@ VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem) 
       }
     }
   }
-  for (int r : rejected) {
-    if (r >= 0) out.rejected_rays.push_back(problem.rays[r].id);
+  return active;
+}
+
+// Exact choice: every subset of the candidates, by size, then lexicographically (so that the first set reaching the
+// best area is the smallest, then the first by id). A subset's region is checked for containing B_θ(G) only when
+// its area beats the best so far (the check is a polygon difference; the sweep is the unavoidable cost).
+std::vector<int> ExactSelection(const BackprojectionProblem& problem, const std::vector<int>& candidates,
+                                SweepResult& best, int& sweeps) {
+  const int n = static_cast<int>(candidates.size());
+  const PolygonSet base_set = ToPolygonSet(best.rings);
+  std::vector<int> best_set;
+  for (int k = 1; k <= n; ++k) {
+    // Subsets of size k in lexicographic order of candidate positions.
+    std::vector<int> pos(k);
+    for (int i = 0; i < k; ++i) pos[i] = i;
+    while (true) {
+      std::vector<int> trial_set;
+      for (int i : pos) trial_set.push_back(candidates[i]);
+      SweepResult trial = RunSweep(problem, trial_set);
+      ++sweeps;
+      if (LargerArea(trial, best) && ContainsSet(base_set, trial.rings)) {
+        best = std::move(trial);
+        best_set = trial_set;
+      }
+      int i = k - 1;
+      while (i >= 0 && pos[i] == n - k + i) --i;
+      if (i < 0) break;
+      ++pos[i];
+      for (int j = i + 1; j < k; ++j) pos[j] = pos[j - 1] + 1;
+    }
   }
-  out.region = current.region;
+  return best_set;
+}
+
+}  // namespace
+
+VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem, const VcSelectionOptions& options) {
+  VcBackprojection out;
+  std::vector<int> candidates;
+  for (size_t i = 0; i < problem.rays.size(); ++i) {
+    bool reliable = !problem.rays[i].segments.empty();
+    for (const auto& s : problem.rays[i].segments) {
+      reliable = reliable && IsReliableRay(s[0], s[1], problem.theta, problem.velocity_cone);
+    }
+    if (reliable) {
+      candidates.push_back(static_cast<int>(i));
+    } else {
+      out.unreliable_rays.push_back(problem.rays[i].id);
+    }
+  }
+  std::sort(candidates.begin(), candidates.end(),
+            [&](int a, int b) { return problem.rays[a].id < problem.rays[b].id; });
+  out.candidates = static_cast<int>(candidates.size());
+  SweepResult result = RunSweep(problem, {});
+  out.sweeps = 1;
+  std::vector<int> active;
+  if (candidates.empty()) {
+    out.selection = RaySelection::kNone;
+  } else if (out.candidates <= options.exact_limit) {
+    out.selection = RaySelection::kExact;
+    active = ExactSelection(problem, candidates, result, out.sweeps);
+  } else {
+    out.selection = RaySelection::kGreedy;
+    active = GreedySelection(problem, candidates, result, out.sweeps);
+  }
+  for (int c : candidates) {
+    if (std::find(active.begin(), active.end(), c) == active.end()) out.rejected_rays.push_back(problem.rays[c].id);
+  }
+  out.region = result.region;
   for (int a : active) out.active_rays.push_back(problem.rays[a].id);
   std::sort(out.active_rays.begin(), out.active_rays.end());
   std::sort(out.rejected_rays.begin(), out.rejected_rays.end());

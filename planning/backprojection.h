@@ -77,12 +77,33 @@ struct Region {
   double BoundaryDistance(const Eigen::Vector2d& p) const;
 };
 
+/// How VcEnlargedBackprojection chose the active rays.
+enum class RaySelection : std::uint8_t {
+  kNone,    ///< no reliable candidate: nothing to choose
+  kExact,   ///< every subset of the reliable candidates was swept: the result is a maximum (see below)
+  kGreedy,  ///< more candidates than the exact limit: single rays in id order, then pairs of rejected rays
+};
+const char* RaySelectionName(RaySelection selection);
+
 /// The VC-enlarged backprojection with the active rays it relies on.
 struct VcBackprojection {
   Region region;
   std::vector<std::string> active_rays;      ///< ids of the CVC rays the motion complies to (sorted)
-  std::vector<std::string> rejected_rays;    ///< reliable candidates whose activation did not help or was unsound
+  std::vector<std::string> rejected_rays;    ///< reliable candidates that are not active
   std::vector<std::string> unreliable_rays;  ///< candidates within 90° ± ε_v of θ (never active, SEMANTICS.md)
+  RaySelection selection = RaySelection::kNone;
+  int candidates = 0;  ///< reliable candidates (the exact search sweeps 2^candidates active sets)
+  int sweeps = 0;      ///< plane sweeps run to choose the set (the no-ray sweep included)
+};
+
+/// Candidate counts up to this are searched exactly by default: 2^8 = 256 sweeps, about 1 s for the example scenes
+/// (a sweep of a figure-sized scene takes 2-4 ms; 12 candidates, as fig5 has, take 4096 sweeps, about 11 s).
+constexpr int kExactRaySelectionLimit = 8;
+
+struct VcSelectionOptions {
+  /// Search all subsets when there are at most this many reliable candidates, otherwise fall back to the greedy
+  /// choice (a negative limit always uses the greedy choice; benchmarks compare the two that way).
+  int exact_limit = kExactRaySelectionLimit;
 };
 
 /// B_θ(G) by the plane sweep. @throws std::invalid_argument on malformed input (empty bounds, ε_v outside [0, π/2),
@@ -92,10 +113,18 @@ Region ClassicBackprojection(const BackprojectionProblem& problem);
 /// B_θ(G) with exactly the given rays active (ids from problem.rays); used by VcBackprojection and by tests.
 Region BackprojectionWithActiveRays(const BackprojectionProblem& problem, const std::vector<std::string>& active);
 
-/// B_vcθ(G): chooses the active ray set greedily (each reliable candidate, its sibling pairs, in a deterministic
-/// order), keeping a ray only if the region with it contains the region without it and is strictly larger; the
-/// result therefore always contains B_θ(G).
-VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem);
+/// B_vcθ(G). A region swept with an active set S is exactly what S guarantees (the rays are walls for the whole
+/// motion, from every start point), and the sweep's region is not monotone in S (a ray can divert trajectories away
+/// from the goal). The admissible sets are those whose region contains B_θ(G) (the region with no ray, exact
+/// polygon containment); the result is an admissible set of largest area:
+///   * exact (at most `exact_limit` reliable candidates): every subset is swept; ties in area (1e-12 relative) go to
+///     the smaller set, then to the lexicographically first one by candidate id; only sets that would improve the
+///     best area so far are checked for containment;
+///   * greedy (more candidates): each reliable candidate in id order, then pairs of rejected candidates (≤ 12
+///     rejected), keeping a set only if its region contains the current one and is strictly larger — admissible,
+///     but not necessarily of largest area.
+/// Either way B_θ(G) ⊆ B_vcθ(G) and the region is sound for the reported active rays.
+VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem, const VcSelectionOptions& options = {});
 
 /// True if a CVC ray segment from a to b can be relied on for commanded direction θ (its line is not within
 /// 90° ± ε_v of θ).

@@ -25,7 +25,17 @@ for key in ("classic", "vc"):
                 assert isinstance(e["ref"], str) and e["ref"], e
 assert isinstance(d["vc"]["active_rays"], list)
 assert d["vc"]["area"] >= d["classic"]["area"] * (1 - 1e-12)
+sel = d["vc"]["ray_selection"]
+assert sel["method"] in ("exact", "greedy", "none"), sel
+assert sel["candidates"] >= 0 and sel["sweeps"] >= 1, sel
+if sel["method"] == "exact":
+    assert sel["sweeps"] == 2 ** sel["candidates"], sel
 PY
+# Forcing the greedy choice: never a larger region than the default (exact up to the limit) choice.
+"$visco" backproject "$scene" --theta -90 --exact-limit -1 > "$tmp/g.json" || fail "--exact-limit -1 exited $?"
+python3 -c "import json; g=json.load(open('$tmp/g.json'))['vc']; d=json.load(open('$tmp/b.json'))['vc']; \
+assert g['ray_selection']['method'] in ('greedy', 'none'); assert g['area'] <= d['area'] * (1 + 1e-12)" \
+  || fail "the greedy choice is not reported or is larger than the exact one"
 grep -q "<svg" "$tmp/b.svg" || fail "no SVG written"
 "$visco" backproject "$scene" --theta -90 --kernel > "$tmp/k.json" || fail "--kernel exited $?"
 python3 -c "import json,sys; a=json.load(open('$tmp/k.json')); b=json.load(open('$tmp/b.json')); assert 0 < a['classic']['area'] < b['classic']['area']" \

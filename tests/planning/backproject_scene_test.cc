@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <string>
+#include <vector>
 
 #include "planning/backproject_command.h"
 #include "planning/backprojection.h"
@@ -63,6 +65,19 @@ TEST(BackprojectScene, Fig13RayFansOutAndEnlargesTheRegion) {
   };
   EXPECT_TRUE(active("vc6.cm3"));
   EXPECT_FALSE(active("vc6.cm1"));
+  // fig13 has 8 reliable candidates at θ = −90°: all 256 subsets are swept. The largest admissible region needs only
+  // vc6.cm3; the greedy choice (which the planner made before the exact search) reaches the same area but keeps
+  // vc5.cm1 too, which it accepted first (it enlarged the region then, and adds nothing once vc6.cm3 is active).
+  EXPECT_EQ(vc.selection, RaySelection::kExact);
+  EXPECT_EQ(vc.candidates, 8);
+  EXPECT_EQ(vc.sweeps, 256);
+  EXPECT_EQ(vc.active_rays, std::vector<std::string>{"vc6.cm3"});
+  VcSelectionOptions greedy_options;
+  greedy_options.exact_limit = -1;
+  const VcBackprojection greedy = VcEnlargedBackprojection(pr, greedy_options);
+  EXPECT_EQ(greedy.selection, RaySelection::kGreedy);
+  EXPECT_EQ(greedy.active_rays, (std::vector<std::string>{"vc5.cm1", "vc6.cm3"}));
+  EXPECT_NEAR(greedy.region.area, vc.region.area, 1e-12 * vc.region.area);
   bool any_vc_edge = false;
   for (const auto& poly : vc.region.polygons) {
     for (const auto& e : poly.outer.edges) any_vc_edge |= e.kind == EdgeKind::kVc;
@@ -88,7 +103,10 @@ TEST(BackprojectScene, VcRegionContainsTheClassicOneAtManyDirections) {
     for (int deg = -150; deg <= -30; deg += 15) {
       const BackprojectionProblem pr = pl.Problem(deg);
       const Region classic = ClassicBackprojection(pr);
-      const VcBackprojection vc = VcEnlargedBackprojection(pr);
+      // The exact choice at every 45° (2^n sweeps), the greedy one in between (keeps the test fast).
+      VcSelectionOptions options;
+      if (deg % 45 != 0) options.exact_limit = -1;
+      const VcBackprojection vc = VcEnlargedBackprojection(pr, options);
       EXPECT_GE(vc.region.area, classic.area * (1 - 1e-12)) << path << " θ = " << deg;
       larger += vc.region.area > classic.area * (1 + 1e-9);
       // Every vertex of the classic region lies in the closed VC region.

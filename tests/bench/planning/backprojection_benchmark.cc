@@ -4,14 +4,25 @@
 //
 // Scaling exponent: compare BM_Classic at 1k and 100k vertices (log(t100k / t1k) / log(100)); the ratio: the
 // reference's time per classified configuration against the sweep's time for the whole region.
+//
+// BM_RaySelection: the VC-enlarged backprojection's choice of active rays, exact (every subset of the reliable
+// candidates) against greedy (single rays, then pairs) on the same scenes in the same run: the example scenes
+// (data/scenes) at a commanded direction with candidates, and random scenes with 4, 8 and 12 candidate rays.
 
 #include <benchmark/benchmark.h>
 
 #include <cmath>
 #include <random>
+#include <string>
+#include <vector>
 
+#include "planning/backproject_command.h"
 #include "planning/backprojection.h"
+#include "planning/cspace.h"
 #include "planning/motion_model.h"
+#include "planning/scene.h"
+#include "planning/vc_rays.h"
+#include "tests/planning/random_scenes.h"
 
 namespace visco::planning {
 namespace {
@@ -99,6 +110,72 @@ void BM_ReferenceGrid(benchmark::State& state) {
       benchmark::Counter(kGrid * kGrid, benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
   state.SetComplexityN(Vertices(pr));
 }
+
+struct SelectionCase {
+  std::string name;
+  BackprojectionProblem problem;
+};
+
+// Example scenes through the real pipeline, and random scenes (random_scenes.h) with n random reliable rays.
+const std::vector<SelectionCase>& SelectionCases() {
+  static const std::vector<SelectionCase> cases = [] {
+    std::vector<SelectionCase> out;
+    const std::pair<const char*, double> figures[] = {
+        {"fig13.json", -90}, {"fig13.json", -60}, {"slot.json", -90}, {"fig5.json", -90}, {"ledge.json", -90}};
+    for (const auto& [file, deg] : figures) {
+      const auto scene = LoadScene(std::string(VISCO_SOURCE_DIR) + "/data/scenes/" + file);
+      const CSpace cspace(scene);
+      const VcRays rays = ComputeVcRays(scene, cspace);
+      out.push_back({std::string(file) + "@" + std::to_string(static_cast<int>(deg)),
+                     ProblemFromScene(scene, cspace, &rays, deg * M_PI / 180, false)});
+    }
+    for (int n : {4, 8, 12}) {
+      BackprojectionProblem pr = RandomScene(4242 + n);
+      SceneRng r(n);
+      const double gy = pr.goal[0].vertices[0].y();
+      while (static_cast<int>(pr.rays.size()) < n) {
+        CvcRayInput ray;
+        ray.id = "ray" + std::to_string(100 + pr.rays.size());
+        const double ax = r.Uniform(0, 10), ay = r.Uniform(gy, 10);
+        const double ang = r.Uniform(-160, -20) * M_PI / 180, len = r.Uniform(2, 9);
+        ray.segments = CutToFreeSpace(pr, Eigen::Vector2d(ax, ay),
+                                      Eigen::Vector2d(ax + len * std::cos(ang), ay + len * std::sin(ang)));
+        bool reliable = !ray.segments.empty();
+        for (const auto& sg : ray.segments)
+          reliable = reliable && IsReliableRay(sg[0], sg[1], pr.theta, pr.velocity_cone);
+        if (reliable) pr.rays.push_back(ray);
+      }
+      out.push_back({"random" + std::to_string(n), pr});
+    }
+    return out;
+  }();
+  return cases;
+}
+
+// range(0): case index; range(1): 1 = exact, 0 = greedy.
+void BM_RaySelection(benchmark::State& state) {
+  const SelectionCase& c = SelectionCases().at(state.range(0));
+  VcSelectionOptions options;
+  options.exact_limit = state.range(1) ? 64 : -1;
+  VcBackprojection vc;
+  for (auto _ : state) {
+    vc = VcEnlargedBackprojection(c.problem, options);
+    benchmark::DoNotOptimize(vc.region.polygons.data());
+  }
+  state.SetLabel(c.name + (state.range(1) ? " exact" : " greedy"));
+  state.counters["candidates"] = vc.candidates;
+  state.counters["sweeps"] = vc.sweeps;
+  state.counters["active"] = static_cast<double>(vc.active_rays.size());
+  state.counters["area"] = vc.region.area;
+}
+
+void SelectionArgs(benchmark::internal::Benchmark* b) {
+  for (int i = 0; i < static_cast<int>(SelectionCases().size()); ++i) {
+    for (int exact : {0, 1}) b->Args({i, exact});
+  }
+}
+
+BENCHMARK(BM_RaySelection)->Apply(SelectionArgs)->Unit(benchmark::kMillisecond);
 
 BENCHMARK(BM_Classic)
     ->Arg(1000)

@@ -1,0 +1,207 @@
+// The VC-enlarged backprojection's choice of active rays against a slow, obvious reference: on seeded random small
+// scenes (at most 8 candidate rays), sweep the region of EVERY subset of the rays, keep the subsets whose region
+// contains B_θ(G) (checked by vertical slabs in double precision, independently of the planner's exact polygon
+// difference), and compare the largest area with the planner's. The chosen sets are also run through the motion
+// model (soundness), and the exact choice is compared with the greedy one.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <string>
+
+#include "planning/backprojection.h"
+#include "planning/motion_model.h"
+#include "tests/planning/random_scenes.h"
+
+namespace visco::planning {
+namespace {
+
+using Eigen::Vector2d;
+
+struct Edge {
+  Vector2d a, b;
+};
+
+std::vector<Edge> Edges(const Region& r) {
+  std::vector<Edge> out;
+  auto add = [&](const RegionRing& ring) {
+    for (size_t i = 0; i < ring.vertices.size(); ++i) {
+      out.push_back({ring.vertices[i], ring.vertices[(i + 1) % ring.vertices.size()]});
+    }
+  };
+  for (const auto& poly : r.polygons) {
+    add(poly.outer);
+    for (const auto& h : poly.holes) add(h);
+  }
+  return out;
+}
+
+// The region's intersection with the vertical line at x, as sorted disjoint intervals (even-odd rule).
+std::vector<std::pair<double, double>> Intervals(const std::vector<Edge>& edges, double x) {
+  std::vector<double> ys;
+  for (const Edge& e : edges) {
+    if ((e.a.x() > x) == (e.b.x() > x)) continue;
+    ys.push_back(e.a.y() + (x - e.a.x()) * (e.b.y() - e.a.y()) / (e.b.x() - e.a.x()));
+  }
+  std::sort(ys.begin(), ys.end());
+  std::vector<std::pair<double, double>> out;
+  for (size_t i = 0; i + 1 < ys.size(); i += 2) out.emplace_back(ys[i], ys[i + 1]);
+  return out;
+}
+
+// True if `inner` is contained in `outer` up to `tol` (length). Between consecutive x-coordinates of vertices and of
+// edge crossings the edges of both regions keep their vertical order, so one vertical line per slab decides it.
+bool ContainedIn(const Region& inner, const Region& outer, double tol) {
+  const std::vector<Edge> ei = Edges(inner), eo = Edges(outer);
+  std::vector<double> xs;
+  for (const auto* es : {&ei, &eo}) {
+    for (const Edge& e : *es) xs.push_back(e.a.x());
+  }
+  for (const Edge& p : ei) {
+    for (const Edge& q : eo) {
+      const Vector2d d = p.b - p.a, f = q.b - q.a, w = q.a - p.a;
+      const double den = d.x() * f.y() - d.y() * f.x();
+      if (std::abs(den) < 1e-18) continue;
+      const double t = (w.x() * f.y() - w.y() * f.x()) / den;
+      const double s = (w.x() * d.y() - w.y() * d.x()) / den;
+      if (t >= 0 && t <= 1 && s >= 0 && s <= 1) xs.push_back(p.a.x() + t * d.x());
+    }
+  }
+  std::sort(xs.begin(), xs.end());
+  for (size_t i = 0; i + 1 < xs.size(); ++i) {
+    if (xs[i + 1] - xs[i] < tol) continue;
+    const double x = 0.5 * (xs[i] + xs[i + 1]);
+    const auto in = Intervals(ei, x), out = Intervals(eo, x);
+    for (const auto& [lo, hi] : in) {
+      // [lo, hi] must be covered by the union of `out`'s intervals (gaps up to tol forgiven).
+      double covered = lo;
+      for (const auto& [olo, ohi] : out) {
+        if (olo > covered + tol) break;
+        covered = std::max(covered, ohi);
+      }
+      if (covered < hi - tol) return false;
+    }
+  }
+  return true;
+}
+
+// A random scene (random_scenes.h) with 3 to 8 random candidate rays (some unreliable for θ).
+BackprojectionProblem SceneWithRays(std::uint64_t seed) {
+  BackprojectionProblem pr = RandomScene(seed);
+  SceneRng r(seed * 31 + 7);
+  const double gy = pr.goal[0].vertices[0].y();
+  const int nr = r.Int(3, 8);
+  for (int i = 0; i < nr; ++i) {
+    CvcRayInput ray;
+    ray.id = "ray" + std::to_string(i);
+    ray.group = "vc" + std::to_string(i / 2);
+    const double ax = r.Uniform(0, 10), ay = r.Uniform(gy, 10);
+    const double ang = r.Uniform(-160, -20) * M_PI / 180, len = r.Uniform(2, 9);
+    ray.segments = CutToFreeSpace(pr, Vector2d(ax, ay), Vector2d(ax + len * std::cos(ang), ay + len * std::sin(ang)));
+    if (!ray.segments.empty()) pr.rays.push_back(ray);
+  }
+  return pr;
+}
+
+int SimulationFailures(const BackprojectionProblem& pr, const VcBackprojection& vc, std::uint64_t seed, int samples,
+                       int& inside) {
+  const MotionModel model(ToMotionWorld(pr, vc.active_rays));
+  std::mt19937_64 rng(seed);
+  auto u = [&]() { return static_cast<double>(rng() >> 11) * (1.0 / 9007199254740992.0); };
+  Vector2d lo(1e300, 1e300), hi = -lo;
+  for (const auto& poly : vc.region.polygons) {
+    for (const auto& v : poly.outer.vertices) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+    }
+  }
+  int failures = 0;
+  for (int i = 0; i < samples && !vc.region.polygons.empty(); ++i) {
+    const Vector2d p(lo.x() + u() * (hi.x() - lo.x()), lo.y() + u() * (hi.y() - lo.y()));
+    if (!vc.region.Contains(p) || vc.region.BoundaryDistance(p) < 1e-6 || model.InObstacleInterior(p)) continue;
+    ++inside;
+    const SimulationResult res = SimulateAdversarially(model, p, pr.theta, pr.velocity_cone, seed + i, true);
+    if (res.outcome != Outcome::kReachedGoal) {
+      ++failures;
+      ADD_FAILURE() << "seed " << seed << ": (" << p.x() << ", " << p.y() << ") is in B_vc but fails: "
+                    << OutcomeName(res.outcome);
+    }
+  }
+  return failures;
+}
+
+TEST(VcSelectionProperty, ExactChoiceHasTheLargestAdmissibleAreaOverAllSubsets) {
+  int scenes = 0, with_candidates = 0, enlarged = 0, better_than_greedy = 0, subsets = 0, inside = 0, failures = 0;
+  int max_candidates = 0;
+  for (std::uint64_t seed = 201; seed <= 218; ++seed) {
+    const BackprojectionProblem pr = SceneWithRays(seed);
+    ++scenes;
+    const VcBackprojection vc = VcEnlargedBackprojection(pr);
+    const int n = static_cast<int>(pr.rays.size());
+    ASSERT_LE(vc.candidates, 8);
+    ASSERT_EQ(vc.candidates + static_cast<int>(vc.unreliable_rays.size()), n) << "seed " << seed;
+    max_candidates = std::max(max_candidates, vc.candidates);
+    if (vc.candidates > 0) {
+      ++with_candidates;
+      EXPECT_EQ(vc.selection, RaySelection::kExact) << "seed " << seed;
+      EXPECT_EQ(vc.sweeps, 1 << vc.candidates) << "seed " << seed;
+    }
+
+    // The reference: every subset of the rays, without the unreliable ones (which may never be active).
+    const Region classic = ClassicBackprojection(pr);
+    double best = classic.area;
+    std::vector<std::string> best_set;
+    for (int mask = 1; mask < (1 << n); ++mask) {
+      std::vector<std::string> set;
+      bool reliable = true;
+      for (int i = 0; i < n; ++i) {
+        if (!(mask >> i & 1)) continue;
+        set.push_back(pr.rays[i].id);
+        for (const auto& seg : pr.rays[i].segments) {
+          reliable = reliable && IsReliableRay(seg[0], seg[1], pr.theta, pr.velocity_cone);
+        }
+      }
+      if (!reliable) continue;
+      ++subsets;
+      const Region r = BackprojectionWithActiveRays(pr, set);
+      if (r.area <= best) continue;
+      if (!ContainedIn(classic, r, 1e-7)) continue;
+      best = r.area;
+      best_set = set;
+    }
+    EXPECT_NEAR(vc.region.area, best, 1e-9 * std::max(1.0, best))
+        << "seed " << seed << ": the planner's set has area " << vc.region.area << ", the best subset " << best
+        << " (" << best_set.size() << " rays)";
+    EXPECT_TRUE(ContainedIn(classic, vc.region, 1e-7)) << "seed " << seed;
+    // The reported region is the sweep of the reported set.
+    EXPECT_EQ(BackprojectionWithActiveRays(pr, vc.active_rays).area, vc.region.area) << "seed " << seed;
+    enlarged += vc.region.area > classic.area * (1 + 1e-9);
+
+    // Exact is never worse than greedy (the greedy set is admissible).
+    VcSelectionOptions greedy_options;
+    greedy_options.exact_limit = -1;
+    const VcBackprojection greedy = VcEnlargedBackprojection(pr, greedy_options);
+    if (vc.candidates > 0) {
+      EXPECT_EQ(greedy.selection, RaySelection::kGreedy);
+    }
+    EXPECT_GE(vc.region.area, greedy.region.area * (1 - 1e-12)) << "seed " << seed;
+    better_than_greedy += vc.region.area > greedy.region.area * (1 + 1e-9);
+
+    failures += SimulationFailures(pr, vc, seed, 60, inside);
+  }
+  std::printf(
+      "vc selection: %d scenes (%d with reliable candidates, at most %d), %d admissible-candidate subsets swept by "
+      "the reference; %d enlarged; exact strictly better than greedy on %d; %d configurations simulated inside the "
+      "chosen regions, %d failures\n",
+      scenes, with_candidates, max_candidates, subsets, enlarged, better_than_greedy, inside, failures);
+  EXPECT_EQ(failures, 0);
+  EXPECT_GT(enlarged, 3);    // not vacuous
+  EXPECT_GT(inside, 200);    // not vacuous
+  EXPECT_GE(max_candidates, 6);
+}
+
+}  // namespace
+}  // namespace visco::planning
