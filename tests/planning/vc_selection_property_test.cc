@@ -126,8 +126,8 @@ int SimulationFailures(const BackprojectionProblem& pr, const VcBackprojection& 
     const SimulationResult res = SimulateAdversarially(model, p, pr.theta, pr.velocity_cone, seed + i, true);
     if (res.outcome != Outcome::kReachedGoal) {
       ++failures;
-      ADD_FAILURE() << "seed " << seed << ": (" << p.x() << ", " << p.y() << ") is in B_vc but fails: "
-                    << OutcomeName(res.outcome);
+      ADD_FAILURE() << "seed " << seed << ": (" << p.x() << ", " << p.y()
+                    << ") is in B_vc but fails: " << OutcomeName(res.outcome);
     }
   }
   return failures;
@@ -173,8 +173,8 @@ TEST(VcSelectionProperty, ExactChoiceHasTheLargestAdmissibleAreaOverAllSubsets) 
       best_set = set;
     }
     EXPECT_NEAR(vc.region.area, best, 1e-9 * std::max(1.0, best))
-        << "seed " << seed << ": the planner's set has area " << vc.region.area << ", the best subset " << best
-        << " (" << best_set.size() << " rays)";
+        << "seed " << seed << ": the planner's set has area " << vc.region.area << ", the best subset " << best << " ("
+        << best_set.size() << " rays)";
     EXPECT_TRUE(ContainedIn(classic, vc.region, 1e-7)) << "seed " << seed;
     // The reported region is the sweep of the reported set.
     EXPECT_EQ(BackprojectionWithActiveRays(pr, vc.active_rays).area, vc.region.area) << "seed " << seed;
@@ -198,8 +198,8 @@ TEST(VcSelectionProperty, ExactChoiceHasTheLargestAdmissibleAreaOverAllSubsets) 
       "chosen regions, %d failures\n",
       scenes, with_candidates, max_candidates, subsets, enlarged, better_than_greedy, inside, failures);
   EXPECT_EQ(failures, 0);
-  EXPECT_GT(enlarged, 3);    // not vacuous
-  EXPECT_GT(inside, 200);    // not vacuous
+  EXPECT_GT(enlarged, 3);  // not vacuous
+  EXPECT_GT(inside, 200);  // not vacuous
   EXPECT_GE(max_candidates, 6);
 }
 
