@@ -324,11 +324,20 @@ std::optional<ObjectPoseFit> EstimateObjectPose(const CameraModel& camera,
     if (!dup) top.push_back(c);
   }
 
-  // Per set: the planar-ambiguity rule among its poses.
+  // Per set: the planar-ambiguity rule among its poses. The other poses stay possible while their likelihood
+  // relative to the best one, exp(-dSSR / (2 sigma_c^2)), is at least joint_ambiguity_alpha (a log-likelihood-ratio
+  // test on the corner noise); the clearly smaller error then wins even against the prior, so a wrong choice is not
+  // carried from frame to frame once the data can tell.
   struct Choice {
     Candidate c;
     bool ambiguous = false;
+    PoseDecision decided_by = PoseDecision::kUnique;
+    int poses = 1;
+    std::optional<PoseCandidate> other;
   };
+  const double sigma2 = corner_sigma_px * corner_sigma_px;
+  const double dssr_max = 2 * std::log(1 / options.joint_ambiguity_alpha) * sigma2;
+  auto ssr = [](const Candidate& c) { return c.rms * c.rms * 4.0 * static_cast<double>(c.set.size()); };
   std::vector<Choice> choices;
   std::vector<bool> done(top.size(), false);
   for (std::size_t a = 0; a < top.size(); ++a) {
@@ -341,6 +350,7 @@ std::optional<ObjectPoseFit> EstimateObjectPose(const CameraModel& camera,
       }
     }
     Choice ch;
+    ch.poses = static_cast<int>(group.size());
     if (best_size == 1) {
       // One tag: its own decision (EstimateTagPose's rule with its prior and the table normal).
       ch.c = group.front();
@@ -348,22 +358,39 @@ std::optional<ObjectPoseFit> EstimateObjectPose(const CameraModel& camera,
         if (g.seed_chosen) ch.c = g;
       }
       ch.ambiguous = group.front().seed_ambiguous;
+      ch.decided_by = PoseDecision::kSingleTag;
+      ch.poses = 1;
     } else {
       std::sort(group.begin(), group.end(), [](const Candidate& x, const Candidate& y) { return x.rms < y.rms; });
+      // The poses the noise cannot rule out (group[0] always).
+      std::size_t possible = 1;
+      while (possible < group.size() && ssr(group[possible]) - ssr(group[0]) <= dssr_max) ++possible;
       std::size_t pick = 0;
-      if (group.size() > 1 && group[1].rms - group[0].rms < options.ambiguity_sigmas * options.corner_noise_px) {
+      if (group.size() > 1) ch.decided_by = PoseDecision::kSmallerError;
+      if (possible > 1) {
         ch.ambiguous = true;
-        if (prior_cMo) {
-          pick = RotationDistance(group[1].cMo.linear(), prior_cMo->linear()) <
-                         RotationDistance(group[0].cMo.linear(), prior_cMo->linear())
-                     ? 1
-                     : 0;
-        } else if (expected_up_c) {
-          const Eigen::Vector3d up = expected_up_c->normalized();
-          pick = group[1].cMo.linear().col(2).dot(up) > group[0].cMo.linear().col(2).dot(up) ? 1 : 0;
+        ch.decided_by = PoseDecision::kUndecided;
+        double best = std::numeric_limits<double>::infinity();
+        for (std::size_t k = 0; k < possible; ++k) {
+          double score = 0;
+          if (prior_cMo) {
+            score = RotationDistance(group[k].cMo.linear(), prior_cMo->linear());
+            ch.decided_by = PoseDecision::kPrior;
+          } else if (expected_up_c) {
+            score = -group[k].cMo.linear().col(2).dot(expected_up_c->normalized());
+            ch.decided_by = PoseDecision::kExpectedUp;
+          } else {
+            break;
+          }
+          if (score < best) {
+            best = score;
+            pick = k;
+          }
         }
       }
       ch.c = group[pick];
+      const std::size_t other = pick == 0 ? 1 : 0;
+      if (group.size() > 1) ch.other = PoseCandidate{group[other].cMo, group[other].rms};
     }
     choices.push_back(ch);
   }
@@ -393,6 +420,9 @@ std::optional<ObjectPoseFit> EstimateObjectPose(const CameraModel& camera,
   Eigen::Quaterniond q(out.cMo.linear());
   out.cMo.linear() = q.normalized().toRotationMatrix();
   out.ambiguous = ch.ambiguous;
+  out.decided_by = ch.decided_by;
+  out.candidate_poses = ch.poses;
+  out.alternative = ch.other;
   out.reference = ch.c.seed;
   out.inliers = ch.c.set;
   for (int k = 0; k < n; ++k) {

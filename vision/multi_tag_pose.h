@@ -11,9 +11,10 @@
 //   `mount_tolerance_px` RMS);
 // - the largest consistent set wins; tags outside it are outliers (a tag stuck on wrongly, a misdecoded id,
 //   corrupted corners) and are reported, never averaged in;
-// - several distinct poses for the same largest set (planar ambiguity of close coplanar tags): the same rule as for
-//   one tag — the clearly smaller error wins, else the pose closest to the previous frame's, else the one whose z axis
-//   is closest to the expected "up" (objects stand on the table);
+// - several distinct poses for the same largest set (planar ambiguity of coplanar tags): the smaller error wins when
+//   the other poses are unlikely for the corner noise (likelihood ratio below `joint_ambiguity_alpha`), else the
+//   pose closest to the previous frame's, else the one whose z axis is closest to the expected "up" (objects stand on
+//   the table);
 // - equally large but different sets (two tags that disagree): the pose closest to the previous frame's, else the
 //   set whose fit has the smallest translation variance (the single-tag rule), the others reported as outliers;
 // - covariance: sigma_c^2 (J^T J)^-1 of the joint fit over all inlier corners.
@@ -37,11 +38,28 @@ struct ObjectTagObservation {
   TagPose pose;                                           ///< its own pose (EstimateTagPose)
 };
 
+/// What decided the object's pose among the poses that fit its tags.
+enum class PoseDecision {
+  kSingleTag,     ///< one tag: EstimateTagPose's own rule (see TagPose::ambiguous)
+  kUnique,        ///< the largest consistent set of tags has one pose
+  kSmallerError,  ///< several poses of the set; the others are too unlikely for the corner noise
+  kPrior,         ///< several poses fit within the noise; the one closest in rotation to the previous frame's
+  kExpectedUp,    ///< several poses fit within the noise, no prior; the one whose z axis is closest to "up"
+  kUndecided,     ///< several poses fit within the noise, neither prior nor "up": the smaller error, a guess
+};
+
 /// The object's pose from its tags.
 struct ObjectPoseFit {
   Eigen::Isometry3d cMo = Eigen::Isometry3d::Identity();  ///< object frame in the camera frame
   double rms_error_px = 0;                                ///< RMS over the inlier tags' corners, ideal pixels
-  bool ambiguous = false;          ///< another pose of the same tags fits within the noise; prior / "up" decided
+  bool ambiguous = false;  ///< another pose of the same tags fits within the noise; prior / "up" decided
+  PoseDecision decided_by = PoseDecision::kUnique;
+  /// Distinct poses (local minima of the reprojection error) found for the chosen set of tags: 2 when the planar
+  /// ambiguity of coplanar tags leaves a second minimum, whether or not the noise can tell them apart.
+  int candidate_poses = 1;
+  /// The best other minimum of the chosen set (the mirrored pose of coplanar tags), when candidate_poses > 1: its
+  /// cMo (object in camera) and RMS error over the same corners.
+  std::optional<PoseCandidate> alternative;
   int reference = -1;              ///< index of the tag whose solution seeded the chosen fit
   std::vector<int> inliers;        ///< indices into the observations, ascending
   std::vector<int> outliers;       ///< indices of the tags inconsistent with the chosen pose

@@ -125,6 +125,11 @@ struct PoseOptions {
   /// Never reject a tag whose RMS residual at the joint pose is below this (pixels): the tags' mounting on the
   /// object (position, rotation, flatness) is known to within about this much in the image.
   double mount_tolerance_px = 0.5;
+  /// Planar ambiguity of a joint fit over several coplanar tags (two minima of the same tags): the other minimum
+  /// stays a possibility while its likelihood relative to the best, exp(-(SSR_other - SSR_best) / (2 sigma_c^2)) for
+  /// the current corner noise sigma_c, is at least this; then the prior or the table normal decides. Below it the
+  /// data decide (the smaller error wins), whatever the prior says.
+  double joint_ambiguity_alpha = 1e-3;
 };
 
 /// Estimates the pose of a square tag of side `tag_size` (metres) from its corners: both planar solutions (IPPE),
