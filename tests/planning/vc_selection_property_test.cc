@@ -133,10 +133,12 @@ int SimulationFailures(const BackprojectionProblem& pr, const VcBackprojection& 
   return failures;
 }
 
-TEST(VcSelectionProperty, ExactChoiceHasTheLargestAdmissibleAreaOverAllSubsets) {
+// Runs the comparison on scenes first, first + step, … ≤ last (two interleaved sets, two CTest entries: each stays well
+// inside the timeout under ASan).
+void CheckSeeds(std::uint64_t first, std::uint64_t last, std::uint64_t step) {
   int scenes = 0, with_candidates = 0, enlarged = 0, better_than_greedy = 0, subsets = 0, inside = 0, failures = 0;
   int max_candidates = 0;
-  for (std::uint64_t seed = 201; seed <= 218; ++seed) {
+  for (std::uint64_t seed = first; seed <= last; seed += step) {
     const BackprojectionProblem pr = SceneWithRays(seed);
     ++scenes;
     const VcBackprojection vc = VcEnlargedBackprojection(pr);
@@ -193,15 +195,22 @@ TEST(VcSelectionProperty, ExactChoiceHasTheLargestAdmissibleAreaOverAllSubsets) 
     failures += SimulationFailures(pr, vc, seed, 60, inside);
   }
   std::printf(
-      "vc selection: %d scenes (%d with reliable candidates, at most %d), %d admissible-candidate subsets swept by "
-      "the reference; %d enlarged; exact strictly better than greedy on %d; %d configurations simulated inside the "
+      "vc selection, seeds %llu-%llu step %llu: %d scenes (%d with reliable candidates, at most %d), %d "
+      "admissible-candidate "
+      "subsets swept by the reference; %d enlarged; exact strictly better than greedy on %d; %d configurations "
+      "simulated inside the "
       "chosen regions, %d failures\n",
-      scenes, with_candidates, max_candidates, subsets, enlarged, better_than_greedy, inside, failures);
+      static_cast<unsigned long long>(first), static_cast<unsigned long long>(last),
+      static_cast<unsigned long long>(step), scenes, with_candidates, max_candidates, subsets, enlarged,
+      better_than_greedy, inside, failures);
   EXPECT_EQ(failures, 0);
-  EXPECT_GT(enlarged, 3);  // not vacuous
-  EXPECT_GT(inside, 200);  // not vacuous
+  EXPECT_GE(enlarged, 2);  // not vacuous
+  EXPECT_GT(inside, 100);  // not vacuous
   EXPECT_GE(max_candidates, 6);
 }
+
+TEST(VcSelectionProperty, ExactChoiceHasTheLargestAdmissibleAreaOverAllSubsets) { CheckSeeds(201, 217, 2); }
+TEST(VcSelectionProperty, ExactChoiceHasTheLargestAdmissibleAreaOverAllSubsetsMore) { CheckSeeds(202, 218, 2); }
 
 }  // namespace
 }  // namespace visco::planning
