@@ -93,6 +93,20 @@ inline std::vector<std::array<Eigen::Vector2d, 2>> CutToFreeSpace(const Backproj
   return out;
 }
 
+// A random straight ray starting above the goal's bottom edge, pointing down at an angle in [min_deg, max_deg] (from
+// +x), 2 to max_length long, cut to free space (its segments may be empty).
+inline CvcRayInput RandomRay(const BackprojectionProblem& pr, SceneRng& r, std::string id, double min_deg,
+                             double max_deg, double max_length) {
+  CvcRayInput ray;
+  ray.id = std::move(id);
+  const double gy = pr.goal[0].vertices[0].y();
+  const double ax = r.Uniform(0, 10), ay = r.Uniform(gy, 10);
+  const double ang = r.Uniform(min_deg, max_deg) * M_PI / 180, len = r.Uniform(2, max_length);
+  ray.segments =
+      CutToFreeSpace(pr, Eigen::Vector2d(ax, ay), Eigen::Vector2d(ax + len * std::cos(ang), ay + len * std::sin(ang)));
+  return ray;
+}
+
 inline BackprojectionProblem RandomScene(std::uint64_t seed, bool with_rays = false) {
   SceneRng r(seed * 0x9E3779B97F4A7C15ULL + 17);
   BackprojectionProblem pr;
@@ -120,13 +134,8 @@ inline BackprojectionProblem RandomScene(std::uint64_t seed, bool with_rays = fa
   if (with_rays) {
     const int nr = r.Int(2, 6);
     for (int i = 0; i < nr; ++i) {
-      CvcRayInput ray;
-      ray.id = "ray" + std::to_string(i);
+      CvcRayInput ray = RandomRay(pr, r, "ray" + std::to_string(i), -150, -30, 8);
       ray.group = "vc" + std::to_string(i / 2);
-      const double ax = r.Uniform(0, 10), ay = r.Uniform(gy, 10);
-      const double ang = r.Uniform(-150, -30) * M_PI / 180, len = r.Uniform(2, 8);
-      ray.segments = CutToFreeSpace(pr, Eigen::Vector2d(ax, ay),
-                                    Eigen::Vector2d(ax + len * std::cos(ang), ay + len * std::sin(ang)));
       if (!ray.segments.empty()) pr.rays.push_back(ray);
     }
   }

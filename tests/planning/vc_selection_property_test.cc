@@ -92,15 +92,10 @@ bool ContainedIn(const Region& inner, const Region& outer, double tol) {
 BackprojectionProblem SceneWithRays(std::uint64_t seed) {
   BackprojectionProblem pr = RandomScene(seed);
   SceneRng r(seed * 31 + 7);
-  const double gy = pr.goal[0].vertices[0].y();
   const int nr = r.Int(3, 8);
   for (int i = 0; i < nr; ++i) {
-    CvcRayInput ray;
-    ray.id = "ray" + std::to_string(i);
+    CvcRayInput ray = RandomRay(pr, r, "ray" + std::to_string(i), -160, -20, 9);
     ray.group = "vc" + std::to_string(i / 2);
-    const double ax = r.Uniform(0, 10), ay = r.Uniform(gy, 10);
-    const double ang = r.Uniform(-160, -20) * M_PI / 180, len = r.Uniform(2, 9);
-    ray.segments = CutToFreeSpace(pr, Vector2d(ax, ay), Vector2d(ax + len * std::cos(ang), ay + len * std::sin(ang)));
     if (!ray.segments.empty()) pr.rays.push_back(ray);
   }
   return pr;

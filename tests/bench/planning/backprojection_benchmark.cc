@@ -132,14 +132,8 @@ const std::vector<SelectionCase>& SelectionCases() {
     for (int n : {4, 8, 12}) {
       BackprojectionProblem pr = RandomScene(4242 + n);
       SceneRng r(n);
-      const double gy = pr.goal[0].vertices[0].y();
       while (static_cast<int>(pr.rays.size()) < n) {
-        CvcRayInput ray;
-        ray.id = "ray" + std::to_string(100 + pr.rays.size());
-        const double ax = r.Uniform(0, 10), ay = r.Uniform(gy, 10);
-        const double ang = r.Uniform(-160, -20) * M_PI / 180, len = r.Uniform(2, 9);
-        ray.segments = CutToFreeSpace(pr, Eigen::Vector2d(ax, ay),
-                                      Eigen::Vector2d(ax + len * std::cos(ang), ay + len * std::sin(ang)));
+        const CvcRayInput ray = RandomRay(pr, r, "ray" + std::to_string(100 + pr.rays.size()), -160, -20, 9);
         bool reliable = !ray.segments.empty();
         for (const auto& sg : ray.segments)
           reliable = reliable && IsReliableRay(sg[0], sg[1], pr.theta, pr.velocity_cone);
