@@ -253,8 +253,7 @@ void RegisterBackprojectCommand(CLI::App& app) {
       "Directional backprojections of the scene's goal for commanded direction THETA (Fox & Hutchinson sections IV-V): "
       "the classic B_theta(G) (Donald-Canny plane sweep) and the VC-enlarged B_vctheta(G), with the CVC rays the "
       "robot complies to chosen so that the region stays sound and contains the classic one, with the largest area "
-      "over "
-      "all subsets of the reliable candidate rays (exact search up to " +
+      "over all subsets of the reliable candidate rays (exact search up to " +
           std::to_string(kExactRaySelectionLimit) +
           " candidates, greedy above). Prints JSON "
           "{\"theta_deg\", \"classic\": REGION, \"vc\": REGION + {\"active_rays\", \"ray_selection\": {\"method\", "

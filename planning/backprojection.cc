@@ -1033,6 +1033,12 @@ bool IsReliableRay(const Vector2d& a, const Vector2d& b, double theta, double ve
   return delta + velocity_cone < M_PI / 2 - 1e-9;
 }
 
+bool IsReliableRay(const CvcRayInput& ray, double theta, double velocity_cone) {
+  return !ray.segments.empty() && std::all_of(ray.segments.begin(), ray.segments.end(), [&](const auto& s) {
+    return IsReliableRay(s[0], s[1], theta, velocity_cone);
+  });
+}
+
 Region ClassicBackprojection(const BackprojectionProblem& problem) { return RunSweep(problem, {}).region; }
 
 Region BackprojectionWithActiveRays(const BackprojectionProblem& problem, const std::vector<std::string>& active) {
@@ -1142,11 +1148,7 @@ VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem, 
   VcBackprojection out;
   std::vector<int> candidates;
   for (size_t i = 0; i < problem.rays.size(); ++i) {
-    bool reliable = !problem.rays[i].segments.empty();
-    for (const auto& s : problem.rays[i].segments) {
-      reliable = reliable && IsReliableRay(s[0], s[1], problem.theta, problem.velocity_cone);
-    }
-    if (reliable) {
+    if (IsReliableRay(problem.rays[i], problem.theta, problem.velocity_cone)) {
       candidates.push_back(static_cast<int>(i));
     } else {
       out.unreliable_rays.push_back(problem.rays[i].id);

@@ -96,8 +96,8 @@ struct VcBackprojection {
   int sweeps = 0;      ///< plane sweeps run to choose the set (the no-ray sweep included)
 };
 
-/// Candidate counts up to this are searched exactly by default: 2^8 = 256 sweeps, about 1 s for the example scenes
-/// (a sweep of a figure-sized scene takes 2-4 ms; 12 candidates, as fig5 has, take 4096 sweeps, about 11 s).
+/// Candidate counts up to this are searched exactly by default: 2^8 = 256 sweeps, about 0.3 s on fig13 (a sweep of
+/// a figure-sized scene takes 1-3 ms; 12 candidates, as fig5 has, take 4096 sweeps, about 4.5 s; BM_RaySelection).
 constexpr int kExactRaySelectionLimit = 8;
 
 struct VcSelectionOptions {
@@ -129,6 +129,10 @@ VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem, 
 /// True if a CVC ray segment from a to b can be relied on for commanded direction θ (its line is not within
 /// 90° ± ε_v of θ).
 bool IsReliableRay(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double theta, double velocity_cone);
+
+/// True if the CVC ray can ever be active for commanded direction θ: it has a free-space segment and every segment
+/// is reliable (IsReliableRay).
+bool IsReliableRay(const CvcRayInput& ray, double theta, double velocity_cone);
 
 /// The goal kernel: each goal polygon eroded by the disc of radius ε_p, approximated from inside (the disc is
 /// replaced by a circumscribed regular polygon with `sides` sides, so the result is a subset of the true kernel).

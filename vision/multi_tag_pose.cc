@@ -8,6 +8,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numeric>
 #include <opencv2/calib3d.hpp>
@@ -368,24 +369,20 @@ std::optional<ObjectPoseFit> EstimateObjectPose(const CameraModel& camera,
       std::size_t pick = 0;
       if (group.size() > 1) ch.decided_by = PoseDecision::kSmallerError;
       if (possible > 1) {
+        // Among the possible poses: the closest to the prior, else the one most "up", else the smaller error.
         ch.ambiguous = true;
-        ch.decided_by = PoseDecision::kUndecided;
-        double best = std::numeric_limits<double>::infinity();
-        for (std::size_t k = 0; k < possible; ++k) {
-          double score = 0;
-          if (prior_cMo) {
-            score = RotationDistance(group[k].cMo.linear(), prior_cMo->linear());
-            ch.decided_by = PoseDecision::kPrior;
-          } else if (expected_up_c) {
-            score = -group[k].cMo.linear().col(2).dot(expected_up_c->normalized());
-            ch.decided_by = PoseDecision::kExpectedUp;
-          } else {
-            break;
-          }
-          if (score < best) {
-            best = score;
-            pick = k;
-          }
+        std::function<double(const Candidate&)> score;
+        if (prior_cMo) {
+          ch.decided_by = PoseDecision::kPrior;
+          score = [&](const Candidate& c) { return RotationDistance(c.cMo.linear(), prior_cMo->linear()); };
+        } else if (expected_up_c) {
+          ch.decided_by = PoseDecision::kExpectedUp;
+          score = [&](const Candidate& c) { return -c.cMo.linear().col(2).dot(expected_up_c->normalized()); };
+        } else {
+          ch.decided_by = PoseDecision::kUndecided;
+        }
+        for (std::size_t k = 1; score && k < possible; ++k) {
+          if (score(group[k]) < score(group[pick])) pick = k;
         }
       }
       ch.c = group[pick];

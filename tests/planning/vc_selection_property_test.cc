@@ -149,19 +149,19 @@ void CheckSeeds(std::uint64_t first, std::uint64_t last, std::uint64_t step) {
 
     // The reference: every subset of the rays, without the unreliable ones (which may never be active).
     const Region classic = ClassicBackprojection(pr);
+    std::vector<bool> reliable(n);
+    for (int i = 0; i < n; ++i) reliable[i] = IsReliableRay(pr.rays[i], pr.theta, pr.velocity_cone);
     double best = classic.area;
     std::vector<std::string> best_set;
     for (int mask = 1; mask < (1 << n); ++mask) {
       std::vector<std::string> set;
-      bool reliable = true;
+      bool all_reliable = true;
       for (int i = 0; i < n; ++i) {
         if (!(mask >> i & 1)) continue;
         set.push_back(pr.rays[i].id);
-        for (const auto& seg : pr.rays[i].segments) {
-          reliable = reliable && IsReliableRay(seg[0], seg[1], pr.theta, pr.velocity_cone);
-        }
+        all_reliable = all_reliable && reliable[i];
       }
-      if (!reliable) continue;
+      if (!all_reliable) continue;
       ++subsets;
       const Region r = BackprojectionWithActiveRays(pr, set);
       if (r.area <= best) continue;
@@ -191,10 +191,8 @@ void CheckSeeds(std::uint64_t first, std::uint64_t last, std::uint64_t step) {
   }
   std::printf(
       "vc selection, seeds %llu-%llu step %llu: %d scenes (%d with reliable candidates, at most %d), %d "
-      "admissible-candidate "
-      "subsets swept by the reference; %d enlarged; exact strictly better than greedy on %d; %d configurations "
-      "simulated inside the "
-      "chosen regions, %d failures\n",
+      "admissible-candidate subsets swept by the reference; %d enlarged; exact strictly better than greedy on %d; "
+      "%d configurations simulated inside the chosen regions, %d failures\n",
       static_cast<unsigned long long>(first), static_cast<unsigned long long>(last),
       static_cast<unsigned long long>(step), scenes, with_candidates, max_candidates, subsets, enlarged,
       better_than_greedy, inside, failures);

@@ -134,10 +134,7 @@ const std::vector<SelectionCase>& SelectionCases() {
       SceneRng r(n);
       while (static_cast<int>(pr.rays.size()) < n) {
         const CvcRayInput ray = RandomRay(pr, r, "ray" + std::to_string(100 + pr.rays.size()), -160, -20, 9);
-        bool reliable = !ray.segments.empty();
-        for (const auto& sg : ray.segments)
-          reliable = reliable && IsReliableRay(sg[0], sg[1], pr.theta, pr.velocity_cone);
-        if (reliable) pr.rays.push_back(ray);
+        if (IsReliableRay(ray, pr.theta, pr.velocity_cone)) pr.rays.push_back(ray);
       }
       out.push_back({"random" + std::to_string(n), pr});
     }
