@@ -20,14 +20,13 @@
 namespace visco::planning {
 namespace {
 
-NamedPolygon Named(const Polygon& poly, const std::string& base, bool hole) {
+// A ring of CB with its provenance (CSpace::obstacle_union_sources, cspace.h EdgeSource).
+NamedPolygon Named(const Polygon& poly, const RingSources& sources, bool hole) {
   NamedPolygon out;
   out.hole = hole;
-  for (size_t k = 0; k < poly.size(); ++k) {
-    out.vertices.push_back(poly[k]);
-    out.vertex_refs.push_back(base + ".v[" + std::to_string(k) + "]");
-    out.edge_refs.push_back(base + ".e[" + std::to_string(k) + "]");
-  }
+  out.vertices = poly.vertices;
+  out.vertex_refs = sources.vertex_refs;
+  for (const EdgeSource& edge : sources.edges) out.edge_refs.push_back(edge.ref);
   return out;
 }
 
@@ -175,14 +174,13 @@ BackprojectionProblem ProblemFromScene(const Scene& scene, const CSpace& cspace,
                                        bool kernel) {
   BackprojectionProblem pr;
   if (rays) pr.rays = CvcRayInputs(*rays);
-  for (size_t i = 0; i < cspace.num_c_obstacles(); ++i) {
-    const auto& pieces = cspace.c_obstacle(i);
-    for (size_t p = 0; p < pieces.size(); ++p) {
-      const std::string base = "cobstacle[" + scene.obstacles[i].id + "]" + (p ? "#" + std::to_string(p) : "");
-      pr.obstacles.push_back(Named(pieces[p].outer, base, false));
-      for (size_t h = 0; h < pieces[p].holes.size(); ++h) {
-        pr.obstacles.push_back(Named(pieces[p].holes[h], base + ".hole[" + std::to_string(h) + "]", true));
-      }
+  // CB, the union of the C-obstacles, with the refs of the Minkowski features its edges lie on (the same at every θ).
+  const auto& pieces = cspace.obstacle_union();
+  const auto& sources = cspace.obstacle_union_sources();
+  for (size_t p = 0; p < pieces.size(); ++p) {
+    pr.obstacles.push_back(Named(pieces[p].outer, sources[p].outer, false));
+    for (size_t h = 0; h < pieces[p].holes.size(); ++h) {
+      pr.obstacles.push_back(Named(pieces[p].holes[h], sources[p].holes[h], true));
     }
   }
   NamedPolygon goal;
@@ -190,7 +188,7 @@ BackprojectionProblem ProblemFromScene(const Scene& scene, const CSpace& cspace,
   for (size_t k = 0; k < g.polygon.size(); ++k) {
     goal.vertices.push_back(g.polygon[k]);
     goal.vertex_refs.push_back("goal.v[" + std::to_string(g.source_index[k]) + "]");
-    goal.edge_refs.push_back("goal.e[" + std::to_string(g.source_index[k]) + "]");
+    goal.edge_refs.push_back("goal.e[" + std::to_string(SourceEdgeIndex(g, k)) + "]");
   }
   pr.goal = {goal};
   if (kernel) pr.goal = GoalKernel(pr.goal, scene.uncertainty.position);

@@ -20,9 +20,11 @@ struct VcRays;
 /// Registers `visco backproject` on `app`.
 void RegisterBackprojectCommand(CLI::App& app);
 
-/// The backprojection problem of a scene for commanded direction θ (radians): the C-obstacles (refs
-/// "cobstacle[<obstacle id>].e[k]" / ".v[k]", numbered along CSpace's polygons; ".hole[h]" and "#p" for holes and
-/// further pieces), the goal (refs "goal.e[i]" / "goal.v[i]", file positions) or, with `kernel`, its kernel
+/// The backprojection problem of a scene for commanded direction θ (radians): CB, the union of the C-obstacles
+/// (CSpace::obstacle_union, holes included), with the refs of the Minkowski features its edges and vertices lie on
+/// (CSpace::obstacle_union_sources: "obstacle[ID].e[i]-robot.v[j]", "obstacle[ID].v[i]-robot.e[j]",
+/// "obstacle[ID].v[i]-robot.v[j]", "x(<ref>,<ref>)"; file positions, the same at every θ), the goal (refs
+/// "goal.e[i]" / "goal.v[i]", file positions) or, with `kernel`, its kernel
 /// (GoalKernel with the scene's position uncertainty), the bounds, and every CVC ray (id, group = its VC ray).
 BackprojectionProblem ProblemFromScene(const Scene& scene, const CSpace& cspace, const VcRays* rays, double theta,
                                        bool kernel);

@@ -10,10 +10,16 @@
 #include <CGAL/Polygon_with_holes_2.h>
 #include <CGAL/box_intersection_d.h>
 #include <CGAL/minkowski_sum_2.h>
+#include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
 #include <map>
 #include <stdexcept>
+#include <string>
+#include <tuple>
 
 namespace visco::planning {
 namespace {
@@ -92,6 +98,220 @@ int StateFromBoundaryDirections(const std::vector<std::pair<K::Vector_2, bool>>&
   return best->second ? 1 : -1;
 }
 
+// A segment whose pieces can bound a C-obstacle (cspace.h EdgeSource). Only indices are stored (there are
+// 2 n m of them); the exact segment is formed for the few that a boundary edge's bounding box meets.
+struct Generator {
+  std::size_t obstacle = 0;
+  EdgeSource::Kind kind = EdgeSource::Kind::kObstacleEdge;
+  std::uint32_t obstacle_vertex = 0;  // normalised: the edge from this vertex (kObstacleEdge), or this vertex
+  std::uint32_t robot_vertex = 0;     // normalised: this vertex (kObstacleEdge), or the edge from this vertex
+  int obstacle_feature = 0;           // file positions (EdgeSource)
+  int robot_feature = 0;
+  std::tuple<std::size_t, int, int, int> key() const {
+    return {obstacle, static_cast<int>(kind), obstacle_feature, robot_feature};
+  }
+};
+
+KPoint Difference(const Point& b, const Point& a) { return KPoint(FT(b.x()) - FT(a.x()), FT(b.y()) - FT(a.y())); }
+
+// A box certainly containing the exact b - a (the rounded difference is within half an ulp of it).
+CGAL::Bbox_2 DifferenceBox(const Point& b, const Point& a) {
+  const double x = b.x() - a.x(), y = b.y() - a.y();
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  return {std::nextafter(x, -kInf), std::nextafter(y, -kInf), std::nextafter(x, kInf), std::nextafter(y, kInf)};
+}
+
+// The generator's segment: its two ends (b - a) as points of the scene's normalised polygons.
+std::pair<std::pair<const Point*, const Point*>, std::pair<const Point*, const Point*>> Ends(const Scene& scene,
+                                                                                             const Generator& g) {
+  const Polygon& b = scene.obstacles[g.obstacle].shape.polygon;
+  const Polygon& a = scene.robot.polygon;
+  if (g.kind == EdgeSource::Kind::kObstacleEdge) {
+    return {{&b[g.obstacle_vertex], &a[g.robot_vertex]}, {&b[(g.obstacle_vertex + 1) % b.size()], &a[g.robot_vertex]}};
+  }
+  return {{&b[g.obstacle_vertex], &a[g.robot_vertex]}, {&b[g.obstacle_vertex], &a[(g.robot_vertex + 1) % a.size()]}};
+}
+
+KSegment ExactSegment(const Scene& scene, const Generator& g) {
+  const auto [s, t] = Ends(scene, g);
+  return {Difference(*s.first, *s.second), Difference(*t.first, *t.second)};
+}
+
+CGAL::Bbox_2 GeneratorBox(const Scene& scene, const Generator& g) {
+  const auto [s, t] = Ends(scene, g);
+  return DifferenceBox(*s.first, *s.second) + DifferenceBox(*t.first, *t.second);
+}
+
+EdgeSource SourceOf(const Scene& scene, const Generator& g) {
+  EdgeSource source{g.kind, g.obstacle, g.obstacle_feature, g.robot_feature, ""};
+  const bool obstacle_edge = g.kind == EdgeSource::Kind::kObstacleEdge;
+  source.ref = fmt::format("obstacle[{}].{}[{}]-robot.{}[{}]", scene.obstacles[g.obstacle].id,
+                           obstacle_edge ? 'e' : 'v', g.obstacle_feature, obstacle_edge ? 'v' : 'e', g.robot_feature);
+  return source;
+}
+
+// Obstacle i's generators (cspace.h EdgeSource), sorted by key: obstacle edges translated by minus each robot
+// vertex, reflected robot edges translated by each obstacle vertex.
+std::vector<Generator> GeneratorsOf(const Scene& scene, std::size_t i) {
+  const ScenePolygon& robot = scene.robot;
+  const ScenePolygon& shape = scene.obstacles[i].shape;
+  std::vector<Generator> out;
+  for (std::uint32_t k = 0; k < shape.polygon.size(); ++k) {
+    for (std::uint32_t j = 0; j < robot.polygon.size(); ++j) {
+      out.push_back({i, EdgeSource::Kind::kObstacleEdge, k, j, SourceEdgeIndex(shape, k), robot.source_index[j]});
+      out.push_back({i, EdgeSource::Kind::kRobotEdge, k, j, shape.source_index[k], SourceEdgeIndex(robot, j)});
+    }
+  }
+  std::sort(out.begin(), out.end(), [](const Generator& a, const Generator& b) { return a.key() < b.key(); });
+  return out;
+}
+
+// A boundary cycle split where its generator changes: points[k] -> points[k + 1] lies on generators[k].
+struct SplitRing {
+  std::vector<KPoint> points;
+  std::vector<std::size_t> generators;  // indices into the (key-sorted) generator list
+};
+
+// Splits the cycles' edges where the first (by key) generator containing them changes, and merges consecutive
+// pieces of one generator at points a cycle visits once. `generators` must be sorted by key. Exact; candidates by a
+// bounding-box sweep over all cycles at once, O((E + G) log(E + G) + pairs) for E edges and G generators.
+std::vector<SplitRing> SplitByGenerators(const std::vector<const KPolygon*>& cycles,
+                                         const std::vector<Generator>& generators, const Scene& scene) {
+  std::vector<std::pair<std::size_t, std::size_t>> edge_of;  // box info -> (cycle, edge)
+  std::vector<Box> edge_boxes, generator_boxes;
+  for (std::size_t c = 0; c < cycles.size(); ++c) {
+    const KPolygon& cycle = *cycles[c];
+    for (std::size_t k = 0; k < cycle.size(); ++k) {
+      edge_boxes.emplace_back(cycle[k].bbox() + cycle[(k + 1) % cycle.size()].bbox(), edge_of.size());
+      edge_of.emplace_back(c, k);
+    }
+  }
+  for (std::size_t g = 0; g < generators.size(); ++g) {
+    generator_boxes.emplace_back(GeneratorBox(scene, generators[g]), g);
+  }
+  std::vector<std::vector<std::size_t>> candidates(edge_of.size());
+  CGAL::box_intersection_d(edge_boxes.begin(), edge_boxes.end(), generator_boxes.begin(), generator_boxes.end(),
+                           [&](const Box& edge, const Box& g) { candidates[edge.info()].push_back(g.info()); });
+  std::vector<SplitRing> out;
+  std::size_t next_edge = 0;
+  for (const KPolygon* cycle_pointer : cycles) {
+    const KPolygon& cycle = *cycle_pointer;
+    const std::size_t n = cycle.size();
+    SplitRing ring;
+    for (std::size_t k = 0; k < n; ++k) {
+      const KPoint& p = cycle[k];
+      const KPoint& q = cycle[(k + 1) % n];
+      const K::Vector_2 d = q - p;
+      const FT length = d * d;  // positions along the edge: (x - p) . d, from 0 to length
+      std::vector<std::pair<FT, KPoint>> cuts = {{FT(0), p}, {length, q}};
+      struct Cover {
+        FT lo, hi;
+        std::size_t generator;
+      };
+      std::vector<Cover> covers;
+      for (std::size_t g : candidates[next_edge + k]) {
+        const KSegment s = ExactSegment(scene, generators[g]);
+        if (!CGAL::collinear(s.source(), s.target(), p) || !CGAL::collinear(s.source(), s.target(), q)) continue;
+        std::pair<FT, KPoint> a = {(s.source() - p) * d, s.source()}, b = {(s.target() - p) * d, s.target()};
+        if (b.first < a.first) std::swap(a, b);
+        if (b.first <= 0 || a.first >= length) continue;  // no common part of positive length
+        if (a.first > 0) cuts.push_back(a);
+        if (b.first < length) cuts.push_back(b);
+        covers.push_back({CGAL::max(a.first, FT(0)), CGAL::min(b.first, length), g});
+      }
+      std::sort(cuts.begin(), cuts.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+      cuts.erase(std::unique(cuts.begin(), cuts.end(), [](const auto& x, const auto& y) { return x.first == y.first; }),
+                 cuts.end());
+      for (std::size_t c = 0; c + 1 < cuts.size(); ++c) {
+        std::size_t best = generators.size();
+        for (const Cover& cover : covers) {
+          if (cover.lo <= cuts[c].first && cover.hi >= cuts[c + 1].first) best = std::min(best, cover.generator);
+        }
+        if (best == generators.size()) {
+          throw std::logic_error("CSpace: a C-obstacle boundary edge lies on no Minkowski generator");
+        }
+        if (c > 0 && ring.generators.back() == best) continue;  // the same generator goes on
+        ring.points.push_back(cuts[c].second);
+        ring.generators.push_back(best);
+      }
+    }
+    next_edge += n;
+    // Merge pieces of one generator across cycle vertices visited once (collinear: both lie on that generator).
+    std::map<KPoint, int, K::Less_xy_2> visits;
+    for (const KPoint& p : ring.points) ++visits[p];
+    SplitRing merged;
+    const std::size_t m = ring.points.size();
+    for (std::size_t k = 0; k < m; ++k) {
+      if (ring.generators[(k + m - 1) % m] == ring.generators[k] && visits[ring.points[k]] == 1) continue;
+      merged.points.push_back(ring.points[k]);
+      merged.generators.push_back(ring.generators[k]);
+    }
+    out.push_back(std::move(merged));
+  }
+  return out;
+}
+
+// Edge and vertex provenance of split rings. A vertex is named as a sum of vertices b_k - a_j when it is one (the
+// first (obstacle, k, j) by file positions; among `obstacle`'s vertices only, if given), else by its two edges.
+std::vector<RingSources> RingSourcesOf(const std::vector<SplitRing>& rings, const std::vector<Generator>& generators,
+                                       const Scene& scene, std::optional<std::size_t> obstacle) {
+  std::vector<RingSources> out(rings.size());
+  std::vector<std::pair<std::size_t, std::size_t>> vertex_of;  // box info -> (ring, vertex)
+  std::vector<Box> vertex_boxes, sum_boxes;
+  for (std::size_t r = 0; r < rings.size(); ++r) {
+    for (std::size_t g : rings[r].generators) out[r].edges.push_back(SourceOf(scene, generators[g]));
+    out[r].vertex_refs.resize(rings[r].points.size());
+    for (std::size_t k = 0; k < rings[r].points.size(); ++k) {
+      vertex_boxes.emplace_back(rings[r].points[k].bbox(), vertex_of.size());
+      vertex_of.emplace_back(r, k);
+    }
+  }
+  // Sums of vertices: (obstacle, normalised k, normalised j) packed in a box's info.
+  std::vector<std::tuple<std::size_t, std::uint32_t, std::uint32_t>> sums;
+  const Polygon& a = scene.robot.polygon;
+  for (std::size_t i = 0; i < scene.obstacles.size(); ++i) {
+    if (obstacle && i != *obstacle) continue;
+    const Polygon& b = scene.obstacles[i].shape.polygon;
+    for (std::uint32_t k = 0; k < b.size(); ++k) {
+      for (std::uint32_t j = 0; j < a.size(); ++j) {
+        sum_boxes.emplace_back(DifferenceBox(b[k], a[j]), sums.size());
+        sums.emplace_back(i, k, j);
+      }
+    }
+  }
+  std::vector<std::optional<std::tuple<std::size_t, int, int>>> first(vertex_of.size());  // (obstacle, file k, j)
+  CGAL::box_intersection_d(
+      vertex_boxes.begin(), vertex_boxes.end(), sum_boxes.begin(), sum_boxes.end(),
+      [&](const Box& vertex, const Box& sum) {
+        const auto [r, k] = vertex_of[vertex.info()];
+        const auto [i, bk, aj] = sums[sum.info()];
+        const ScenePolygon& shape = scene.obstacles[i].shape;
+        if (rings[r].points[k] != Difference(shape.polygon[bk], a[aj])) return;
+        const std::tuple<std::size_t, int, int> key = {i, shape.source_index[bk], scene.robot.source_index[aj]};
+        auto& best = first[vertex.info()];
+        if (!best || key < *best) best = key;
+      });
+  for (std::size_t v = 0; v < vertex_of.size(); ++v) {
+    const auto [r, k] = vertex_of[v];
+    if (first[v]) {
+      const auto [i, bk, aj] = *first[v];
+      out[r].vertex_refs[k] = fmt::format("obstacle[{}].v[{}]-robot.v[{}]", scene.obstacles[i].id, bk, aj);
+    } else {
+      const std::size_t n = rings[r].points.size();
+      std::string x = out[r].edges[(k + n - 1) % n].ref, y = out[r].edges[k].ref;
+      if (y < x) std::swap(x, y);
+      out[r].vertex_refs[k] = "x(" + x + "," + y + ")";
+    }
+  }
+  return out;
+}
+
+Polygon ToDouble(const SplitRing& ring) {
+  Polygon result;
+  for (const KPoint& p : ring.points) result.vertices.push_back(ToDouble(p));
+  return result;
+}
+
 }  // namespace
 
 // A directed edge of CB's boundary with its neighbours: the interior of CB lies to the left of source->target
@@ -105,16 +325,46 @@ struct CSpace::Exact {
   KPolygonSet obstacle_union;
   std::vector<BoundaryEdge> edges;
   std::vector<std::vector<PolygonWithHoles>> c_obstacles_double;
+  std::vector<std::vector<PolygonSources>> c_obstacles_sources;
   std::vector<PolygonWithHoles> union_double;
+  std::vector<PolygonSources> union_sources;
   std::vector<PolygonWithHoles> free_double;
 };
 
 CSpace::CSpace(const Scene& scene) : exact_(std::make_unique<Exact>()) {
   Exact& e = *exact_;
   const KPolygon minus_robot = ToExact(scene.robot.polygon, -1.0);  // a point reflection keeps the orientation
-  for (const Obstacle& obstacle : scene.obstacles) {
-    e.c_obstacles.push_back(CGAL::minkowski_sum_2(ToExact(obstacle.shape.polygon), minus_robot));
-    e.c_obstacles_double.push_back({ToDouble(e.c_obstacles.back())});
+  // Provenance (cspace.h EdgeSource): every boundary edge is split where the first generator containing it
+  // changes. Splits polygons with holes (all at once) and records their double rings and provenance.
+  const auto split = [&](const std::vector<KPolygonWithHoles>& polygons, const std::vector<Generator>& generators,
+                         std::optional<std::size_t> obstacle, std::vector<PolygonWithHoles>& rings,
+                         std::vector<PolygonSources>& sources) {
+    std::vector<const KPolygon*> cycles;
+    for (const KPolygonWithHoles& pwh : polygons) {
+      cycles.push_back(&pwh.outer_boundary());
+      for (auto it = pwh.holes_begin(); it != pwh.holes_end(); ++it) cycles.push_back(&*it);
+    }
+    const std::vector<SplitRing> split_rings = SplitByGenerators(cycles, generators, scene);
+    std::vector<RingSources> ring_sources = RingSourcesOf(split_rings, generators, scene, obstacle);
+    std::size_t c = 0;
+    for (const KPolygonWithHoles& pwh : polygons) {
+      PolygonWithHoles& r = rings.emplace_back();
+      PolygonSources& s = sources.emplace_back();
+      r.outer = ToDouble(split_rings[c]);
+      s.outer = std::move(ring_sources[c++]);
+      for (auto it = pwh.holes_begin(); it != pwh.holes_end(); ++it) {
+        r.holes.push_back(ToDouble(split_rings[c]));
+        s.holes.push_back(std::move(ring_sources[c++]));
+      }
+    }
+  };
+  std::vector<Generator> all_generators;
+  for (std::size_t i = 0; i < scene.obstacles.size(); ++i) {
+    e.c_obstacles.push_back(CGAL::minkowski_sum_2(ToExact(scene.obstacles[i].shape.polygon), minus_robot));
+    const std::vector<Generator> generators = GeneratorsOf(scene, i);
+    split({e.c_obstacles.back()}, generators, i, e.c_obstacles_double.emplace_back(),
+          e.c_obstacles_sources.emplace_back());
+    all_generators.insert(all_generators.end(), generators.begin(), generators.end());  // keys ascend
   }
   if (!e.c_obstacles.empty()) e.obstacle_union.join(e.c_obstacles.begin(), e.c_obstacles.end());
   std::vector<KPolygonWithHoles> pieces;
@@ -126,10 +376,10 @@ CSpace::CSpace(const Scene& scene) : exact_(std::make_unique<Exact>()) {
     }
   };
   for (const KPolygonWithHoles& pwh : pieces) {
-    e.union_double.push_back(ToDouble(pwh));
     add_cycle(pwh.outer_boundary());
     for (auto it = pwh.holes_begin(); it != pwh.holes_end(); ++it) add_cycle(*it);
   }
+  split(pieces, all_generators, std::nullopt, e.union_double, e.union_sources);
   KPolygonSet free_set(Rectangle(scene.bounds));
   free_set.difference(e.obstacle_union);
   std::vector<KPolygonWithHoles> free_pieces;
@@ -147,6 +397,10 @@ const std::vector<PolygonWithHoles>& CSpace::c_obstacle(std::size_t i) const {
 std::size_t CSpace::num_c_obstacles() const { return exact_->c_obstacles_double.size(); }
 const std::vector<PolygonWithHoles>& CSpace::obstacle_union() const { return exact_->union_double; }
 const std::vector<PolygonWithHoles>& CSpace::free_space() const { return exact_->free_double; }
+const std::vector<PolygonSources>& CSpace::c_obstacle_sources(std::size_t i) const {
+  return exact_->c_obstacles_sources.at(i);
+}
+const std::vector<PolygonSources>& CSpace::obstacle_union_sources() const { return exact_->union_sources; }
 
 Location CSpace::Locate(const Point& q) const {
   switch (exact_->obstacle_union.oriented_side(KPoint(q.x(), q.y()))) {

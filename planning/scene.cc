@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -85,9 +86,19 @@ class Reader {
     if (!IsSimple(result.polygon)) {
       Fail(object, "the polygon is not simple (it intersects itself, repeats a vertex or has zero area)");
     }
+    // The file edge between consecutive kept vertices: the first non-degenerate one after the first's file position.
+    const std::size_t n_file = points.size();
+    for (const int first : result.source_index) {
+      std::size_t k = static_cast<std::size_t>(first);
+      while (points[k] == points[(k + 1) % n_file]) k = (k + 1) % n_file;
+      result.source_edge.push_back(static_cast<int>(k));
+    }
     if (PolygonOrientation(result.polygon) < 0) {
       std::reverse(result.polygon.vertices.begin(), result.polygon.vertices.end());
       std::reverse(result.source_index.begin(), result.source_index.end());
+      // Edge i now joins the old vertices n-1-i and n-2-i: the old edge n-2-i.
+      std::reverse(result.source_edge.begin(), result.source_edge.end());
+      std::rotate(result.source_edge.begin(), result.source_edge.begin() + 1, result.source_edge.end());
     }
     return result;
   }
@@ -373,6 +384,13 @@ Camera DerivePlanarCamera(const PinholeCamera& pinhole, const std::string& sourc
   Camera camera = MakeCamera(foot, std::remainder(first, 2 * kPi) / kDegree, span / kDegree);
   camera.pinhole = pinhole;
   return camera;
+}
+
+int SourceEdgeIndex(const ScenePolygon& polygon, std::size_t i) {
+  if (polygon.source_edge.size() == polygon.polygon.size()) return polygon.source_edge.at(i);
+  const std::size_t n = polygon.source_index.size();
+  const int here = polygon.source_index.at(i), next = polygon.source_index.at((i + 1) % n);
+  return next == (here + 1) % static_cast<int>(n) ? here : next;
 }
 
 }  // namespace visco::planning

@@ -21,7 +21,16 @@ struct ScenePolygon {
   Polygon polygon;
   /// source_index[i] is the 0-based position in the file of polygon.vertices[i].
   std::vector<int> source_index;
+  /// source_edge[i] is the 0-based position in the file of the edge from polygon.vertices[i] to vertices[i + 1]
+  /// (file edge k runs from file vertex k to k + 1, wrapping; repeated vertices make degenerate file edges, which
+  /// are never named). Filled by the loader; may be empty in hand-built polygons (see SourceEdgeIndex).
+  std::vector<int> source_edge = {};
 };
+
+/// The file position of the edge from vertices[i] to vertices[i + 1]: source_edge[i] when filled, else derived from
+/// source_index for a polygon without repeated vertices (file edge source_index[i] if the file runs
+/// counter-clockwise, source_index[i + 1] if it was reversed).
+int SourceEdgeIndex(const ScenePolygon& polygon, std::size_t i);
 
 /// A workspace obstacle.
 struct Obstacle {

@@ -37,6 +37,64 @@ python3 -c "import json; g=json.load(open('$tmp/g.json'))['vc']; d=json.load(ope
 assert g['ray_selection']['method'] in ('greedy', 'none'); assert g['area'] <= d['area'] * (1 + 1e-12)" \
   || fail "the greedy choice is not reported or is larger than the exact one"
 grep -q "<svg" "$tmp/b.svg" || fail "no SVG written"
+# Refs name file positions (CONTRACT.md): the same scene with every polygon written clockwise from another vertex
+# gives the same regions; goal refs name the same file edges (renumbered by the rewrite), and every obstacle ref
+# names, in each file, a Minkowski segment (obstacle edge - robot vertex, or obstacle vertex - robot edge) that
+# contains its edge. (Where several coincident segments contain an edge, the first by file position wins, so which
+# one is named may change with the numbering.)
+python3 - "$scene" "$tmp/cw.json" <<'PY' || fail "could not write the rewritten scene"
+import json, sys
+d = json.load(open(sys.argv[1]))
+def rewrite(p):  # file vertex k moves to position (n - k) % n; file edge k (k -> k+1) becomes edge (n - 1 - k) % n
+    return [p[0]] + p[1:][::-1]
+d["robot"]["polygon"] = rewrite(d["robot"]["polygon"])
+d["goal"]["polygon"] = rewrite(d["goal"]["polygon"])
+for o in d["obstacles"]:
+    o["polygon"] = rewrite(o["polygon"])
+json.dump(d, open(sys.argv[2], "w"))
+PY
+"$visco" backproject "$tmp/cw.json" --theta -90 --out "$tmp/cw_b.json" || fail "backproject of the rewritten scene exited $?"
+python3 - "$scene" "$tmp/b.json" "$tmp/cw.json" "$tmp/cw_b.json" <<'PY' || fail "refs do not follow the file positions"
+import json, re, sys
+def check(scene_path, result_path):
+    scene = json.load(open(scene_path))
+    robot = scene["robot"]["polygon"]
+    obstacles = {o["id"]: o["polygon"] for o in scene["obstacles"]}
+    goal = scene["goal"]
+    out, checked = {}, 0
+    for key in ("classic", "vc"):
+        for poly in json.load(open(result_path))[key]["regions"]:
+            for ring in [poly["outer"]] + poly["holes"]:
+                v = ring["vertices"]
+                for i, e in enumerate(ring["edges"]):
+                    a, b = v[i], v[(i + 1) % len(v)]
+                    if e["kind"] == "goal":
+                        out[(key, round(a[0], 9), round(a[1], 9), round(b[0], 9), round(b[1], 9))] = e["ref"]
+                    if e["kind"] != "obstacle":
+                        continue
+                    m = re.fullmatch(r"obstacle\[(.*)\]\.([ev])\[(\d+)\]-robot\.([ve])\[(\d+)\]", e["ref"])
+                    assert m, e["ref"]
+                    o, k, j = obstacles[m.group(1)], int(m.group(3)), int(m.group(5))
+                    sub = lambda p, q: (p[0] - q[0], p[1] - q[1])
+                    if m.group(2) == "e":
+                        s, t = sub(o[k], robot[j]), sub(o[(k + 1) % len(o)], robot[j])
+                    else:
+                        s, t = sub(o[k], robot[j]), sub(o[k], robot[(j + 1) % len(robot)])
+                    for p in (a, b):
+                        d = (t[0] - s[0], t[1] - s[1])
+                        u = max(0.0, min(1.0, ((p[0] - s[0]) * d[0] + (p[1] - s[1]) * d[1]) / (d[0] ** 2 + d[1] ** 2)))
+                        dist = ((p[0] - s[0] - u * d[0]) ** 2 + (p[1] - s[1] - u * d[1]) ** 2) ** 0.5
+                        assert dist < 1e-7, (e["ref"], a, b, s, t)
+                    checked += 1
+    assert checked > 0
+    return out, len(goal["polygon"])
+original, n = check(sys.argv[1], sys.argv[2])
+rewritten, _ = check(sys.argv[3], sys.argv[4])
+renumber = lambda ref: re.sub(r"goal\.e\[(\d+)\]", lambda m: "goal.e[%d]" % ((n - 1 - int(m.group(1))) % n), ref)
+assert original and set(original) == set(rewritten), (sorted(original), sorted(rewritten))
+for k, ref in original.items():
+    assert renumber(ref) == rewritten[k], (k, ref, renumber(ref), rewritten[k])
+PY
 "$visco" backproject "$scene" --theta -90 --kernel > "$tmp/k.json" || fail "--kernel exited $?"
 python3 -c "import json,sys; a=json.load(open('$tmp/k.json')); b=json.load(open('$tmp/b.json')); assert 0 < a['classic']['area'] < b['classic']['area']" \
   || fail "the kernel's backprojection is not smaller"

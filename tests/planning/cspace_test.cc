@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
+#include <string>
 
 namespace visco::planning {
 namespace {
@@ -140,6 +142,89 @@ TEST(CSpace, FindOverlappingObstacles) {
   ASSERT_TRUE(overlap.has_value());
   EXPECT_EQ(overlap->first, 0u);
   EXPECT_EQ(overlap->second, 3u);
+}
+
+// Provenance of CB's edges, checked by hand (cspace.h EdgeSource). Robot A = [0, 1]^2 (reference point at its vertex
+// 0), obstacle "box" = [2, 4]^2 written clockwise from (2, 2): file vertices v0 (2,2), v1 (2,4), v2 (4,4), v3 (4,2);
+// file edges e0 left, e1 top, e2 right, e3 bottom. CB = [1, 4]^2. Each side is the sum of a box edge and a parallel
+// robot edge; every point gets the first generator containing it (obstacle edges before robot edges, then by file
+// index), e.g. the bottom y = 1: e3 - a2 covers x in [1, 3], e3 - a3 covers [2, 4], so [1, 3] is e3 - a2 and
+// [3, 4] is e3 - a3.
+TEST(CSpace, EdgeProvenanceOfTwoSquares) {
+  const Scene scene = ParseScene(R"({
+    "bounds": {"min": [-2, -2], "max": [8, 8]},
+    "robot": {"polygon": [[0, 0], [1, 0], [1, 1], [0, 1]]},
+    "obstacles": [{"id": "box", "polygon": [[2, 2], [2, 4], [4, 4], [4, 2]]}],
+    "goal": {"polygon": [[6, 6], [7, 6], [7, 7], [6, 7]]},
+    "uncertainty": {"velocity_cone_deg": 8, "position": 0.05},
+    "friction_cone_deg": 15
+  })",
+                                 "squares.json");
+  const CSpace cspace(scene);
+  const std::map<std::pair<std::pair<double, double>, std::pair<double, double>>, std::string> expected_edges = {
+      {{{1, 1}, {3, 1}}, "obstacle[box].e[3]-robot.v[2]"}, {{{3, 1}, {4, 1}}, "obstacle[box].e[3]-robot.v[3]"},
+      {{{4, 1}, {4, 2}}, "obstacle[box].e[2]-robot.v[3]"}, {{{4, 2}, {4, 4}}, "obstacle[box].e[2]-robot.v[0]"},
+      {{{4, 4}, {2, 4}}, "obstacle[box].e[1]-robot.v[0]"}, {{{2, 4}, {1, 4}}, "obstacle[box].e[1]-robot.v[1]"},
+      {{{1, 4}, {1, 2}}, "obstacle[box].e[0]-robot.v[1]"}, {{{1, 2}, {1, 1}}, "obstacle[box].e[0]-robot.v[2]"}};
+  const std::map<std::pair<double, double>, std::string> expected_vertices = {
+      {{1, 1}, "obstacle[box].v[0]-robot.v[2]"}, {{3, 1}, "obstacle[box].v[3]-robot.v[2]"},
+      {{4, 1}, "obstacle[box].v[3]-robot.v[3]"}, {{4, 2}, "obstacle[box].v[3]-robot.v[0]"},
+      {{4, 4}, "obstacle[box].v[2]-robot.v[0]"}, {{2, 4}, "obstacle[box].v[1]-robot.v[0]"},
+      {{1, 4}, "obstacle[box].v[1]-robot.v[1]"}, {{1, 2}, "obstacle[box].v[0]-robot.v[1]"}};
+  for (const bool use_union : {true, false}) {
+    const auto& rings = use_union ? cspace.obstacle_union() : cspace.c_obstacle(0);
+    const auto& sources = use_union ? cspace.obstacle_union_sources() : cspace.c_obstacle_sources(0);
+    ASSERT_EQ(rings.size(), 1u);
+    ASSERT_EQ(sources.size(), 1u);
+    const Polygon& outer = rings[0].outer;
+    ASSERT_EQ(outer.size(), 8u);
+    ASSERT_EQ(sources[0].outer.edges.size(), 8u);
+    ASSERT_EQ(sources[0].outer.vertex_refs.size(), 8u);
+    for (std::size_t k = 0; k < 8; ++k) {
+      const Point& a = outer[k];
+      const Point& b = outer[(k + 1) % 8];
+      const auto edge = expected_edges.find({{a.x(), a.y()}, {b.x(), b.y()}});
+      ASSERT_NE(edge, expected_edges.end()) << a.transpose() << " -> " << b.transpose();
+      EXPECT_EQ(sources[0].outer.edges[k].ref, edge->second);
+      EXPECT_EQ(sources[0].outer.edges[k].obstacle, 0u);
+      EXPECT_EQ(sources[0].outer.edges[k].kind, EdgeSource::Kind::kObstacleEdge);
+      EXPECT_EQ(sources[0].outer.vertex_refs[k], expected_vertices.at({a.x(), a.y()}));
+    }
+  }
+}
+
+// Where two C-obstacles overlap, CB's edges carry the generator of the first obstacle whose segment contains them;
+// a vertex where the two boundaries cross, which is no sum of vertices, is named by the two edges meeting there.
+TEST(CSpace, EdgeProvenanceOfTheUnion) {
+  const Scene scene = ParseScene(R"({
+    "bounds": {"min": [-2, -2], "max": [8, 8]},
+    "robot": {"polygon": [[0, 0], [1, 0], [1, 1], [0, 1]]},
+    "obstacles": [{"id": "a", "polygon": [[0, 0], [2, 0], [2, 2], [0, 2]]},
+                  {"id": "b", "polygon": [[2.5, 0.5], [4, 0.5], [4, 3.3], [2.5, 3.3]]}],
+    "goal": {"polygon": [[6, 6], [7, 6], [7, 7], [6, 7]]},
+    "uncertainty": {"velocity_cone_deg": 8, "position": 0.05},
+    "friction_cone_deg": 15
+  })",
+                                 "union.json");
+  const CSpace cspace(scene);
+  // CB_a = [-1, 2] x [-1, 2], CB_b = [1.5, 4] x [-0.5, 3.3]: one piece; the top of CB_a (y = 2) meets the left of
+  // CB_b (x = 1.5) at (1.5, 2). CB_b's left side is covered by e3 - a1 (y in [0.5, 3.3]) and e3 - a2 (y in
+  // [-0.5, 2.3]): from (1.5, 3.3) down to (1.5, 2) it is one edge of e3 - a1 (no vertex at y = 2.3).
+  ASSERT_EQ(cspace.obstacle_union().size(), 1u);
+  const Polygon& outer = cspace.obstacle_union()[0].outer;
+  const RingSources& sources = cspace.obstacle_union_sources()[0].outer;
+  bool found = false;
+  for (std::size_t k = 0; k < outer.size(); ++k) {
+    if (outer[k] != Point(1.5, 2)) continue;
+    found = true;
+    // Leaving along the top of CB_a (towards x = -1 on the counter-clockwise ring), arriving down CB_b's left side.
+    EXPECT_EQ(sources.edges[k].ref, "obstacle[a].e[2]-robot.v[0]");  // [(2,2)-(0,0), (0,2)-(0,0)] covers x in [0, 2]
+    const std::size_t before = (k + outer.size() - 1) % outer.size();
+    EXPECT_EQ(sources.edges[before].ref, "obstacle[b].e[3]-robot.v[1]");
+    EXPECT_EQ(outer[before], Point(1.5, 3.3));
+    EXPECT_EQ(sources.vertex_refs[k], "x(obstacle[a].e[2]-robot.v[0],obstacle[b].e[3]-robot.v[1])");
+  }
+  EXPECT_TRUE(found);
 }
 
 }  // namespace
