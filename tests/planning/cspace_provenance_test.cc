@@ -56,7 +56,8 @@ FilePolygon Scramble(const Polygon& polygon, std::mt19937_64& rng) {
 
 std::string PolygonJson(const FilePolygon& p) {
   std::string s = "[";
-  for (std::size_t i = 0; i < p.size(); ++i) s += fmt::format("{}[{:.17g}, {:.17g}]", i ? ", " : "", p[i].x(), p[i].y());
+  for (std::size_t i = 0; i < p.size(); ++i)
+    s += fmt::format("{}[{:.17g}, {:.17g}]", i ? ", " : "", p[i].x(), p[i].y());
   return s + "]";
 }
 
@@ -163,7 +164,8 @@ void CheckRings(const FileScene& f, const std::vector<PolygonWithHoles>& polygon
   for (std::size_t p = 0; p < polygons.size(); ++p) {
     std::vector<std::pair<const Polygon*, const RingSources*>> rings = {{&polygons[p].outer, &sources[p].outer}};
     ASSERT_EQ(polygons[p].holes.size(), sources[p].holes.size());
-    for (std::size_t h = 0; h < polygons[p].holes.size(); ++h) rings.emplace_back(&polygons[p].holes[h], &sources[p].holes[h]);
+    for (std::size_t h = 0; h < polygons[p].holes.size(); ++h)
+      rings.emplace_back(&polygons[p].holes[h], &sources[p].holes[h]);
     for (const auto& [ring, src] : rings) {
       ++counts.rings;
       const std::size_t n = ring->size();
@@ -216,10 +218,11 @@ TEST(CSpaceProvenance, EveryBoundaryEdgeLiesOnTheGeneratorItsRefNames) {
     }
     if (::testing::Test::HasFailure()) break;
   }
-  std::printf("%d scenes, %d rings, %d edges (%d robot-edge refs, %d next to a piece of the same generator), %d sum "
-              "and %d crossing vertices\n",
-              counts.scenes, counts.rings, counts.edges, counts.robot_edge_refs, counts.split_edges,
-              counts.sum_vertices, counts.crossing_vertices);
+  std::printf(
+      "%d scenes, %d rings, %d edges (%d robot-edge refs, %d next to a piece of the same generator), %d sum "
+      "and %d crossing vertices\n",
+      counts.scenes, counts.rings, counts.edges, counts.robot_edge_refs, counts.split_edges, counts.sum_vertices,
+      counts.crossing_vertices);
   EXPECT_GE(counts.scenes, 80);
   EXPECT_GT(counts.robot_edge_refs, 0);
   EXPECT_GT(counts.crossing_vertices, 0);
@@ -268,7 +271,8 @@ TEST(CSpaceProvenance, BackprojectionEdgesKeepTheirRefsAtEveryTheta) {
             const auto& sources = cspace.obstacle_union_sources();
             for (std::size_t p = 0; p < polygons.size(); ++p) {
               std::vector<std::pair<const Polygon*, const RingSources*>> cb = {{&polygons[p].outer, &sources[p].outer}};
-              for (std::size_t h = 0; h < polygons[p].holes.size(); ++h) cb.emplace_back(&polygons[p].holes[h], &sources[p].holes[h]);
+              for (std::size_t h = 0; h < polygons[p].holes.size(); ++h)
+                cb.emplace_back(&polygons[p].holes[h], &sources[p].holes[h]);
               for (const auto& [cb_ring, src] : cb) {
                 for (std::size_t e = 0; e < cb_ring->size(); ++e) {
                   const double d = SegmentDistance(mid, (*cb_ring)[e], (*cb_ring)[(e + 1) % cb_ring->size()]);
@@ -289,8 +293,8 @@ TEST(CSpaceProvenance, BackprojectionEdgesKeepTheirRefsAtEveryTheta) {
     }
     for (const auto& [ref, count] : seen) ++thetas_per_ref[std::to_string(count)];
   }
-  std::printf("%d scenes, %d obstacle edges of B_θ(G) checked; refs seen at 1/2/3/4 of the 4 θ: %d/%d/%d/%d\n",
-              scenes, checked, thetas_per_ref["1"], thetas_per_ref["2"], thetas_per_ref["3"], thetas_per_ref["4"]);
+  std::printf("%d scenes, %d obstacle edges of B_θ(G) checked; refs seen at 1/2/3/4 of the 4 θ: %d/%d/%d/%d\n", scenes,
+              checked, thetas_per_ref["1"], thetas_per_ref["2"], thetas_per_ref["3"], thetas_per_ref["4"]);
   EXPECT_GE(scenes, 12);
   EXPECT_GT(checked, 50);
   EXPECT_GT(thetas_per_ref["4"], 0);  // edges seen at every θ, with one ref
