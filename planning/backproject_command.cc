@@ -15,6 +15,7 @@
 #include "common/write_output.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
+#include "planning/svg.h"
 #include "planning/vc_rays.h"
 
 namespace visco::planning {
@@ -52,66 +53,41 @@ nlohmann::json RegionJson(const Region& region) {
   return {{"area", region.area}, {"regions", regions}};
 }
 
-// A minimal SVG panel in world coordinates (y up).
-class Panel {
- public:
-  Panel(Eigen::Vector2d min, Eigen::Vector2d max, double width, double ox)
-      : min_(min), max_(max), scale_(width / (max - min).x()), ox_(ox) {}
-  double X(const Eigen::Vector2d& p) const { return ox_ + 20 + (p.x() - min_.x()) * scale_; }
-  double Y(const Eigen::Vector2d& p) const { return 40 + (max_.y() - p.y()) * scale_; }
-  double height() const { return (max_ - min_).y() * scale_ + 60; }
-  void Poly(const std::vector<Eigen::Vector2d>& v, const std::string& style) {
-    std::string pts;
-    for (const auto& p : v) pts += fmt::format("{:.2f},{:.2f} ", X(p), Y(p));
-    body_ += fmt::format("<polygon points=\"{}\" {}/>\n", pts, style);
-  }
-  void Line(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const std::string& style) {
-    body_ += fmt::format("<line x1=\"{:.2f}\" y1=\"{:.2f}\" x2=\"{:.2f}\" y2=\"{:.2f}\" {}/>\n", X(a), Y(a), X(b), Y(b),
-                         style);
-  }
-  void Text(double x, double y, const std::string& t) {
-    body_ +=
-        fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" font-family=\"sans-serif\" font-size=\"14\">{}</text>\n", x, y, t);
-  }
-  std::string body_;
+PolygonWithHoles ToPolygonWithHoles(const RegionPolygon& poly) {
+  PolygonWithHoles out;
+  out.outer.vertices = poly.outer.vertices;
+  for (const RegionRing& h : poly.holes) out.holes.push_back(Polygon{h.vertices});
+  return out;
+}
 
- private:
-  Eigen::Vector2d min_, max_;
-  double scale_, ox_;
-};
-
-void DrawPanel(Panel& p, const Scene& scene, const CSpace& cspace, const BackprojectionProblem& pr,
+// One panel of the Fig. 13-style picture, drawn in world coordinates (y up) on its own canvas.
+void DrawPanel(SvgCanvas& c, const Scene& scene, const CSpace& cspace, const BackprojectionProblem& pr,
                const Region& region, const std::vector<std::string>& active, const std::string& title) {
   const Eigen::Vector2d lo = scene.bounds.min, hi = scene.bounds.max;
-  p.Poly({{lo.x(), lo.y()}, {hi.x(), lo.y()}, {hi.x(), hi.y()}, {lo.x(), hi.y()}},
-         "fill=\"white\" stroke=\"#999\" stroke-width=\"1\"");
-  // The region: light fill, dashed outline, VC edges bold.
-  for (const auto& poly : region.polygons) {
-    p.Poly(poly.outer.vertices, "fill=\"#cfe3ff\" stroke=\"none\"");
-    for (const auto& h : poly.holes) p.Poly(h.vertices, "fill=\"white\" stroke=\"none\"");
-  }
-  for (const auto& o : scene.obstacles)
-    p.Poly(o.shape.polygon.vertices, "fill=\"#bbb\" stroke=\"#777\" stroke-width=\"1\"");
+  c.Polygon(Polygon{{{lo.x(), lo.y()}, {hi.x(), lo.y()}, {hi.x(), hi.y()}, {lo.x(), hi.y()}}},
+            "fill=\"white\" stroke=\"#999\" stroke-width=\"1\"");
+  // The region: light fill (holes left out), dashed outline, VC edges bold.
+  for (const auto& poly : region.polygons)
+    c.PolygonWithHoles(ToPolygonWithHoles(poly), "fill=\"#cfe3ff\" stroke=\"none\"");
+  for (const auto& o : scene.obstacles) c.Polygon(o.shape.polygon, "fill=\"#bbb\" stroke=\"#777\" stroke-width=\"1\"");
   for (size_t i = 0; i < cspace.num_c_obstacles(); ++i) {
     for (const auto& pw : cspace.c_obstacle(i)) {
-      p.Poly(pw.outer.vertices, "fill=\"none\" stroke=\"#333\" stroke-width=\"1\"");
-      for (const auto& h : pw.holes) p.Poly(h.vertices, "fill=\"none\" stroke=\"#333\" stroke-width=\"1\"");
+      c.Polygon(pw.outer, "fill=\"none\" stroke=\"#333\" stroke-width=\"1\"");
+      for (const auto& h : pw.holes) c.Polygon(h, "fill=\"none\" stroke=\"#333\" stroke-width=\"1\"");
     }
   }
-  for (const auto& g : pr.goal) p.Poly(g.vertices, "fill=\"black\" stroke=\"black\"");
+  for (const auto& g : pr.goal) c.Polygon(Polygon{g.vertices}, "fill=\"black\" stroke=\"black\"");
   for (const auto& ray : pr.rays) {
     const bool is_active = std::find(active.begin(), active.end(), ray.id) != active.end();
     for (const auto& s : ray.segments) {
-      p.Line(s[0], s[1],
+      c.Line(s[0], s[1],
              is_active ? "stroke=\"#c00\" stroke-width=\"1.5\" stroke-dasharray=\"6,3\""
                        : "stroke=\"#e9a\" stroke-width=\"0.7\"");
     }
   }
   auto ring_edges = [&](const RegionRing& r) {
     for (size_t i = 0; i < r.vertices.size(); ++i) {
-      const auto& a = r.vertices[i];
-      const auto& b = r.vertices[(i + 1) % r.vertices.size()];
-      p.Line(a, b,
+      c.Line(r.vertices[i], r.vertices[(i + 1) % r.vertices.size()],
              r.edges[i].kind == EdgeKind::kVc ? "stroke=\"#c00\" stroke-width=\"4\""
                                               : "stroke=\"#036\" stroke-width=\"2\" stroke-dasharray=\"8,4\"");
     }
@@ -121,10 +97,9 @@ void DrawPanel(Panel& p, const Scene& scene, const CSpace& cspace, const Backpro
     for (const auto& h : poly.holes) ring_edges(h);
   }
   if (scene.camera) {
-    const Eigen::Vector2d c = scene.camera->center;
+    const Eigen::Vector2d center = scene.camera->center;
     const double d = 0.02 * (hi - lo).norm();
-    p.Line(c - Eigen::Vector2d(d, d), c + Eigen::Vector2d(d, d), "stroke=\"black\" stroke-width=\"2.5\"");
-    p.Line(c - Eigen::Vector2d(d, -d), c + Eigen::Vector2d(d, -d), "stroke=\"black\" stroke-width=\"2.5\"");
+    c.Cross(center, 2 * d * (c.x(hi) - c.x(lo)) / (hi - lo).x(), "stroke=\"black\" stroke-width=\"2.5\"");
   }
   // Commanded velocity: an arrow in the top-left corner.
   const double len = 0.08 * (hi - lo).norm();
@@ -132,10 +107,10 @@ void DrawPanel(Panel& p, const Scene& scene, const CSpace& cspace, const Backpro
   const Eigen::Vector2d v(std::cos(pr.theta), std::sin(pr.theta));
   const Eigen::Vector2d tip = base + len * v;
   const Eigen::Vector2d n(-v.y(), v.x());
-  p.Line(base, tip, "stroke=\"#070\" stroke-width=\"3\"");
-  p.Line(tip, tip - 0.3 * len * v + 0.15 * len * n, "stroke=\"#070\" stroke-width=\"3\"");
-  p.Line(tip, tip - 0.3 * len * v - 0.15 * len * n, "stroke=\"#070\" stroke-width=\"3\"");
-  p.Text(p.X(lo), 25, title);
+  c.Line(base, tip, "stroke=\"#070\" stroke-width=\"3\"");
+  c.Line(tip, tip - 0.3 * len * v + 0.15 * len * n, "stroke=\"#070\" stroke-width=\"3\"");
+  c.Line(tip, tip - 0.3 * len * v - 0.15 * len * n, "stroke=\"#070\" stroke-width=\"3\"");
+  c.TextPx(c.x(lo), 20, title, 14, "fill=\"black\"");
 }
 
 struct Args {
@@ -231,17 +206,14 @@ std::string BackprojectionToJson(double theta_deg, const Region& classic, const 
 std::string BackprojectionToSvg(const Scene& scene, const CSpace& cspace, const BackprojectionProblem& problem,
                                 const Region& classic, const VcBackprojection& vc) {
   const double width = 560;
-  Panel left(scene.bounds.min, scene.bounds.max, width, 0);
-  Panel right(scene.bounds.min, scene.bounds.max, width, width + 40);
+  SvgCanvas left(scene.bounds.min, scene.bounds.max, width);
+  SvgCanvas right(scene.bounds.min, scene.bounds.max, width);
   const double theta_deg = problem.theta * 180.0 / M_PI;
   DrawPanel(left, scene, cspace, problem, classic, {},
             fmt::format("classic B_θ(G), θ = {:.1f}°, area {:.3f}", theta_deg, classic.area));
   DrawPanel(right, scene, cspace, problem, vc.region, vc.active_rays,
             fmt::format("VC-enlarged B_vcθ(G), area {:.3f}, {} active ray(s)", vc.region.area, vc.active_rays.size()));
-  return fmt::format(
-      "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{:.0f}\" "
-      "height=\"{:.0f}\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n{}{}</svg>",
-      2 * width + 80, left.height(), left.body_, right.body_);
+  return SideBySide({{"classic", &left}, {"vc", &right}}, 20);
 }
 
 void RegisterBackprojectCommand(CLI::App& app) {

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <fstream>
 
 #include "common/error.h"
@@ -65,12 +66,30 @@ void SvgCanvas::TextPx(double x_px, double y_px, const std::string& text, double
                        x_px, y_px, size_px, style, SvgEscape(text));
 }
 
-std::string SvgCanvas::Finish() const {
+namespace {
+std::string Document(double width, double height, const std::string& body) {
   return fmt::format(
       "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{:.0f}\" "
       "height=\"{:.0f}\" viewBox=\"0 0 {:.0f} {:.0f}\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n{}"
       "</svg>\n",
-      width_, height_, width_, height_, body_);
+      width, height, width, height, body);
+}
+}  // namespace
+
+std::string SvgCanvas::Finish() const { return Document(width_, height_, body_); }
+
+std::string SideBySide(const std::vector<SvgPanel>& panels, double gap_px) {
+  std::string body;
+  double x = 0, height = 0;
+  for (std::size_t i = 0; i < panels.size(); ++i) {
+    const SvgCanvas& c = *panels[i].canvas;
+    if (i > 0) x += gap_px;
+    body +=
+        fmt::format("<g id=\"{}\" transform=\"translate({:.2f},0)\">\n{}</g>\n", SvgEscape(panels[i].id), x, c.body());
+    x += c.width_px();
+    height = std::max(height, c.height_px());
+  }
+  return Document(x, height, body);
 }
 
 void SvgCanvas::Write(const std::string& path) const {

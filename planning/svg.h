@@ -1,6 +1,7 @@
 #pragma once
-// A small SVG canvas in world coordinates (metres, y up), for the planner's pictures (`visco vcrays --svg`, and
-// whoever draws regions next). World y is flipped to SVG's y down; sizes given in pixels stay pixels.
+// A small SVG canvas in world coordinates (metres, y up), for the planner's pictures (`visco vcrays --svg`,
+// `visco backproject --svg`). World y is flipped to SVG's y down; sizes given in pixels stay pixels. Several canvases
+// can be composed side by side into one document (SideBySide), each keeping its own world-to-pixel map.
 
 #include <string>
 #include <vector>
@@ -28,11 +29,14 @@ class SvgCanvas {
 
   /// The document.
   std::string Finish() const;
+  /// The drawing without the document around it (SVG elements in this canvas's pixel frame).
+  const std::string& body() const { return body_; }
   /// Writes the document. @throws visco::InputError(path, "", ...) if the file cannot be written.
   void Write(const std::string& path) const;
 
   double x(const Point& p) const;
   double y(const Point& p) const;
+  double width_px() const { return width_; }
   double height_px() const { return height_; }
 
  private:
@@ -44,6 +48,16 @@ class SvgCanvas {
   double max_y_;
   std::string body_;
 };
+
+/// A canvas placed in a composed document: its drawing goes into `<g id="ID" transform="translate(X,0)">`.
+struct SvgPanel {
+  std::string id;  ///< an XML id (letters, digits, '-', '_')
+  const SvgCanvas* canvas = nullptr;
+};
+
+/// One document with the panels' canvases left to right, `gap_px` apart, top-aligned; the document is as wide as
+/// all of them and the gaps, and as high as the highest.
+std::string SideBySide(const std::vector<SvgPanel>& panels, double gap_px = 20);
 
 /// Escapes &, <, > and quotes for SVG text.
 std::string SvgEscape(const std::string& text);

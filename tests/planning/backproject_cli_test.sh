@@ -36,7 +36,23 @@ PY
 python3 -c "import json; g=json.load(open('$tmp/g.json'))['vc']; d=json.load(open('$tmp/b.json'))['vc']; \
 assert g['ray_selection']['method'] in ('greedy', 'none'); assert g['area'] <= d['area'] * (1 + 1e-12)" \
   || fail "the greedy choice is not reported or is larger than the exact one"
-grep -q "<svg" "$tmp/b.svg" || fail "no SVG written"
+# The picture: well-formed XML, one document with both panels side by side, each with its own drawing and title.
+python3 - "$tmp/b.svg" <<'PY' || fail "the SVG is not one well-formed document with both panels"
+import re, sys, xml.etree.ElementTree as ET
+ns = "{http://www.w3.org/2000/svg}"
+root = ET.parse(sys.argv[1]).getroot()
+assert root.tag == ns + "svg", root.tag
+groups = {g.get("id"): g for g in root.iter(ns + "g")}
+assert set(groups) == {"classic", "vc"}, sorted(groups)
+shift = {k: float(re.fullmatch(r"translate\(([-0-9.]+),0\)", g.get("transform")).group(1)) for k, g in groups.items()}
+assert shift["classic"] == 0 and shift["vc"] > 0, shift
+assert float(root.get("width")) >= 2 * shift["vc"] * 0.9, (root.get("width"), shift)
+titles = {"classic": "classic B_θ(G)", "vc": "VC-enlarged B_vcθ(G)"}
+for key, g in groups.items():
+    assert len(list(g.iter(ns + "path"))) >= 4, key  # bounds, region, obstacles, C-obstacles, goal
+    assert len(list(g.iter(ns + "line"))) >= 4, key  # region edges, velocity arrow
+    assert any(t.text and t.text.startswith(titles[key]) for t in g.iter(ns + "text")), key
+PY
 # Refs name file positions (CONTRACT.md): the same scene with every polygon written clockwise from another vertex
 # gives the same regions; goal refs name the same file edges (renumbered by the rewrite), and every obstacle ref
 # names, in each file, a Minkowski segment (obstacle edge - robot vertex, or obstacle vertex - robot edge) that
