@@ -16,6 +16,7 @@
 #include "vision/camera.h"
 #include "vision/detect_json.h"
 #include "vision/image.h"
+#include "vision/multi_tag_pose.h"
 #include "vision/pipeline.h"
 #include "vision/tag_detector.h"
 
@@ -96,49 +97,59 @@ void RunTrack(const TrackArgs& a) {
   std::int64_t frames = 0, bad = 0, lost = 0, crossings = 0, full = 0;
   double latency_sum = 0;
   std::atomic<bool> done{false};
-  PipelineThread thread(std::move(source), pipeline, a.publish ? bus.get() : nullptr, nullptr,
-                        [&](const PipelineOutput& o) {
-                          for (const auto& f : o.faults) {
-                            nlohmann::json j;
-                            j["fault"] = {{"utime", f.utime},
-                                          {"code", f.code},
-                                          {"severity", f.severity},
-                                          {"cleared", f.cleared != 0},
-                                          {"message", f.message}};
-                            std::fprintf(out, "%s\n", j.dump().c_str());
-                          }
-                          if (!o.processed) {
-                            ++bad;
-                            return;
-                          }
-                          ++frames;
-                          full += o.full_detection ? 1 : 0;
-                          lost += o.robot.valid ? 0 : 1;
-                          latency_sum += o.events.latency_s;
-                          nlohmann::json j;
-                          j["seq"] = o.robot.frame_seq;
-                          j["utime"] = o.robot.utime;
-                          j["full_detection"] = o.full_detection;
-                          j["tags"] = nlohmann::json::array();
-                          for (const auto& t : o.detections.detections) j["tags"].push_back(t.id);
-                          j["robot"] = {{"valid", o.robot.valid},
-                                        {"position", {o.robot.position[0], o.robot.position[1]}},
-                                        {"stddev", o.robot.position_stddev},
-                                        {"heading_deg", o.robot.heading * 180 / M_PI}};
-                          j["events"] = nlohmann::json::array();
-                          for (const auto& e : o.events.events) {
-                            crossings += e.crossed ? 1 : 0;
-                            j["events"].push_back({{"cvc_ray", e.cvc_ray},
-                                                   {"signed_distance_px", e.signed_distance_px},
-                                                   {"stddev_px", e.distance_stddev_px},
-                                                   {"state", StateName(e.state)},
-                                                   {"crossed", e.crossed}});
-                          }
-                          j["latency_ms"] = o.events.latency_s * 1e3;
-                          std::fprintf(out, "%s\n", j.dump().c_str());
-                          std::fflush(out);
-                          if (a.max_frames > 0 && frames >= a.max_frames) done = true;
-                        });
+  PipelineThread thread(
+      std::move(source), pipeline, a.publish ? bus.get() : nullptr, nullptr, [&](const PipelineOutput& o) {
+        for (const auto& f : o.faults) {
+          nlohmann::json j;
+          j["fault"] = {{"utime", f.utime},
+                        {"code", f.code},
+                        {"severity", f.severity},
+                        {"cleared", f.cleared != 0},
+                        {"message", f.message}};
+          std::fprintf(out, "%s\n", j.dump().c_str());
+        }
+        if (!o.processed) {
+          ++bad;
+          return;
+        }
+        ++frames;
+        full += o.full_detection ? 1 : 0;
+        lost += o.robot.valid ? 0 : 1;
+        latency_sum += o.events.latency_s;
+        nlohmann::json j;
+        j["seq"] = o.robot.frame_seq;
+        j["utime"] = o.robot.utime;
+        j["full_detection"] = o.full_detection;
+        j["tags"] = nlohmann::json::array();
+        for (const auto& t : o.detections.detections) j["tags"].push_back(t.id);
+        j["robot"] = {{"valid", o.robot.valid},
+                      {"position", {o.robot.position[0], o.robot.position[1]}},
+                      {"stddev", o.robot.position_stddev},
+                      {"heading_deg", o.robot.heading * 180 / M_PI}};
+        j["objects"] = nlohmann::json::array();
+        for (const auto& p : o.poses.poses) {
+          j["objects"].push_back({{"id", p.object_id},
+                                  {"position", {p.position[0], p.position[1], p.position[2]}},
+                                  {"contact_refined", p.contact_refined},
+                                  {"pose_decision", PoseDecisionName(static_cast<PoseDecision>(p.pose_decision))},
+                                  {"ambiguous", p.ambiguous},
+                                  {"tags_used", p.tags_used},
+                                  {"rms_error_px", p.rms_error_px}});
+        }
+        j["events"] = nlohmann::json::array();
+        for (const auto& e : o.events.events) {
+          crossings += e.crossed ? 1 : 0;
+          j["events"].push_back({{"cvc_ray", e.cvc_ray},
+                                 {"signed_distance_px", e.signed_distance_px},
+                                 {"stddev_px", e.distance_stddev_px},
+                                 {"state", StateName(e.state)},
+                                 {"crossed", e.crossed}});
+        }
+        j["latency_ms"] = o.events.latency_s * 1e3;
+        std::fprintf(out, "%s\n", j.dump().c_str());
+        std::fflush(out);
+        if (a.max_frames > 0 && frames >= a.max_frames) done = true;
+      });
   g_interrupted = false;
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
@@ -227,8 +238,10 @@ void RegisterCommands(CLI::App& app) {
       "Run the vision pipeline over a stream: an image folder, a video file or the LCM camera channel "
       "(VISCO_CAMERA_IMAGE, image_t). Detects and tracks the tags of the object models, estimates object poses, the "
       "robot position and the visual events, publishes them on LCM (VISCO_TAG_DETECTIONS, VISCO_OBJECT_POSES, "
-      "VISCO_ROBOT_ESTIMATE, VISCO_VISUAL_EVENTS, faults on VISCO_FAULT) and prints one JSON line per frame, faults as "
-      "{\"fault\": ...} lines, and a final {\"summary\": ...} line.");
+      "VISCO_ROBOT_ESTIMATE, VISCO_VISUAL_EVENTS, faults on VISCO_FAULT) and prints one JSON line per frame (robot, "
+      "objects with "
+      "their pose decision, tags used and RMS error, events), faults as {\"fault\": ...} lines, and a final "
+      "{\"summary\": ...} line.");
   track->add_option("--camera", targs->camera, "calibration: ViSP XML or OpenCV YAML")->required();
   track->add_option("--camera-name", targs->camera_name, "camera in a multi-camera ViSP XML file");
   track->add_option("--extrinsics", targs->extrinsics, "camera pose in the world (JSON, wMc)")->required();

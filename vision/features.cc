@@ -213,6 +213,7 @@ ObjectEstimate FeatureEstimator::EstimateObject(const ObjectModel& model, const 
   out.cov_cMo = fit->unit_covariance;  // scaled by sigma^2 in Update
   out.rms_error_px = fit->rms_error_px;
   out.ambiguous = fit->ambiguous;
+  out.pose_decision = fit->decided_by;
   out.tags_used = static_cast<int>(fit->inliers.size());
   object_prior = fit->cMo;
   for (std::size_t k = 0; k < seen.size(); ++k) {

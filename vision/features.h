@@ -25,6 +25,7 @@
 
 #include "vision/camera.h"
 #include "vision/contact_refinement.h"
+#include "vision/multi_tag_pose.h"
 #include "vision/object_model.h"
 #include "vision/tag_detector.h"
 
@@ -65,7 +66,8 @@ struct ObjectEstimate {
   std::vector<TagEstimate> tags;  ///< every tag of the object that gave a pose, in model order
   int tags_used = 0;              ///< tags in the fit (inliers)
   double rms_error_px = 0;        ///< of the fit, over the inlier tags' corners
-  bool ambiguous = false;
+  bool ambiguous = false;         ///< another pose fitted the tags within the noise (ObjectPoseFit::ambiguous)
+  PoseDecision pose_decision = PoseDecision::kUnique;  ///< what chose the pose (ObjectPoseFit::decided_by)
   double position_stddev = 0;     ///< metres, world position of the object origin, 1 sigma (largest axis)
   double orientation_stddev = 0;  ///< radians, 1 sigma (largest axis)
   /// cMo / wMo were made flush with the table and the touching objects (contact_refinement.h); cMo_measured and the

@@ -433,4 +433,22 @@ std::optional<ObjectPoseFit> EstimateObjectPose(const CameraModel& camera,
   return out;
 }
 
+const char* PoseDecisionName(PoseDecision decision) {
+  switch (decision) {
+    case PoseDecision::kSingleTag:
+      return "single_tag";
+    case PoseDecision::kUnique:
+      return "unique";
+    case PoseDecision::kSmallerError:
+      return "smaller_error";
+    case PoseDecision::kPrior:
+      return "prior";
+    case PoseDecision::kExpectedUp:
+      return "expected_up";
+    case PoseDecision::kUndecided:
+      return "undecided";
+  }
+  return "unknown";
+}
+
 }  // namespace visco::vision

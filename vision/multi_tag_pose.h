@@ -21,6 +21,7 @@
 // With one tag the result is that tag's own pose (EstimateTagPose's ambiguity rule applies unchanged).
 
 #include <Eigen/Geometry>
+#include <cstdint>
 #include <optional>
 #include <vector>
 
@@ -39,7 +40,7 @@ struct ObjectTagObservation {
 };
 
 /// What decided the object's pose among the poses that fit its tags.
-enum class PoseDecision {
+enum class PoseDecision : std::int8_t {
   kSingleTag,     ///< one tag: EstimateTagPose's own rule (see TagPose::ambiguous)
   kUnique,        ///< the largest consistent set of tags has one pose
   kSmallerError,  ///< several poses of the set; the others are too unlikely for the corner noise
@@ -47,6 +48,10 @@ enum class PoseDecision {
   kExpectedUp,    ///< several poses fit within the noise, no prior; the one whose z axis is closest to "up"
   kUndecided,     ///< several poses fit within the noise, neither prior nor "up": the smaller error, a guess
 };
+
+/// Name of a decision as printed in JSON ("single_tag", "unique", "smaller_error", "prior", "expected_up",
+/// "undecided"); object_pose_t's POSE_DECISION_* constants have the enum's values.
+const char* PoseDecisionName(PoseDecision decision);
 
 /// The object's pose from its tags.
 struct ObjectPoseFit {

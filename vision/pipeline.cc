@@ -154,6 +154,14 @@ TagTrackerOptions WithExpectedIds(TagTrackerOptions o, const ObjectModels& model
 
 }  // namespace
 
+// object_pose_t::pose_decision carries PoseDecision's values.
+static_assert(static_cast<int>(PoseDecision::kSingleTag) == visco::object_pose_t::POSE_DECISION_SINGLE_TAG);
+static_assert(static_cast<int>(PoseDecision::kUnique) == visco::object_pose_t::POSE_DECISION_UNIQUE);
+static_assert(static_cast<int>(PoseDecision::kSmallerError) == visco::object_pose_t::POSE_DECISION_SMALLER_ERROR);
+static_assert(static_cast<int>(PoseDecision::kPrior) == visco::object_pose_t::POSE_DECISION_PRIOR);
+static_assert(static_cast<int>(PoseDecision::kExpectedUp) == visco::object_pose_t::POSE_DECISION_EXPECTED_UP);
+static_assert(static_cast<int>(PoseDecision::kUndecided) == visco::object_pose_t::POSE_DECISION_UNDECIDED);
+
 std::int64_t NowUtime() {
   return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
       .count();
@@ -338,6 +346,10 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
     op.position_stddev = o.position_stddev;
     op.orientation_stddev = o.orientation_stddev;
     op.contact_refined = o.contact_refined;
+    op.pose_decision = static_cast<std::int8_t>(o.pose_decision);
+    op.ambiguous = o.ambiguous;
+    op.tags_used = o.tags_used;
+    op.rms_error_px = o.rms_error_px;
     p.poses.push_back(op);
   };
   add_pose(f.robot_pose, models.robot.id);

@@ -60,6 +60,10 @@ inline void Fill(object_pose_t& m) {
   m.position_stddev = 0.002;
   m.orientation_stddev = 0.01;
   m.contact_refined = true;
+  m.pose_decision = object_pose_t::POSE_DECISION_EXPECTED_UP;
+  m.ambiguous = true;
+  m.tags_used = 3;
+  m.rms_error_px = 0.27;
 }
 inline void Fill(object_poses_t& m) {
   m.utime = 1700000000000005;

@@ -154,6 +154,14 @@ TEST(TrackCommand, VideoFile) {
     ASSERT_TRUE(Truthy(l.at("robot").at("valid"))) << i;
     const Eigen::Vector2d p(l["robot"]["position"][0].get<double>(), l["robot"]["position"][1].get<double>());
     worst = std::max(worst, (p - w.Robot(i).translation().head<2>()).norm());
+    // Each object's pose with how it was chosen: one tag each in the demo models.
+    ASSERT_EQ(l.at("objects").size(), 2u) << i;
+    for (const auto& o : l.at("objects")) {
+      EXPECT_EQ(o.at("pose_decision"), "single_tag") << i;
+      EXPECT_EQ(o.at("tags_used"), 1) << i;
+      EXPECT_GT(o.at("rms_error_px").get<double>(), 0) << i;
+      EXPECT_LT(o.at("rms_error_px").get<double>(), 2) << i;
+    }
     for (const auto& e : l.at("events")) {
       if (e.at("cvc_ray") == "block.v0.cm1" && Truthy(e.at("crossed")) && e.at("state") != "on_line" && crossing < 0) {
         crossing = i;
@@ -296,6 +304,10 @@ TEST(TrackCommand, LcmCameraChannel) {
     for (const auto& o : p.poses) {
       EXPECT_TRUE(o.contact_refined) << o.object_id;
       EXPECT_NEAR(o.position[2], 0, 1e-9);
+      EXPECT_EQ(o.pose_decision, visco::object_pose_t::POSE_DECISION_SINGLE_TAG) << o.object_id;
+      EXPECT_EQ(o.tags_used, 1) << o.object_id;
+      EXPECT_GT(o.rms_error_px, 0) << o.object_id;
+      EXPECT_LT(o.rms_error_px, 2) << o.object_id;
     }
   }
   // A crossing of block.v0.cm1 near the true one; latency from publication of the frame to arrival of its events.
