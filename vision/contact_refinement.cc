@@ -1,5 +1,7 @@
 #include "vision/contact_refinement.h"
 
+#include <Eigen/Cholesky>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -7,6 +9,62 @@
 #include "planning/flush_poses.h"
 
 namespace visco::vision {
+namespace {
+
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+// ContactObject::covariance's perturbation: R' = Exp(w) R, t' = t + v.
+Eigen::Isometry3d Perturb(const Eigen::Isometry3d& m, const Vec6& d) {
+  Eigen::Isometry3d out = m;
+  const double a = d.head<3>().norm();
+  if (a > 0) out.linear() = Eigen::AngleAxisd(a, d.head<3>() / a).toRotationMatrix() * m.linear();
+  out.translation() += d.tail<3>();
+  return out;
+}
+
+// One face contact as equations on the poses: face `fa` of object a (outward unit normal n_a through p_a, a's frame)
+// against face `fb` of object b (normal n_b). c = [t1.(N_a + N_b), t2.(N_a + N_b), N_a.(T_b q_b - T_a p_a)] (world
+// normals N = R n; t1, t2 span a's face plane at the flush poses; q_b the point of b's face plane that was under p_a
+// there): the normals opposite and the planes coincident. Near the solution their gradients span the same space as
+// MakeFlush's vertex-to-plane equations of the contact region (any other point of b's face adds a combination of
+// the two normal equations), so the constraint manifold, and Sigma', are the same.
+struct ContactEquations {
+  int a = -1, b = -1;
+  Eigen::Vector3d n_a, p_a, n_b, q_b, t1, t2;
+  std::vector<Eigen::Vector3d> face_a;  // a's face vertices (for the residue)
+};
+
+void FacePlane(const planning::Polyhedron& p, int f, Eigen::Vector3d& normal, Eigen::Vector3d& centroid) {
+  const auto& face = p.faces[static_cast<std::size_t>(f)];
+  normal.setZero();
+  centroid.setZero();
+  for (std::size_t i = 0; i < face.size(); ++i) {
+    const Eigen::Vector3d& u = p.vertices[static_cast<std::size_t>(face[i])];
+    const Eigen::Vector3d& w = p.vertices[static_cast<std::size_t>(face[(i + 1) % face.size()])];
+    normal += u.cross(w);  // Newell
+    centroid += u / static_cast<double>(face.size());
+  }
+  normal.normalize();
+}
+
+Eigen::Vector3d Residual(const ContactEquations& c, const std::vector<Eigen::Isometry3d>& poses) {
+  const Eigen::Isometry3d& ta = poses[static_cast<std::size_t>(c.a)];
+  const Eigen::Isometry3d& tb = poses[static_cast<std::size_t>(c.b)];
+  const Eigen::Vector3d na = ta.linear() * c.n_a, sum = na + tb.linear() * c.n_b;
+  return {c.t1.dot(sum), c.t2.dot(sum), na.dot(tb * c.q_b - ta * c.p_a)};
+}
+
+// Largest distance of a's face vertices to b's face plane.
+double Residue(const ContactEquations& c, const std::vector<Eigen::Isometry3d>& poses) {
+  const Eigen::Isometry3d& ta = poses[static_cast<std::size_t>(c.a)];
+  const Eigen::Isometry3d& tb = poses[static_cast<std::size_t>(c.b)];
+  const Eigen::Vector3d nb = tb.linear() * c.n_b, qb = tb * c.q_b;
+  double worst = 0;
+  for (const auto& v : c.face_a) worst = std::max(worst, std::abs(nb.dot(ta * v - qb)));
+  return worst;
+}
+
+}  // namespace
 
 PrismMesh ObjectPrism(const ObjectModel& model) {
   // planning::MakePrism extrudes a profile (x, z) along y; turned by Rx(-90 deg) ((x, y, z) -> (x, z, -y), a proper
@@ -28,7 +86,7 @@ PrismMesh ObjectPrism(const ObjectModel& model) {
 
 ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, const ContactOptions& options) {
   ContactRefinement out;
-  for (const auto& o : objects) out.wMo.push_back(o.wMo);
+  for (const auto& o : objects) out.wMo.push_back(o.wMo), out.covariance.push_back(o.covariance);
   out.in_contact.assign(objects.size(), false);
   if (!options.enabled || objects.empty()) {
     out.message = "contact refinement off";
@@ -82,6 +140,126 @@ ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, cons
     if (c.against < static_cast<int>(objects.size())) out.in_contact[static_cast<std::size_t>(c.against)] = true;
   }
   for (std::size_t i = 0; i < objects.size(); ++i) out.wMo[i] = r.poses[i];
+
+  // The covariance-weighted projection and the propagated covariance (see the header).
+  const int n = static_cast<int>(objects.size());
+  std::vector<int> var(flush.size(), -1);  // object -> variable block
+  int nv = 0;
+  bool have_cov = true;
+  for (int i = 0; i < n; ++i) {
+    if (!out.in_contact[static_cast<std::size_t>(i)]) continue;
+    var[static_cast<std::size_t>(i)] = nv++;
+    have_cov = have_cov && objects[static_cast<std::size_t>(i)].covariance.trace() > 0;
+  }
+  if (!have_cov || nv == 0) {
+    out.message += "; no covariance: MakeFlush's poses, covariance not propagated";
+    return out;
+  }
+  std::vector<ContactEquations> eqs;
+  for (const auto& c : r.contacts) {
+    ContactEquations e;
+    e.a = c.object, e.b = c.against;
+    const planning::Polyhedron& ma = flush[static_cast<std::size_t>(c.object)].model;
+    const planning::Polyhedron& mb = flush[static_cast<std::size_t>(c.against)].model;
+    Eigen::Vector3d cb;
+    FacePlane(ma, c.face, e.n_a, e.p_a);
+    FacePlane(mb, c.against_face, e.n_b, cb);
+    for (int v : ma.faces[static_cast<std::size_t>(c.face)])
+      e.face_a.push_back(ma.vertices[static_cast<std::size_t>(v)]);
+    const Eigen::Isometry3d& ta = r.poses[static_cast<std::size_t>(c.object)];
+    const Eigen::Isometry3d& tb = r.poses[static_cast<std::size_t>(c.against)];
+    const Eigen::Vector3d x = tb.inverse() * (ta * e.p_a);
+    e.q_b = x - e.n_b * e.n_b.dot(x - cb);
+    const Eigen::Vector3d na = ta.linear() * e.n_a;
+    e.t1 = na.unitOrthogonal();
+    e.t2 = na.cross(e.t1);
+    eqs.push_back(std::move(e));
+  }
+  const int m = 3 * static_cast<int>(eqs.size());
+  Eigen::MatrixXd sigma = Eigen::MatrixXd::Zero(6 * nv, 6 * nv);
+  for (int i = 0; i < n; ++i) {
+    const int k = var[static_cast<std::size_t>(i)];
+    if (k >= 0) sigma.block<6, 6>(6 * k, 6 * k) = objects[static_cast<std::size_t>(i)].covariance;
+  }
+  // Poses at the perturbation d (6 per variable) of `from` (the table and objects not in contact fixed).
+  std::vector<Eigen::Isometry3d> measured(flush.size());
+  for (std::size_t i = 0; i < flush.size(); ++i) measured[i] = i < objects.size() ? objects[i].wMo : flush[i].pose;
+  auto poses_at = [&](const std::vector<Eigen::Isometry3d>& from, const Eigen::VectorXd& d) {
+    std::vector<Eigen::Isometry3d> p = from;
+    for (std::size_t i = 0; i < flush.size(); ++i) {
+      if (var[i] >= 0) p[i] = Perturb(from[i], d.segment<6>(6 * var[i]));
+    }
+    return p;
+  };
+  auto residuals = [&](const std::vector<Eigen::Isometry3d>& from, const Eigen::VectorXd& d) {
+    const auto p = poses_at(from, d);
+    Eigen::VectorXd c(m);
+    for (std::size_t k = 0; k < eqs.size(); ++k) c.segment<3>(3 * static_cast<Eigen::Index>(k)) = Residual(eqs[k], p);
+    return c;
+  };
+  // Central differences: the equations are smooth (products of rotations and positions of size ~1), so the
+  // truncation error is ~h^2 and the rounding error ~1e-16 / h: about 1e-10 relative for these steps.
+  auto jacobian = [&](const std::vector<Eigen::Isometry3d>& from, const Eigen::VectorXd& d) {
+    Eigen::MatrixXd j(m, 6 * nv);
+    for (int k = 0; k < 6 * nv; ++k) {
+      const double h = k % 6 < 3 ? 1e-6 : 1e-7;
+      Eigen::VectorXd dp = d, dm = d;
+      dp[k] += h, dm[k] -= h;
+      j.col(k) = (residuals(from, dp) - residuals(from, dm)) / (2 * h);
+    }
+    return j;
+  };
+  // Contacts can be redundant (two objects side by side on the table: their tilt is fixed by the table and again
+  // by their common face). On the manifold (MakeFlush's poses) the redundant combinations vanish exactly; away from
+  // it they do not, and would make the steps ill-conditioned. So the equations are reduced to an orthonormal basis
+  // U of the range of J there (SVD of J Sigma^1/2, singular values below 1e-8 of the largest dropped): c~ = U^T c,
+  // full rank near the manifold and with the same zero set.
+  const Eigen::LLT<Eigen::MatrixXd> llt(sigma);
+  if (llt.info() != Eigen::Success) {
+    out.message += "; a covariance is not positive definite: MakeFlush's poses, covariance not propagated";
+    return out;
+  }
+  const Eigen::MatrixXd sigma_half = llt.matrixL();
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(jacobian(r.poses, Eigen::VectorXd::Zero(6 * nv)) * sigma_half,
+                                              Eigen::ComputeFullU);
+  int rank = 0;
+  for (Eigen::Index i = 0; i < svd.singularValues().size(); ++i) {
+    rank += svd.singularValues()[i] > 1e-8 * svd.singularValues()[0] ? 1 : 0;
+  }
+  const Eigen::MatrixXd basis = svd.matrixU().leftCols(rank).transpose();
+  // Gauss-Newton for min d^T Sigma^-1 d subject to c~(d) = 0: each step solves the linearised constraints exactly,
+  // d = Sigma J^T (J Sigma J^T)^-1 (J d - c~(d)).
+  Eigen::VectorXd d = Eigen::VectorXd::Zero(6 * nv);
+  for (int it = 0; it < 30; ++it) {
+    const Eigen::MatrixXd j = basis * jacobian(measured, d);
+    const Eigen::MatrixXd sjt = sigma * j.transpose();
+    const Eigen::VectorXd next = sjt * (j * sjt).ldlt().solve(j * d - basis * residuals(measured, d));
+    const double step = (next - d).cwiseAbs().maxCoeff();
+    d = next;
+    if (!(step > 1e-14)) break;
+  }
+  const std::vector<Eigen::Isometry3d> refined = poses_at(measured, d);
+  double residue = 0;
+  for (const auto& e : eqs) residue = std::max(residue, Residue(e, refined));
+  if (!(residue <= 1e-9)) {
+    out.message +=
+        "; the covariance-weighted projection did not converge: MakeFlush's poses, covariance not propagated";
+    return out;
+  }
+  // Sigma' at the solution (d is the perturbation of the measured poses, the parametrisation of Sigma).
+  // The reduced equations have the same gradients' span there, without the redundant (exactly zero) directions.
+  const Eigen::MatrixXd j = basis * jacobian(measured, d);
+  const Eigen::MatrixXd sjt = sigma * j.transpose();
+  Eigen::MatrixXd post = sigma - sjt * (j * sjt).ldlt().solve(sjt.transpose());
+  post = (post + post.transpose()) / 2;
+  for (int i = 0; i < n; ++i) {
+    const int k = var[static_cast<std::size_t>(i)];
+    if (k < 0) continue;
+    out.wMo[static_cast<std::size_t>(i)] = refined[static_cast<std::size_t>(i)];
+    out.covariance[static_cast<std::size_t>(i)] = post.block<6, 6>(6 * k, 6 * k);
+  }
+  out.max_residue_m = residue;
+  out.covariance_propagated = true;
   return out;
 }
 

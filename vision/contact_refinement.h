@@ -27,12 +27,19 @@ struct ContactOptions {
   double table_thickness_m = 0.05;  ///< the table, a stable box whose top face is the plane z = 0
 };
 
+/// 6 x 6 pose covariance.
+using PoseCovariance = Eigen::Matrix<double, 6, 6>;
+
 /// One object as measured.
 struct ContactObject {
   const ObjectModel* model = nullptr;
   Eigen::Isometry3d wMo = Eigen::Isometry3d::Identity();
   double position_stddev = 0;     ///< metres, 1 sigma
   double orientation_stddev = 0;  ///< radians, 1 sigma
+  /// Covariance of wMo in the world frame: rotation vector perturbation on the left (R' = Exp(w) R, radians), then
+  /// translation of the origin (t' = t + v, metres). Zero: unknown (then the poses are MakeFlush's and no covariance
+  /// is propagated, see RefineContacts).
+  PoseCovariance covariance = PoseCovariance::Zero();
 };
 
 struct ContactRefinement {
@@ -42,6 +49,10 @@ struct ContactRefinement {
   int contacts = 0;                    ///< face contacts found (table contacts included)
   double observed_gap_m = 0;           ///< largest |gap| of the contacts as measured
   double max_residue_m = 0;            ///< largest |gap| after the correction
+  /// Per object, the covariance of `wMo` (ContactObject::covariance's convention): the measured one propagated
+  /// through the contact constraints when `covariance_propagated`, else the input's.
+  std::vector<PoseCovariance> covariance;
+  bool covariance_propagated = false;
   std::string message;
 };
 
@@ -54,6 +65,15 @@ struct PrismMesh {
 PrismMesh ObjectPrism(const ObjectModel& model);
 
 /// Makes the objects flush with the table (z = 0) and with each other. Not real-time safe (allocates).
+///
+/// planning's MakeFlush finds the touching faces (within the thresholds of ContactOptions). When every object in a
+/// contact has a covariance, the flush poses are then the measured ones projected onto the contact constraints in
+/// the metric of their covariance (the most likely poses that satisfy the contacts: minimise d^T Sigma^-1 d subject
+/// to c(d) = 0, Gauss-Newton from the measurement), and their covariance is propagated to first order:
+/// Sigma' = Sigma - Sigma J^T (J Sigma J^T)^+ J Sigma, J the Jacobian of the contact equations c (per contact:
+/// the two faces' normals opposite, 2 equations, and the face planes coincident, 1 equation) with respect to the
+/// stacked pose perturbations, by central differences at the flush poses (docs/vision.md). Otherwise the poses are
+/// MakeFlush's own (the smallest change in its characteristic-length metric) and the covariances are left as given.
 ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, const ContactOptions& options = {});
 
 }  // namespace visco::vision

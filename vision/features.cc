@@ -245,6 +245,7 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
   auto finish_object = [&](ObjectEstimate& o) {
     if (!o.valid) return;
     o.cov_cMo *= s2;
+    o.cov_cMo_measured = o.cov_cMo;
     const auto jp = NumericJacobian<3>(
         [&](const Vec6& d) -> Eigen::Vector3d { return (wMc_ * Perturb(o.cMo_measured, d)).translation(); });
     o.position_stddev = LargestStddev(jp * o.cov_cMo * jp.transpose());
@@ -255,11 +256,14 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
 
   // Face contacts: the poses made flush with the table and with each other (the tag poses cMt stay as measured).
   {
+    // The camera-frame perturbation (R' = Exp(w) R, t' = t + v) in the world frame: w and v rotated by wRc.
+    Eigen::Matrix<double, 6, 6> b = Eigen::Matrix<double, 6, 6>::Zero();
+    b.topLeftCorner<3, 3>() = b.bottomRightCorner<3, 3>() = wMc_.linear();
     std::vector<ContactObject> objs;
     std::vector<ObjectEstimate*> ests;
     auto add = [&](ObjectEstimate& o, const ObjectModel& m) {
       if (!o.valid) return;
-      objs.push_back({&m, o.wMo, o.position_stddev, o.orientation_stddev});
+      objs.push_back({&m, o.wMo, o.position_stddev, o.orientation_stddev, b * o.cov_cMo * b.transpose()});
       ests.push_back(&o);
     };
     add(f.robot_pose, models_.robot);
@@ -272,6 +276,11 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
           ests[i]->wMo = f.contact.wMo[i];
           ests[i]->cMo = cMw_ * ests[i]->wMo;
           ests[i]->contact_refined = true;
+          if (!f.contact.covariance_propagated) continue;
+          const Eigen::Matrix<double, 6, 6>& cov_w = f.contact.covariance[i];
+          ests[i]->cov_cMo = b.transpose() * cov_w * b;
+          ests[i]->position_stddev = LargestStddev(cov_w.bottomRightCorner<3, 3>());
+          ests[i]->orientation_stddev = LargestStddev(cov_w.topLeftCorner<3, 3>());
         }
       }
     }

@@ -62,6 +62,10 @@ struct ObjectEstimate {
   /// cMo as measured from the tags (before the contact refinement) and its covariance (rotation vector perturbation
   /// on the left in the camera frame, then translation; sigma_c^2 (J^T J)^-1 of the fit over all inlier corners).
   Eigen::Isometry3d cMo_measured = Eigen::Isometry3d::Identity();
+  Eigen::Matrix<double, 6, 6> cov_cMo_measured = Eigen::Matrix<double, 6, 6>::Zero();
+  /// Covariance of cMo (same parametrisation): cov_cMo_measured, or, when contact_refined, that covariance propagated
+  /// through the contact constraints (ContactRefinement::covariance; smaller: the contacts fix some directions).
+  /// position_stddev, orientation_stddev, the robot's planar covariance and the pairs' stddev follow it.
   Eigen::Matrix<double, 6, 6> cov_cMo = Eigen::Matrix<double, 6, 6>::Zero();
   std::vector<TagEstimate> tags;  ///< every tag of the object that gave a pose, in model order
   int tags_used = 0;              ///< tags in the fit (inliers)

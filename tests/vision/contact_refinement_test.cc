@@ -7,8 +7,11 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <cmath>
 #include <cstdio>
+#include <random>
 
 #include "tests/vision/demo_world.h"
 #include "vision/camera.h"
@@ -67,6 +70,7 @@ TEST(ContactRefinement, RenderedSceneRefinedPosesCloserToTruthAndFlush) {
   off.enabled = false;
   double err_raw_t = 0, err_ref_t = 0, err_raw_r = 0, err_ref_r = 0, worst_residue = 0, worst_gap = 0;
   int n = 0, refined = 0;
+  double sd_raw = 0, sd_ref = 0;
   const int frames = 8;
   for (int i = 0; i < frames; ++i) {
     // Block at a random-ish yaw; the robot flush against its -x side, the wall flush against its +x side.
@@ -118,6 +122,16 @@ TEST(ContactRefinement, RenderedSceneRefinedPosesCloserToTruthAndFlush) {
       err_ref_r += std::pow(Eigen::AngleAxisd(b[k]->wMo.linear().transpose() * truth[k].linear()).angle(), 2);
       // cMo follows wMo.
       EXPECT_LT((b[k]->cMo.matrix() - (cMw * b[k]->wMo).matrix()).cwiseAbs().maxCoeff(), 1e-12);
+      // The covariance follows the contacts: the measured one kept, the refined one smaller (Sigma - Sigma' >= 0).
+      EXPECT_TRUE(ff.contact.covariance_propagated) << ff.contact.message;
+      EXPECT_LT((b[k]->cov_cMo_measured - a[k]->cov_cMo).cwiseAbs().maxCoeff(), 1e-12 * a[k]->cov_cMo.norm());
+      using Cov = Eigen::Matrix<double, 6, 6>;
+      const double min_ev =
+          Eigen::SelfAdjointEigenSolver<Cov>(b[k]->cov_cMo_measured - b[k]->cov_cMo).eigenvalues().minCoeff();
+      EXPECT_GT(min_ev, -1e-12 * a[k]->cov_cMo.norm());
+      EXPECT_LT(b[k]->position_stddev, a[k]->position_stddev);
+      EXPECT_LE(b[k]->orientation_stddev, a[k]->orientation_stddev * (1 + 1e-9));
+      sd_raw += a[k]->position_stddev, sd_ref += b[k]->position_stddev;
     }
   }
   err_raw_t = std::sqrt(err_raw_t / n), err_ref_t = std::sqrt(err_ref_t / n);
@@ -127,10 +141,158 @@ TEST(ContactRefinement, RenderedSceneRefinedPosesCloserToTruthAndFlush) {
       "RMS error raw %.2f mrad -> refined %.2f mrad; largest measured contact gap %.2f mm, largest residue after "
       "%.1e m\n",
       frames, 1e3 * err_raw_t, 1e3 * err_ref_t, 1e3 * err_raw_r, 1e3 * err_ref_r, 1e3 * worst_gap, worst_residue);
+  std::printf("stated position stddev (largest axis), mean: measured %.2f mm -> propagated %.2f mm\n",
+              1e3 * sd_raw / (3 * frames), 1e3 * sd_ref / (3 * frames));
   EXPECT_EQ(refined, 3 * frames);
   EXPECT_LT(err_ref_t, err_raw_t);
   EXPECT_LT(err_ref_r, err_raw_r);
   EXPECT_LT(worst_residue, 1e-9);
+}
+
+// Under AddressSanitizer (`scripts/test asan`) the refinement runs several times slower: fewer samples there.
+constexpr int Samples(int full, int sanitized) {
+#if defined(__SANITIZE_ADDRESS__)
+  (void)full;
+  return sanitized;
+#else
+  (void)sanitized;
+  return full;
+#endif
+}
+
+using Cov6 = PoseCovariance;
+
+// ContactObject::covariance's perturbation (world frame): R' = Exp(w) R, t' = t + v; and its inverse.
+Eigen::Isometry3d PerturbWorld(const Eigen::Isometry3d& m, const Eigen::Matrix<double, 6, 1>& d) {
+  Eigen::Isometry3d out = m;
+  const double a = d.head<3>().norm();
+  if (a > 0) out.linear() = Eigen::AngleAxisd(a, d.head<3>() / a).toRotationMatrix() * m.linear();
+  out.translation() += d.tail<3>();
+  return out;
+}
+Eigen::Matrix<double, 6, 1> PoseError(const Eigen::Isometry3d& m, const Eigen::Isometry3d& truth) {
+  const Eigen::AngleAxisd aa(m.linear() * truth.linear().transpose());
+  Eigen::Matrix<double, 6, 1> e;
+  e << aa.angle() * aa.axis(), m.translation() - truth.translation();
+  return e;
+}
+
+double MinEigenvalue(const Cov6& m) { return Eigen::SelfAdjointEigenSolver<Cov6>(m).eigenvalues().minCoeff(); }
+
+// The covariance of the flush poses, propagated through the contact constraints (Sigma' = Sigma - Sigma J^T
+// (J Sigma J^T)^+ J Sigma), against a seeded Monte Carlo of the actual refinement: the robot flush against the block,
+// both on the table (3 contacts); the measurement covariances are the features' own for these objects seen by the
+// rendered test's camera (their tags' exact corners, the initial corner noise), in the world frame. Measured poses
+// are drawn from N(truth, Sigma) and refined by RefineContacts; the empirical covariance of the refined poses about
+// their mean must match Sigma' entry by entry (within 5 standard errors for the sample size, plus 2 % of Sigma'
+// for the second-order effects of the rotations), the constrained directions (height, roll and
+// pitch on the table) must have no variance, and Sigma - Sigma' must be positive semi-definite.
+TEST(ContactRefinement, PropagatedCovarianceMatchesMonteCarlo) {
+  ObjectModels m = Models();
+  m.obstacles.resize(1);  // robot and block
+  std::erase_if(m.events, [](const EventPair& e) { return e.obstacle != 0; });
+  Eigen::Isometry3d wMc = Eigen::Isometry3d::Identity();
+  wMc.linear() = RotationFromRpy(-2.2, 0, 0.1);
+  wMc.translation() = Eigen::Vector3d(0.02, -0.42, 0.42);
+  const Eigen::Isometry3d cMw = wMc.inverse();
+  const Eigen::Isometry3d wMb = Planar(-0.03, 0.0, -0.2);
+  const Eigen::Isometry3d truth[2] = {wMb * Planar(-0.04, 0.04, 0), wMb};
+  const ObjectModel* models[2] = {&m.robot, &m.obstacles[0]};
+  std::vector<TagObservation> tags;
+  for (int k = 0; k < 2; ++k) {
+    const TagMount& mount = models[k]->tags[0];
+    TagObservation t;
+    t.family = mount.family;
+    t.id = mount.id;
+    const auto local = TagCornersInTagFrame(mount.size);
+    for (int c = 0; c < 4; ++c) {
+      t.corners[c] = kCam.Project(cMw * truth[k] * mount.oMt * local[c]) + Eigen::Vector2d(0.5, 0.5);
+    }
+    tags.push_back(t);
+  }
+  ContactOptions off;
+  off.enabled = false;
+  FeatureEstimator raw(kCam, wMc, m, NoiseModel{}, PoseOptions{}, off);
+  const FrameFeatures f = raw.Update(tags);
+  ASSERT_TRUE(f.robot_pose.valid && f.obstacle_poses[0].valid);
+  Cov6 b = Cov6::Zero();
+  b.topLeftCorner<3, 3>() = b.bottomRightCorner<3, 3>() = wMc.linear();
+  const Cov6 sigma[2] = {b * f.robot_pose.cov_cMo * b.transpose(), b * f.obstacle_poses[0].cov_cMo * b.transpose()};
+  auto objects = [&](const Eigen::Isometry3d(&wMo)[2]) {
+    std::vector<ContactObject> o(2);
+    for (int k = 0; k < 2; ++k) {
+      o[k].model = models[k];
+      o[k].wMo = wMo[k];
+      o[k].covariance = sigma[k];
+      o[k].position_stddev = std::sqrt(
+          Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(sigma[k].bottomRightCorner<3, 3>()).eigenvalues().maxCoeff());
+      o[k].orientation_stddev = std::sqrt(
+          Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(sigma[k].topLeftCorner<3, 3>()).eigenvalues().maxCoeff());
+    }
+    return o;
+  };
+  ContactOptions opt;
+  opt.k_sigma = 6;  // every sample's contacts found (the test is about the covariance, not the thresholds)
+  const ContactRefinement at_truth = RefineContacts(objects(truth), opt);
+  ASSERT_TRUE(at_truth.ok) << at_truth.message;
+  ASSERT_EQ(at_truth.contacts, 3) << at_truth.message;
+  ASSERT_TRUE(at_truth.covariance_propagated) << at_truth.message;
+
+  const int n = Samples(2000, 400);
+  std::mt19937 rng(8080);
+  std::normal_distribution<double> normal;
+  Eigen::LLT<Cov6> chol[2] = {Eigen::LLT<Cov6>(sigma[0]), Eigen::LLT<Cov6>(sigma[1])};
+  Eigen::Matrix<double, 12, 1> sum = Eigen::Matrix<double, 12, 1>::Zero();
+  Eigen::Matrix<double, 12, 12> outer = Eigen::Matrix<double, 12, 12>::Zero();
+  for (int s = 0; s < n; ++s) {
+    Eigen::Isometry3d measured[2];
+    for (int k = 0; k < 2; ++k) {
+      Eigen::Matrix<double, 6, 1> z;
+      for (int i = 0; i < 6; ++i) z[i] = normal(rng);
+      measured[k] = PerturbWorld(truth[k], chol[k].matrixL() * z);
+    }
+    const ContactRefinement r = RefineContacts(objects(measured), opt);
+    ASSERT_TRUE(r.ok && r.covariance_propagated && r.contacts == 3) << "sample " << s << ": " << r.message;
+    ASSERT_LT(r.max_residue_m, 1e-9) << s;
+    Eigen::Matrix<double, 12, 1> e;
+    e << PoseError(r.wMo[0], truth[0]), PoseError(r.wMo[1], truth[1]);
+    sum += e;
+    outer += e * e.transpose();
+  }
+  const Eigen::Matrix<double, 12, 1> mean = sum / n;
+  const Eigen::Matrix<double, 12, 12> empirical = (outer - n * mean * mean.transpose()) / (n - 1);
+  const char* names[2] = {"robot", "block"};
+  for (int k = 0; k < 2; ++k) {
+    const Cov6& pred = at_truth.covariance[static_cast<std::size_t>(k)];
+    const Cov6 emp = empirical.block<6, 6>(6 * k, 6 * k);
+    const Cov6& prior = sigma[k];
+    for (int i = 0; i < 6; ++i) {
+      for (int j = 0; j < 6; ++j) {
+        const double se =
+            std::sqrt((std::max(pred(i, i), 0.0) * std::max(pred(j, j), 0.0) + pred(i, j) * pred(i, j)) / n);
+        EXPECT_NEAR(emp(i, j), pred(i, j),
+                    5 * se + 0.02 * std::sqrt(std::max(pred(i, i), 0.0) * std::max(pred(j, j), 0.0)) +
+                        1e-9 * std::sqrt(prior(i, i) * prior(j, j)))
+            << names[k] << " (" << i << ", " << j << ")";
+      }
+    }
+    // Constrained by the table: rotation about world x and y, height.
+    for (int i : {0, 1, 5}) {
+      EXPECT_LT(pred(i, i), 1e-9 * prior(i, i)) << names[k] << " " << i;
+      EXPECT_LT(emp(i, i), 1e-9 * prior(i, i)) << names[k] << " " << i;
+    }
+    // Sigma' <= Sigma, and Sigma' a covariance.
+    EXPECT_GT(MinEigenvalue(prior - pred), -1e-12 * prior.trace()) << names[k];
+    EXPECT_GT(MinEigenvalue(pred), -1e-12 * prior.trace()) << names[k];
+    std::printf(
+        "%s: stddev measured -> propagated -> Monte Carlo (%d samples): x %.3f -> %.3f -> %.3f mm, y %.3f -> %.3f "
+        "-> %.3f mm, z %.3f -> %.3f -> %.3f mm, yaw %.2f -> %.2f -> %.2f mrad, roll %.2f -> %.2f -> %.2f mrad\n",
+        names[k], n, 1e3 * std::sqrt(prior(3, 3)), 1e3 * std::sqrt(pred(3, 3)), 1e3 * std::sqrt(emp(3, 3)),
+        1e3 * std::sqrt(prior(4, 4)), 1e3 * std::sqrt(pred(4, 4)), 1e3 * std::sqrt(emp(4, 4)),
+        1e3 * std::sqrt(prior(5, 5)), 1e3 * std::sqrt(std::max(0.0, pred(5, 5))), 1e3 * std::sqrt(emp(5, 5)),
+        1e3 * std::sqrt(prior(2, 2)), 1e3 * std::sqrt(pred(2, 2)), 1e3 * std::sqrt(emp(2, 2)),
+        1e3 * std::sqrt(prior(0, 0)), 1e3 * std::sqrt(std::max(0.0, pred(0, 0))), 1e3 * std::sqrt(emp(0, 0)));
+  }
 }
 
 }  // namespace
