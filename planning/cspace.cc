@@ -172,11 +172,19 @@ struct SplitRing {
   std::vector<std::size_t> generators;  // indices into the (key-sorted) generator list
 };
 
+// A segment lying on a generator: the generator's own segment, or a boundary edge of a C-obstacle already split.
+struct Carrier {
+  KSegment segment;
+  std::size_t generator;  // index into the key-sorted generator list
+  CGAL::Bbox_2 box;       // contains the segment
+};
+
 // Splits the cycles' edges where the first (by key) generator containing them changes, and merges consecutive
-// pieces of one generator at points a cycle visits once. `generators` must be sorted by key. Exact; candidates by a
-// bounding-box sweep over all cycles at once, O((E + G) log(E + G) + pairs) for E edges and G generators.
+// pieces of one generator at points a cycle visits once. Each point takes the smallest generator index among the
+// carriers containing it. Exact; candidates by a bounding-box sweep over all cycles at once,
+// O((E + C) log(E + C) + pairs) for E edges and C carriers.
 std::vector<SplitRing> SplitByGenerators(const std::vector<const KPolygon*>& cycles,
-                                         const std::vector<Generator>& generators, const Scene& scene) {
+                                         const std::vector<Carrier>& carriers) {
   std::vector<std::pair<std::size_t, std::size_t>> edge_of;  // box info -> (cycle, edge)
   std::vector<Box> edge_boxes, generator_boxes;
   for (std::size_t c = 0; c < cycles.size(); ++c) {
@@ -186,9 +194,7 @@ std::vector<SplitRing> SplitByGenerators(const std::vector<const KPolygon*>& cyc
       edge_of.emplace_back(c, k);
     }
   }
-  for (std::size_t g = 0; g < generators.size(); ++g) {
-    generator_boxes.emplace_back(GeneratorBox(scene, generators[g]), g);
-  }
+  for (std::size_t g = 0; g < carriers.size(); ++g) generator_boxes.emplace_back(carriers[g].box, g);
   std::vector<std::vector<std::size_t>> candidates(edge_of.size());
   CGAL::box_intersection_d(edge_boxes.begin(), edge_boxes.end(), generator_boxes.begin(), generator_boxes.end(),
                            [&](const Box& edge, const Box& g) { candidates[edge.info()].push_back(g.info()); });
@@ -210,24 +216,25 @@ std::vector<SplitRing> SplitByGenerators(const std::vector<const KPolygon*>& cyc
       };
       std::vector<Cover> covers;
       for (std::size_t g : candidates[next_edge + k]) {
-        const KSegment s = ExactSegment(scene, generators[g]);
+        const KSegment& s = carriers[g].segment;
         if (!CGAL::collinear(s.source(), s.target(), p) || !CGAL::collinear(s.source(), s.target(), q)) continue;
         std::pair<FT, KPoint> a = {(s.source() - p) * d, s.source()}, b = {(s.target() - p) * d, s.target()};
         if (b.first < a.first) std::swap(a, b);
         if (b.first <= 0 || a.first >= length) continue;  // no common part of positive length
         if (a.first > 0) cuts.push_back(a);
         if (b.first < length) cuts.push_back(b);
-        covers.push_back({CGAL::max(a.first, FT(0)), CGAL::min(b.first, length), g});
+        covers.push_back({CGAL::max(a.first, FT(0)), CGAL::min(b.first, length), carriers[g].generator});
       }
       std::sort(cuts.begin(), cuts.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
       cuts.erase(std::unique(cuts.begin(), cuts.end(), [](const auto& x, const auto& y) { return x.first == y.first; }),
                  cuts.end());
       for (std::size_t c = 0; c + 1 < cuts.size(); ++c) {
-        std::size_t best = generators.size();
+        constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+        std::size_t best = kNone;
         for (const Cover& cover : covers) {
           if (cover.lo <= cuts[c].first && cover.hi >= cuts[c + 1].first) best = std::min(best, cover.generator);
         }
-        if (best == generators.size()) {
+        if (best == kNone) {
           throw std::logic_error("CSpace: a C-obstacle boundary edge lies on no Minkowski generator");
         }
         if (c > 0 && ring.generators.back() == best) continue;  // the same generator goes on
@@ -335,8 +342,9 @@ CSpace::CSpace(const Scene& scene) : exact_(std::make_unique<Exact>()) {
   Exact& e = *exact_;
   const KPolygon minus_robot = ToExact(scene.robot.polygon, -1.0);  // a point reflection keeps the orientation
   // Provenance (cspace.h EdgeSource): every boundary edge is split where the first generator containing it
-  // changes. Splits polygons with holes (all at once) and records their double rings and provenance.
-  const auto split = [&](const std::vector<KPolygonWithHoles>& polygons, const std::vector<Generator>& generators,
+  // changes. Splits polygons with holes (all at once), records their double rings and provenance, returns the split.
+  std::vector<Generator> all_generators;  // key-sorted: obstacles ascend
+  const auto split = [&](const std::vector<KPolygonWithHoles>& polygons, const std::vector<Carrier>& carriers,
                          std::optional<std::size_t> obstacle, std::vector<PolygonWithHoles>& rings,
                          std::vector<PolygonSources>& sources) {
     std::vector<const KPolygon*> cycles;
@@ -344,8 +352,8 @@ CSpace::CSpace(const Scene& scene) : exact_(std::make_unique<Exact>()) {
       cycles.push_back(&pwh.outer_boundary());
       for (auto it = pwh.holes_begin(); it != pwh.holes_end(); ++it) cycles.push_back(&*it);
     }
-    const std::vector<SplitRing> split_rings = SplitByGenerators(cycles, generators, scene);
-    std::vector<RingSources> ring_sources = RingSourcesOf(split_rings, generators, scene, obstacle);
+    std::vector<SplitRing> split_rings = SplitByGenerators(cycles, carriers);
+    std::vector<RingSources> ring_sources = RingSourcesOf(split_rings, all_generators, scene, obstacle);
     std::size_t c = 0;
     for (const KPolygonWithHoles& pwh : polygons) {
       PolygonWithHoles& r = rings.emplace_back();
@@ -357,14 +365,30 @@ CSpace::CSpace(const Scene& scene) : exact_(std::make_unique<Exact>()) {
         s.holes.push_back(std::move(ring_sources[c++]));
       }
     }
+    return split_rings;
   };
-  std::vector<Generator> all_generators;
+  // CB's boundary lies on the C-obstacles' boundaries, and a point of it on a generator of obstacle j lies on CB_j's
+  // boundary (the generator lies in CB_j), where CB_j's own split names the first of j's generators containing it.
+  // So the split edges of all CB_j carry CB's first generator too, and are far fewer than the generators.
+  std::vector<Carrier> union_carriers;
   for (std::size_t i = 0; i < scene.obstacles.size(); ++i) {
     e.c_obstacles.push_back(CGAL::minkowski_sum_2(ToExact(scene.obstacles[i].shape.polygon), minus_robot));
+    const std::size_t offset = all_generators.size();
     const std::vector<Generator> generators = GeneratorsOf(scene, i);
-    split({e.c_obstacles.back()}, generators, i, e.c_obstacles_double.emplace_back(),
-          e.c_obstacles_sources.emplace_back());
-    all_generators.insert(all_generators.end(), generators.begin(), generators.end());  // keys ascend
+    all_generators.insert(all_generators.end(), generators.begin(), generators.end());
+    std::vector<Carrier> carriers;
+    for (std::size_t g = 0; g < generators.size(); ++g) {
+      carriers.push_back({ExactSegment(scene, generators[g]), offset + g, GeneratorBox(scene, generators[g])});
+    }
+    for (const SplitRing& ring : split({e.c_obstacles.back()}, carriers, i, e.c_obstacles_double.emplace_back(),
+                                       e.c_obstacles_sources.emplace_back())) {
+      const std::size_t n = ring.points.size();
+      for (std::size_t k = 0; k < n; ++k) {
+        KSegment piece(ring.points[k], ring.points[(k + 1) % n]);
+        const CGAL::Bbox_2 box = piece.bbox();
+        union_carriers.push_back({std::move(piece), ring.generators[k], box});
+      }
+    }
   }
   if (!e.c_obstacles.empty()) e.obstacle_union.join(e.c_obstacles.begin(), e.c_obstacles.end());
   std::vector<KPolygonWithHoles> pieces;
@@ -379,7 +403,7 @@ CSpace::CSpace(const Scene& scene) : exact_(std::make_unique<Exact>()) {
     add_cycle(pwh.outer_boundary());
     for (auto it = pwh.holes_begin(); it != pwh.holes_end(); ++it) add_cycle(*it);
   }
-  split(pieces, all_generators, std::nullopt, e.union_double, e.union_sources);
+  split(pieces, union_carriers, std::nullopt, e.union_double, e.union_sources);
   KPolygonSet free_set(Rectangle(scene.bounds));
   free_set.difference(e.obstacle_union);
   std::vector<KPolygonWithHoles> free_pieces;
