@@ -13,15 +13,6 @@ namespace {
 
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 
-// ContactObject::covariance's perturbation: R' = Exp(w) R, t' = t + v.
-Eigen::Isometry3d Perturb(const Eigen::Isometry3d& m, const Vec6& d) {
-  Eigen::Isometry3d out = m;
-  const double a = d.head<3>().norm();
-  if (a > 0) out.linear() = Eigen::AngleAxisd(a, d.head<3>() / a).toRotationMatrix() * m.linear();
-  out.translation() += d.tail<3>();
-  return out;
-}
-
 // One face contact as equations on the poses: face `fa` of object a (outward unit normal n_a through p_a, a's frame)
 // against face `fb` of object b (normal n_b). c = [t1.(N_a + N_b), t2.(N_a + N_b), N_a.(T_b q_b - T_a p_a)] (world
 // normals N = R n; t1, t2 span a's face plane at the flush poses; q_b the point of b's face plane that was under p_a
@@ -187,7 +178,7 @@ ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, cons
   auto poses_at = [&](const std::vector<Eigen::Isometry3d>& from, const Eigen::VectorXd& d) {
     std::vector<Eigen::Isometry3d> p = from;
     for (std::size_t i = 0; i < flush.size(); ++i) {
-      if (var[i] >= 0) p[i] = Perturb(from[i], d.segment<6>(6 * var[i]));
+      if (var[i] >= 0) p[i] = PerturbPose(from[i], d.segment<6>(6 * var[i]));
     }
     return p;
   };
@@ -260,6 +251,14 @@ ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, cons
   }
   out.max_residue_m = residue;
   out.covariance_propagated = true;
+  return out;
+}
+
+Eigen::Isometry3d PerturbPose(const Eigen::Isometry3d& m, const Eigen::Matrix<double, 6, 1>& d) {
+  Eigen::Isometry3d out = m;
+  const double a = d.head<3>().norm();
+  if (a > 0) out.linear() = Eigen::AngleAxisd(a, d.head<3>() / a).toRotationMatrix() * m.linear();
+  out.translation() += d.tail<3>();
   return out;
 }
 

@@ -30,6 +30,10 @@ struct ContactOptions {
 /// 6 x 6 pose covariance.
 using PoseCovariance = Eigen::Matrix<double, 6, 6>;
 
+/// The pose perturbation every visco pose covariance is expressed in: rotation vector w on the left, then translation
+/// (R' = Exp(w) R, t' = t + v; d = [w, v]). In the frame `m` is expressed in (camera frame for cMo, world for wMo).
+Eigen::Isometry3d PerturbPose(const Eigen::Isometry3d& m, const Eigen::Matrix<double, 6, 1>& d);
+
 /// One object as measured.
 struct ContactObject {
   const ObjectModel* model = nullptr;

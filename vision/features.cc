@@ -23,15 +23,6 @@ double NormalQuantile(double p) {
   return 0.5 * (lo + hi);
 }
 
-// cMt perturbed on the left: rotation vector w (camera frame) then translation dt.
-Eigen::Isometry3d Perturb(const Eigen::Isometry3d& m, const Vec6& d) {
-  Eigen::Isometry3d out = m;
-  const double a = d.head<3>().norm();
-  if (a > 0) out.linear() = Eigen::AngleAxisd(a, d.head<3>() / a).toRotationMatrix() * m.linear();
-  out.translation() += d.tail<3>();
-  return out;
-}
-
 // Numeric gradient (central differences) of a scalar or vector function of a 6-vector perturbation.
 template <int N, typename F>
 Eigen::Matrix<double, N, 6> NumericJacobian(F f) {
@@ -247,7 +238,7 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
     o.cov_cMo *= s2;
     o.cov_cMo_measured = o.cov_cMo;
     const auto jp = NumericJacobian<3>(
-        [&](const Vec6& d) -> Eigen::Vector3d { return (wMc_ * Perturb(o.cMo_measured, d)).translation(); });
+        [&](const Vec6& d) -> Eigen::Vector3d { return (wMc_ * PerturbPose(o.cMo_measured, d)).translation(); });
     o.position_stddev = LargestStddev(jp * o.cov_cMo * jp.transpose());
     o.orientation_stddev = LargestStddev(o.cov_cMo.block<3, 3>(0, 0));
   };
@@ -293,7 +284,7 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
     f.robot.position = wMr.translation().head<2>();
     f.robot.heading = std::atan2(wMr.linear()(1, 0), wMr.linear()(0, 0));
     const auto j = NumericJacobian<2>([&](const Vec6& d) -> Eigen::Vector2d {
-      return (wMc_ * Perturb(f.robot_pose.cMo_measured, d)).translation().head<2>();
+      return (wMc_ * PerturbPose(f.robot_pose.cMo_measured, d)).translation().head<2>();
     });
     f.robot.covariance = j * f.robot_pose.cov_cMo * j.transpose();
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(f.robot.covariance);
@@ -320,12 +311,14 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
     pm.signed_distance_px = SignedImageDistance(camera_, wMc_, models_.robot, f.robot_pose.cMo, ev.cm_vertex, om,
                                                 ob.cMo, ev.vertex, &pm.vc_line, &pm.cm_image);
     const auto gr = NumericJacobian<1>([&](const Vec6& d) -> Eigen::Matrix<double, 1, 1> {
-      return Eigen::Matrix<double, 1, 1>(SignedImageDistance(
-          camera_, wMc_, models_.robot, Perturb(f.robot_pose.cMo_measured, d), ev.cm_vertex, om, ob.cMo, ev.vertex));
+      return Eigen::Matrix<double, 1, 1>(SignedImageDistance(camera_, wMc_, models_.robot,
+                                                             PerturbPose(f.robot_pose.cMo_measured, d), ev.cm_vertex,
+                                                             om, ob.cMo, ev.vertex));
     });
     const auto go = NumericJacobian<1>([&](const Vec6& d) -> Eigen::Matrix<double, 1, 1> {
       return Eigen::Matrix<double, 1, 1>(SignedImageDistance(camera_, wMc_, models_.robot, f.robot_pose.cMo,
-                                                             ev.cm_vertex, om, Perturb(ob.cMo_measured, d), ev.vertex));
+                                                             ev.cm_vertex, om, PerturbPose(ob.cMo_measured, d),
+                                                             ev.vertex));
     });
     const double var = (gr * f.robot_pose.cov_cMo * gr.transpose())(0, 0) + (go * ob.cov_cMo * go.transpose())(0, 0);
     pm.stddev_px = std::sqrt(std::max(var, 1e-12));

@@ -14,6 +14,7 @@
 #include <random>
 
 #include "tests/vision/demo_world.h"
+#include "tests/vision/sanitized_count.h"
 #include "vision/camera.h"
 #include "vision/features.h"
 #include "vision/tag_renderer.h"
@@ -149,17 +150,6 @@ TEST(ContactRefinement, RenderedSceneRefinedPosesCloserToTruthAndFlush) {
   EXPECT_LT(worst_residue, 1e-9);
 }
 
-// Under AddressSanitizer (`scripts/test asan`) the refinement runs several times slower: fewer samples there.
-constexpr int Samples(int full, int sanitized) {
-#if defined(__SANITIZE_ADDRESS__)
-  (void)full;
-  return sanitized;
-#else
-  (void)sanitized;
-  return full;
-#endif
-}
-
 using Cov6 = PoseCovariance;
 
 // ContactObject::covariance's perturbation (world frame): R' = Exp(w) R, t' = t + v; and its inverse.
@@ -238,7 +228,7 @@ TEST(ContactRefinement, PropagatedCovarianceMatchesMonteCarlo) {
   ASSERT_EQ(at_truth.contacts, 3) << at_truth.message;
   ASSERT_TRUE(at_truth.covariance_propagated) << at_truth.message;
 
-  const int n = Samples(2000, 400);
+  const int n = test_world::SanitizedCount(2000, 400);
   std::mt19937 rng(8080);
   std::normal_distribution<double> normal;
   Eigen::LLT<Cov6> chol[2] = {Eigen::LLT<Cov6>(sigma[0]), Eigen::LLT<Cov6>(sigma[1])};

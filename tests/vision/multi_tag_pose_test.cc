@@ -18,6 +18,7 @@
 
 #include "lcmtypes/channels.h"
 #include "tests/vision/demo_world.h"
+#include "tests/vision/sanitized_count.h"
 #include "vision/camera.h"
 #include "vision/features.h"
 #include "vision/object_model.h"
@@ -32,18 +33,6 @@ const CameraModel& kCam = test_world::kDemoCamera;
 using test_world::Planar;
 
 constexpr double kPi = 3.14159265358979323846;
-
-// Under AddressSanitizer (the CI's `scripts/test asan`) the renderer and the detector run several times slower: the
-// seeded comparisons run on the first `sanitized` of their frames there (same seeds, same checks), in full otherwise.
-constexpr int Frames(int full, int sanitized) {
-#if defined(__SANITIZE_ADDRESS__)
-  (void)full;
-  return sanitized;
-#else
-  (void)sanitized;
-  return full;
-#endif
-}
 
 // The box: 12 x 12 x 8 cm; tags 10 and 11 on the top face, 12 on the -y face, 13 on the +x face.
 ObjectModels BoxModels() {
@@ -132,7 +121,7 @@ TEST(MultiTagPose, JointFitBeatsTheBestSingleTagOnRenderedFrames) {
     by_solver.push_back(RawEstimator(m, o));
   }
   std::mt19937 rng(2026);
-  const int frames = Frames(40, 12);
+  const int frames = test_world::SanitizedCount(40, 12);
   double single_t = 0, single_r = 0, joint_t = 0, joint_r = 0, joint_t_max = 0, joint_r_max = 0;
   double solver_t[3] = {0, 0, 0}, solver_r[3] = {0, 0, 0}, solver_ms[3] = {0, 0, 0};
   double nees = 0, single_sd = 0, joint_sd = 0, single_ms = 0;
@@ -269,7 +258,7 @@ TEST(MultiTagPose, CoplanarTagsFarAwayTwoMinimaTheTrueOneChosen) {
   const double sigma_floor = NoiseModel{}.min_corner_sigma_px;
   std::mt19937 rng(4242);
   std::uniform_real_distribution<double> tilt(0.10, 0.30), angle(-kPi, kPi), dist(2.5, 3.5), off(-0.02, 0.02);
-  const int cases = Frames(40, 12);
+  const int cases = test_world::SanitizedCount(40, 12);
   int two_minima = 0, by_error = 0, by_up = 0, right_alone = 0, undecided_alone = 0, right_prior = 0;
   int wrong_prior_escaped = 0, wrong_prior_kept = 0, old_rule_ambiguous = 0;
   double worst_r_sd = 0, worst_t_sd = 0, min_dssr = 1e300, max_dssr = 0, min_mirror = 1e300, sum_sigma = 0;
@@ -620,7 +609,7 @@ TEST(MultiTagPose, PoseDecisionReachesTheObjectPoseMessage) {
   const ObjectModels m = PlateModels();
   std::mt19937 rng(5151);
   std::uniform_real_distribution<double> tilt(0.10, 0.30), angle(-kPi, kPi), dist(2.5, 3.5), off(-0.02, 0.02);
-  const int views = Frames(6, 2);
+  const int views = test_world::SanitizedCount(6, 2);
   int count[6] = {0, 0, 0, 0, 0, 0};
   for (int i = 0; i < views; ++i) {
     const double d = dist(rng);
