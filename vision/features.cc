@@ -233,28 +233,30 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
   f.tags_used = last_.tags_used;
   f.corner_sigma_px = std::sqrt(sigma2_);
   const double s2 = sigma2_;
+  // The camera-frame perturbation (R' = Exp(w) R, t' = t + v) in the world frame: w and v rotated by wRc. World
+  // covariances are to_world * cov_cMo * to_world^T (the translation's Jacobian is exactly [0, wRc]).
+  Eigen::Matrix<double, 6, 6> to_world = Eigen::Matrix<double, 6, 6>::Zero();
+  to_world.topLeftCorner<3, 3>() = to_world.bottomRightCorner<3, 3>() = wMc_.linear();
+  auto set_stddevs = [](ObjectEstimate& o, const Eigen::Matrix<double, 6, 6>& cov_w) {
+    o.position_stddev = LargestStddev(cov_w.bottomRightCorner<3, 3>());
+    o.orientation_stddev = LargestStddev(cov_w.topLeftCorner<3, 3>());
+  };
   auto finish_object = [&](ObjectEstimate& o) {
     if (!o.valid) return;
     o.cov_cMo *= s2;
     o.cov_cMo_measured = o.cov_cMo;
-    const auto jp = NumericJacobian<3>(
-        [&](const Vec6& d) -> Eigen::Vector3d { return (wMc_ * PerturbPose(o.cMo_measured, d)).translation(); });
-    o.position_stddev = LargestStddev(jp * o.cov_cMo * jp.transpose());
-    o.orientation_stddev = LargestStddev(o.cov_cMo.block<3, 3>(0, 0));
+    set_stddevs(o, to_world * o.cov_cMo * to_world.transpose());
   };
   finish_object(f.robot_pose);
   for (auto& o : f.obstacle_poses) finish_object(o);
 
   // Face contacts: the poses made flush with the table and with each other (the tag poses cMt stay as measured).
   {
-    // The camera-frame perturbation (R' = Exp(w) R, t' = t + v) in the world frame: w and v rotated by wRc.
-    Eigen::Matrix<double, 6, 6> b = Eigen::Matrix<double, 6, 6>::Zero();
-    b.topLeftCorner<3, 3>() = b.bottomRightCorner<3, 3>() = wMc_.linear();
     std::vector<ContactObject> objs;
     std::vector<ObjectEstimate*> ests;
     auto add = [&](ObjectEstimate& o, const ObjectModel& m) {
       if (!o.valid) return;
-      objs.push_back({&m, o.wMo, o.position_stddev, o.orientation_stddev, b * o.cov_cMo * b.transpose()});
+      objs.push_back({&m, o.wMo, o.position_stddev, o.orientation_stddev, to_world * o.cov_cMo * to_world.transpose()});
       ests.push_back(&o);
     };
     add(f.robot_pose, models_.robot);
@@ -268,10 +270,8 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
           ests[i]->cMo = cMw_ * ests[i]->wMo;
           ests[i]->contact_refined = true;
           if (!f.contact.covariance_propagated) continue;
-          const Eigen::Matrix<double, 6, 6>& cov_w = f.contact.covariance[i];
-          ests[i]->cov_cMo = b.transpose() * cov_w * b;
-          ests[i]->position_stddev = LargestStddev(cov_w.bottomRightCorner<3, 3>());
-          ests[i]->orientation_stddev = LargestStddev(cov_w.topLeftCorner<3, 3>());
+          ests[i]->cov_cMo = to_world.transpose() * f.contact.covariance[i] * to_world;
+          set_stddevs(*ests[i], f.contact.covariance[i]);
         }
       }
     }
@@ -283,10 +283,8 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
     const Eigen::Isometry3d wMr = f.robot_pose.wMo;
     f.robot.position = wMr.translation().head<2>();
     f.robot.heading = std::atan2(wMr.linear()(1, 0), wMr.linear()(0, 0));
-    const auto j = NumericJacobian<2>([&](const Vec6& d) -> Eigen::Vector2d {
-      return (wMc_ * PerturbPose(f.robot_pose.cMo_measured, d)).translation().head<2>();
-    });
-    f.robot.covariance = j * f.robot_pose.cov_cMo * j.transpose();
+    f.robot.covariance =
+        (to_world * f.robot_pose.cov_cMo * to_world.transpose()).block<2, 2>(3, 3);  // world x, y of the origin
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(f.robot.covariance);
     f.robot.position_stddev = std::sqrt(std::max(0.0, es.eigenvalues().maxCoeff()));
     for (const auto& v : models_.robot.polygon) {

@@ -152,14 +152,7 @@ TEST(ContactRefinement, RenderedSceneRefinedPosesCloserToTruthAndFlush) {
 
 using Cov6 = PoseCovariance;
 
-// ContactObject::covariance's perturbation (world frame): R' = Exp(w) R, t' = t + v; and its inverse.
-Eigen::Isometry3d PerturbWorld(const Eigen::Isometry3d& m, const Eigen::Matrix<double, 6, 1>& d) {
-  Eigen::Isometry3d out = m;
-  const double a = d.head<3>().norm();
-  if (a > 0) out.linear() = Eigen::AngleAxisd(a, d.head<3>() / a).toRotationMatrix() * m.linear();
-  out.translation() += d.tail<3>();
-  return out;
-}
+// ContactObject::covariance's perturbation is PerturbPose; its inverse:
 Eigen::Matrix<double, 6, 1> PoseError(const Eigen::Isometry3d& m, const Eigen::Isometry3d& truth) {
   const Eigen::AngleAxisd aa(m.linear() * truth.linear().transpose());
   Eigen::Matrix<double, 6, 1> e;
@@ -239,7 +232,7 @@ TEST(ContactRefinement, PropagatedCovarianceMatchesMonteCarlo) {
     for (int k = 0; k < 2; ++k) {
       Eigen::Matrix<double, 6, 1> z;
       for (int i = 0; i < 6; ++i) z[i] = normal(rng);
-      measured[k] = PerturbWorld(truth[k], chol[k].matrixL() * z);
+      measured[k] = PerturbPose(truth[k], chol[k].matrixL() * z);
     }
     const ContactRefinement r = RefineContacts(objects(measured), opt);
     ASSERT_TRUE(r.ok && r.covariance_propagated && r.contacts == 3) << "sample " << s << ": " << r.message;
