@@ -118,6 +118,7 @@ struct Args {
   double theta_deg = 0;
   bool kernel = false;
   int exact_limit = kExactRaySelectionLimit;
+  std::string method = "track";
   std::string out, svg;
 };
 
@@ -138,6 +139,9 @@ void Run(const Args& a) {
   const Region classic = ClassicBackprojection(pr);
   VcSelectionOptions options;
   options.exact_limit = a.exact_limit;
+  options.method = a.method == "exact"    ? RaySelection::kExact
+                   : a.method == "greedy" ? RaySelection::kGreedy
+                                          : RaySelection::kTrack;
   const VcBackprojection vc = VcEnlargedBackprojection(pr, options);
   WriteText(BackprojectionToJson(a.theta_deg, classic, vc), a.out);
   if (!a.svg.empty()) WriteText(BackprojectionToSvg(scene, cspace, pr, classic, vc), a.svg);
@@ -182,6 +186,7 @@ std::vector<CvcRayInput> CvcRayInputs(const VcRays& rays) {
     in.id = r.id;
     in.group = rays.vc_rays[r.vc_ray].id;
     for (const auto& s : r.segments) in.segments.push_back({s.source, s.target});
+    in.open_ends = r.open_ends;
     if (!in.segments.empty()) out.push_back(std::move(in));
   }
   return out;
@@ -222,20 +227,25 @@ void RegisterBackprojectCommand(CLI::App& app) {
       "backproject",
       "Directional backprojections of the scene's goal for commanded direction THETA (Fox & Hutchinson sections IV-V): "
       "the classic B_theta(G) (Donald-Canny plane sweep) and the VC-enlarged B_vctheta(G), with the CVC rays the "
-      "robot complies to chosen so that the region stays sound and contains the classic one, with the largest area "
-      "over all subsets of the reliable candidate rays (exact search up to " +
-          std::to_string(kExactRaySelectionLimit) +
-          " candidates, greedy above). Prints JSON "
-          "{\"theta_deg\", \"classic\": REGION, \"vc\": REGION + {\"active_rays\", \"ray_selection\": {\"method\", "
-          "\"candidates\", \"sweeps\"}}}, REGION = {\"area\", \"regions\": "
-          "[{\"outer\": {\"vertices\", \"edges\": [{\"kind\", \"ref\"}]}, \"holes\"}]} (CONTRACT.md).");
+      "robot complies to chosen so that the region stays sound and contains the classic one (by default: every "
+      "reliable candidate ray minus those whose compliance leads to failure, then the dropped ones one at a time; "
+      "--ray-selection exact sweeps every subset up to --exact-limit candidates). Prints JSON "
+      "{\"theta_deg\", \"classic\": REGION, \"vc\": REGION + {\"active_rays\", \"ray_selection\": {\"method\", "
+      "\"candidates\", \"sweeps\"}}}, REGION = {\"area\", \"regions\": "
+      "[{\"outer\": {\"vertices\", \"edges\": [{\"kind\", \"ref\"}]}, \"holes\"}]} (CONTRACT.md).");
   cmd->add_option("SCENE", args->scene, "scene file (JSON, see CONTRACT.md)")->required();
   cmd->add_option("--theta", args->theta_deg, "commanded direction, degrees counter-clockwise from +x")->required();
   cmd->add_flag("--kernel", args->kernel,
                 "backproject the goal kernel (the goal eroded by the position uncertainty) instead of the goal");
-  cmd->add_option("--exact-limit", args->exact_limit,
-                  "search all subsets of the reliable candidate rays when there are at most N of them, else choose "
-                  "greedily (negative: always greedy)")
+  cmd->add_option("--ray-selection", args->method,
+                  "how to choose the active rays: track (at most 3k + 1 sweeps for k candidates), exact (every "
+                  "subset, 2^k sweeps) or greedy")
+      ->check(CLI::IsMember({"track", "exact", "greedy"}))
+      ->capture_default_str();
+  cmd->add_option(
+         "--exact-limit", args->exact_limit,
+         "with --ray-selection exact: search all subsets of the reliable candidate rays when there are at most "
+         "N of them, else choose greedily")
       ->capture_default_str();
   cmd->add_option("--out", args->out, "write the JSON to FILE instead of stdout");
   cmd->add_option("--svg", args->svg, "draw classic and VC-enlarged side by side (Fig. 13 style) into FILE (SVG)");

@@ -86,24 +86,47 @@ struct Source {
   int name = -1;
   bool sticking = false;
   Vector2d sweep_normal{0, 0};  // outward unit normal in the sweep frame (obstacles), inward (bounds)
+  int ray = -1;                 // active rays: index into BackprojectionProblem::rays
 };
 
 struct Rotation {
   double c = 1, s = 0;
   Vector2d Apply(const Vector2d& p) const { return {c * p.x() - s * p.y(), s * p.x() + c * p.y()}; }
-  Vector2d Invert(const Vector2d& p) const {
-    const double det = c * c + s * s;
-    return {(c * p.x() + s * p.y()) / det, (-s * p.x() + c * p.y()) / det};
-  }
   // The sweep frame is the similarity [[c, -s], [s, c]] applied exactly (not rounded): collinear and touching input
   // edges stay collinear and touching.
   P2 ApplyExact(const Vector2d& p) const {
     const FT x(p.x()), y(p.y()), fc(c), fs(s);
     return P2(fc * x - fs * y, fs * x + fc * y);
   }
+  // The exact inverse, rounded once.
+  Vector2d InvertExact(const P2& p) const {
+    const FT fc(c), fs(s), det = fc * fc + fs * fs;
+    return {CGAL::to_double((fc * p.x() + fs * p.y()) / det), CGAL::to_double((fc * p.y() - fs * p.x()) / det)};
+  }
+  FT Scale2() const { return FT(c) * FT(c) + FT(s) * FT(s); }  // the similarity's area factor
 };
 
-Vector2d ToD(const P2& p) { return {CGAL::to_double(p.x()), CGAL::to_double(p.y())}; }
+// Where direction d lies going clockwise from reference r, as a key ordered like the clockwise angle in (0, 2π]:
+// 0 strictly clockwise of r within a half turn, 1 opposite to r, 2 the other half turn, 3 along r (a full turn).
+int ClockwiseHalf(const V2& r, const V2& d) {
+  switch (CGAL::orientation(r, d)) {
+    case CGAL::RIGHT_TURN:
+      return 0;
+    case CGAL::LEFT_TURN:
+      return 2;
+    default:
+      return CGAL::sign(r * d) == CGAL::NEGATIVE ? 1 : 3;
+  }
+}
+
+// True if d1 comes strictly before d2 turning clockwise from r (exact).
+bool ClockwiseBefore(const V2& r, const V2& d1, const V2& d2) {
+  const int h1 = ClockwiseHalf(r, d1), h2 = ClockwiseHalf(r, d2);
+  if (h1 != h2) return h1 < h2;
+  if (h1 == 1 || h1 == 3) return false;  // the same direction
+  return CGAL::orientation(d1, d2) == CGAL::RIGHT_TURN;
+}
+
 Vector2d ToD(const V2& v) { return {CGAL::to_double(v.x()), CGAL::to_double(v.y())}; }
 
 double SignedAreaD(const std::vector<Vector2d>& poly) {
@@ -159,6 +182,8 @@ class Sweep {
   void Run();
   std::vector<ExactRing> Assemble() const;
   Region ToRegion(const std::vector<ExactRing>& rings) const;
+  // Active rays (indices into the problem's rays) with a piece whose track is bad: complying down from there fails.
+  const std::set<int>& bad_track_rays() const { return bad_track_rays_; }
 
  private:
   struct Probe {};
@@ -195,7 +220,7 @@ class Sweep {
     const Curve* curve = nullptr;  // lower rays
     int upper_index = -1;          // upper rays: index into the upper list
     bool upper = false;
-    double angle = 0;  // radians in (-π, π], sweep frame, direction from p
+    V2 edir;  // exact direction from p
     EdgeKind kind = EdgeKind::kFree;
     Label ccw = Label::kBad, cw = Label::kBad;  // labels of the sectors on either side (upper: static)
     Label track = Label::kBad;
@@ -206,19 +231,24 @@ class Sweep {
 
   void Process(const P2& p, const std::vector<StaticCurve>& uppers);
   Label StatusAtPoint(const std::vector<LRay>& rays, Label below) const;
-  bool OutcomeAt(double w, const std::vector<LRay>& rays, Label below) const;
+  bool OutcomeAt(const V2& w, const std::vector<LRay>& rays, Label below) const;
   void CheckIntersection(const Curve* a, const Curve* b, const P2& p);
   int VertexName(const P2& p, const std::vector<Curve*>& through);
+  bool ClipToBounds(P2 (&ends)[2], bool (&open)[2]) const;
   int AddName(std::string name);
 
   const BackprojectionProblem& problem_;
   Rotation rot_;
   double eps_ = 0, phi_ = 0;
   V2 free_right_, free_left_;  // directions 90° − ε and 90° + ε
+  V2 cone_cw_, cone_ccw_;  // the velocity cone's extremes −90° − ε and −90° + ε (= −free_right_, −free_left_)
   FT top_;
   std::vector<Source> sources_;
   std::vector<std::string> names_;
   std::map<P2, int, LessYX> vertex_names_;
+  P2 bounds_sweep_[4];                    // the bounds' corners in the sweep frame, counter-clockwise
+  std::set<P2, LessYX> open_lower_ends_;  // lower ends of active ray segments that fail when complied to
+  std::set<int> bad_track_rays_;
   std::vector<std::pair<P2, std::vector<StaticCurve>>> static_events_;
   std::priority_queue<P2, std::vector<P2>, std::function<bool(const P2&, const P2&)>> dynamic_{
       [](const P2& a, const P2& b) { return CGAL::compare_yx(a, b) == CGAL::LARGER; }};
@@ -251,6 +281,8 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
   rot_.s = std::sin(rot);
   free_right_ = V2(std::sin(eps_), std::cos(eps_));
   free_left_ = V2(-std::sin(eps_), std::cos(eps_));
+  cone_cw_ = -free_right_;
+  cone_ccw_ = -free_left_;
   less_.p = &current_;
   status_ = std::set<Curve*, StatusLess>(less_);
 
@@ -296,6 +328,7 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
     const char* sides[4] = {"ymin", "xmax", "ymax", "xmin"};
     const char* corner_names[4] = {"bounds.corner[xmin,ymin]", "bounds.corner[xmax,ymin]", "bounds.corner[xmax,ymax]",
                                    "bounds.corner[xmin,ymax]"};
+    for (int k = 0; k < 4; ++k) bounds_sweep_[k] = to_exact(corners[k]);
     for (int k = 0; k < 4; ++k) {
       Source s;
       s.a = to_exact(corners[k]);
@@ -311,16 +344,28 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
     for (const auto& c : corners) top = std::max(top, rot_.Apply(c).y());
     top_ = FT(top + 1.0 + std::abs(top));
   }
+  // Active rays, clipped to the bounds exactly in the sweep frame (their rounded ends may lie a hair outside). An
+  // end that is open (clipped here or by the C-space cut, or the camera end) fails when complied to: SEMANTICS.md,
+  // "the bounds are no end of a ray". Compliance runs down a reliable ray, so only lower ends matter.
   for (int r : active_rays) {
     const CvcRayInput& ray = pr.rays.at(r);
-    for (const auto& seg : ray.segments) {
+    for (size_t k = 0; k < ray.segments.size(); ++k) {
+      const auto& seg = ray.segments[k];
       if (seg[0] == seg[1]) continue;
+      P2 ends[2] = {to_exact(seg[0]), to_exact(seg[1])};
+      bool open[2] = {false, false};
+      if (k < ray.open_ends.size()) open[0] = ray.open_ends[k][0], open[1] = ray.open_ends[k][1];
+      if (!ClipToBounds(ends, open)) continue;
+      if (ends[0] == ends[1]) continue;
       Source s;
-      s.a = to_exact(seg[0]);
-      s.b = to_exact(seg[1]);
+      s.a = ends[0];
+      s.b = ends[1];
       s.kind = EdgeKind::kVc;
       s.name = AddName(ray.id);
+      s.ray = r;
       sources_.push_back(s);
+      const int lower = CGAL::compare_yx(ends[0], ends[1]) == CGAL::SMALLER ? 0 : 1;
+      if (open[lower]) open_lower_ends_.insert(ends[lower]);
     }
   }
 
@@ -459,6 +504,26 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
   static_events_.assign(events.begin(), events.end());
 }
 
+// Clips a segment to the closed bounds rectangle (exact, in the sweep frame); a clipped end becomes open. False if
+// nothing of positive length remains.
+bool Sweep::ClipToBounds(P2 (&ends)[2], bool (&open)[2]) const {
+  for (int k = 0; k < 4; ++k) {
+    const P2& c0 = bounds_sweep_[k];
+    const P2& c1 = bounds_sweep_[(k + 1) % 4];
+    const bool out0 = CGAL::orientation(c0, c1, ends[0]) == CGAL::RIGHT_TURN;
+    const bool out1 = CGAL::orientation(c0, c1, ends[1]) == CGAL::RIGHT_TURN;
+    if (out0 && out1) return false;
+    if (!out0 && !out1) continue;
+    const auto hit = CGAL::intersection(K::Line_2(c0, c1), Seg(ends[0], ends[1]));
+    const P2* x = hit ? boost::get<P2>(&*hit) : nullptr;
+    if (!x) return false;  // not reached: the ends lie strictly on either side of the line
+    const int outside = out0 ? 0 : 1;
+    ends[outside] = *x;
+    open[outside] = true;
+  }
+  return CGAL::compare_yx(ends[0], ends[1]) != CGAL::EQUAL;
+}
+
 int Sweep::VertexName(const P2& p, const std::vector<Curve*>& through) {
   auto it = vertex_names_.find(p);
   if (it != vertex_names_.end()) return it->second;
@@ -498,7 +563,10 @@ void Sweep::Run() {
 }
 
 // Is the motion arriving at p (by free motion, sliding or complying) good when the adversary picks direction w?
-bool Sweep::OutcomeAt(double w, const std::vector<LRay>& rays, Label below) const {
+// Directions are exact vectors: which ray w runs along and which sector it points into are decided exactly. The
+// contact rules (pushing, sticking, the larger tangential component) are the motion model's own double-precision
+// predicates, so the planner and the simulator agree on them.
+bool Sweep::OutcomeAt(const V2& w, const std::vector<LRay>& rays, Label below) const {
   // Active rays going down from p are engaged (their projection points down for a reliable ray).
   bool any_vc = false;
   for (const LRay& r : rays) {
@@ -508,10 +576,10 @@ bool Sweep::OutcomeAt(double w, const std::vector<LRay>& rays, Label below) cons
     }
   }
   if (any_vc) return true;
-  const Vector2d wd(std::cos(w), std::sin(w));
+  const Vector2d wd = ToD(w).normalized();
   // Along a ray?
   for (const LRay& r : rays) {
-    if (std::abs(std::remainder(r.angle - w, 2 * M_PI)) > 1e-12) continue;
+    if (CGAL::orientation(w, r.edir) != CGAL::COLLINEAR || CGAL::sign(w * r.edir) != CGAL::POSITIVE) continue;
     if (r.kind == EdgeKind::kFree) return false;
     if (r.kind == EdgeKind::kGoal) return true;
     // Tangent to an edge: moves along it; good only if every free region beside it is good.
@@ -526,24 +594,16 @@ bool Sweep::OutcomeAt(double w, const std::vector<LRay>& rays, Label below) cons
     if (any_free) return true;
     break;  // blocked on both sides: contact rules below
   }
-  // The sector containing w: the region below when there are no lower rays, else between lower rays.
+  // The sector containing w: bounded by the nearest ray clockwise of w and the nearest counter-clockwise (exact; no
+  // ray runs along w here, except one blocked on both sides, which bounds no free sector).
   Label sector = below;
   {
-    // rays are in counter-clockwise order from angle 0; find the last ray with angle < w (circularly).
-    const LRay* cw_ray = nullptr;
-    const LRay* ccw_ray = nullptr;
-    double best_cw = 1e9, best_ccw = 1e9;
+    const LRay* cw_ray = nullptr;   // first ray turning clockwise from w
+    const LRay* ccw_ray = nullptr;  // last ray turning clockwise from w (first counter-clockwise)
     for (const LRay& r : rays) {
-      const double d_cw = std::fmod(w - r.angle + 4 * M_PI, 2 * M_PI);   // how far clockwise r is from w
-      const double d_ccw = std::fmod(r.angle - w + 4 * M_PI, 2 * M_PI);  // how far counter-clockwise
-      if (d_cw > 0 && d_cw < best_cw) {
-        best_cw = d_cw;
-        cw_ray = &r;
-      }
-      if (d_ccw > 0 && d_ccw < best_ccw) {
-        best_ccw = d_ccw;
-        ccw_ray = &r;
-      }
+      if (ClockwiseHalf(w, r.edir) == 3) continue;
+      if (!cw_ray || ClockwiseBefore(w, r.edir, cw_ray->edir)) cw_ray = &r;
+      if (!ccw_ray || ClockwiseBefore(w, ccw_ray->edir, r.edir)) ccw_ray = &r;
     }
     if (cw_ray && !cw_ray->upper) {
       sector = cw_ray->ccw;
@@ -579,29 +639,60 @@ bool Sweep::OutcomeAt(double w, const std::vector<LRay>& rays, Label below) cons
   return false;
 }
 
+// p is good iff OutcomeAt holds for every direction of the cone. OutcomeAt is constant between consecutive
+// critical directions, so the cone's extremes, the critical directions inside it and one direction strictly between
+// each consecutive pair are enough (docs/planning_backprojection.md, "Why sampled directions are enough"). Critical:
+//   * the direction of every ray at p (moving along an edge or a ray, and the sector boundaries),
+//   * the friction-cone boundaries of every obstacle edge at p (sticking starts or stops),
+//   * the directions perpendicular to an edge (pushing starts or stops) and the bisectors of every pair of edges at p
+//     (where the vertex rule's larger tangential component switches from one edge to the other).
 Label Sweep::StatusAtPoint(const std::vector<LRay>& rays, Label below) const {
   for (const LRay& r : rays) {
     if (r.kind == EdgeKind::kGoal || r.ccw == Label::kGoal || r.cw == Label::kGoal) return Label::kGood;
   }
   if (below == Label::kGoal) return Label::kGood;
-  const double w0 = -M_PI / 2 - eps_, w1 = -M_PI / 2 + eps_;
-  std::vector<double> crit = {w0, w1};
-  auto add = [&](double a) {
-    a = std::remainder(a, 2 * M_PI);
-    if (a > w0 && a < w1) crit.push_back(a);
+  // The open lower end of an active ray: whoever gets here is complying down the ray, past its end (out of the
+  // bounds, or onto the camera), whatever the adversary does.
+  if (open_lower_ends_.count(current_) != 0) return Label::kBad;
+  std::vector<V2> crit = {cone_cw_, cone_ccw_};
+  auto in_cone = [&](const V2& d) {
+    return CGAL::orientation(cone_cw_, d) == CGAL::LEFT_TURN && CGAL::orientation(d, cone_ccw_) == CGAL::LEFT_TURN;
   };
+  auto add = [&](const Vector2d& d) {
+    const V2 e(d.x(), d.y());
+    if (in_cone(e)) crit.push_back(e);
+  };
+  const double cphi = std::cos(phi_), sphi = std::sin(phi_);
   for (const LRay& r : rays) {
-    add(r.angle);
-    if (r.kind == EdgeKind::kObstacle) {
-      const double inward = std::atan2(-r.n_free.y(), -r.n_free.x());
-      add(inward + phi_);
-      add(inward - phi_);
+    if (in_cone(r.edir)) crit.push_back(r.edir);
+    if (r.kind != EdgeKind::kObstacle) continue;
+    const Vector2d in = -r.n_free;
+    add({cphi * in.x() - sphi * in.y(), sphi * in.x() + cphi * in.y()});  // friction-cone boundaries
+    add({cphi * in.x() + sphi * in.y(), -sphi * in.x() + cphi * in.y()});
+    add({-in.y(), in.x()});  // along the edge's line (pushing starts or stops)
+    add({in.y(), -in.x()});
+    for (const LRay& q : rays) {
+      if (&q == &r || q.kind != EdgeKind::kObstacle) continue;
+      const Vector2d diff = r.dir - q.dir;  // w · r.dir = w · q.dir on the perpendicular of the difference
+      add({-diff.y(), diff.x()});
+      add({diff.y(), -diff.x()});
     }
   }
-  std::sort(crit.begin(), crit.end());
+  // Counter-clockwise order inside the cone (less than a half turn wide: orientation is a strict weak order).
+  std::sort(crit.begin(), crit.end(),
+            [](const V2& a, const V2& b) { return CGAL::orientation(a, b) == CGAL::LEFT_TURN; });
+  crit.erase(std::unique(crit.begin(), crit.end(),
+                         [](const V2& a, const V2& b) { return CGAL::orientation(a, b) == CGAL::COLLINEAR; }),
+             crit.end());
   const size_t n = crit.size();
-  for (size_t i = 0; i + 1 < n; ++i) crit.push_back(0.5 * (crit[i] + crit[i + 1]));
-  for (double w : crit) {
+  for (size_t i = 0; i + 1 < n; ++i) {
+    // A positive combination lies strictly between the two (exact), whatever the rounding of the weights.
+    const V2& a = crit[i];
+    const V2& b = crit[i + 1];
+    crit.push_back(a * FT(std::sqrt(CGAL::to_double(b.squared_length()))) +
+                   b * FT(std::sqrt(CGAL::to_double(a.squared_length()))));
+  }
+  for (const V2& w : crit) {
     if (!OutcomeAt(w, rays, below)) return Label::kBad;
   }
   return Label::kGood;
@@ -654,8 +745,8 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
     LRay r;
     r.upper = true;
     r.upper_index = static_cast<int>(i);
-    r.dir = ToD(uppers[i].hi - p).normalized();
-    r.angle = std::atan2(r.dir.y(), r.dir.x());
+    r.edir = uppers[i].hi - p;
+    r.dir = ToD(r.edir).normalized();
     r.kind = uppers[i].kind;
     r.ccw = uppers[i].left;
     r.cw = uppers[i].right;
@@ -666,8 +757,8 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
   for (const Curve* c : through) {
     LRay r;
     r.curve = c;
-    r.dir = ToD(c->lo - p).normalized();
-    r.angle = std::atan2(r.dir.y(), r.dir.x());
+    r.edir = c->lo - p;
+    r.dir = ToD(r.edir).normalized();
     r.kind = c->kind;
     r.ccw = c->right;
     r.cw = c->left;
@@ -803,7 +894,14 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
       c->name = sources_[u.src].name;
       c->sticking = u.sticking;
       c->n_free = u.n_free;
-      if (u.kind == EdgeKind::kVc) c->track = point_status();
+      if (u.kind == EdgeKind::kVc) {
+        c->track = point_status();
+        // Blame the ray only where its failure starts: below p no active ray arrives (a bad track inherited from a
+        // crossing ray is that ray's fault, and that ray is blamed at its own start).
+        const bool inherited =
+            std::any_of(rays.begin(), rays.end(), [](const LRay& r) { return !r.upper && r.kind == EdgeKind::kVc; });
+        if (!IsGood(c->track) && !inherited) bad_track_rays_.insert(sources_[u.src].ray);
+      }
       // Static labels of non-free sides stay as they are.
       if (!IsFree(u.left)) c->left = u.left;
       if (!IsFree(u.right)) c->right = u.right;
@@ -839,10 +937,18 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
 }
 
 std::vector<ExactRing> Sweep::Assemble() const {
+  // Pieces are directed with the region on their left. At a vertex, a ring leaves by the first piece clockwise from
+  // the reverse of the arriving one (the sharpest left turn), so rings that touch at a vertex stay separate. All
+  // decisions are exact; a chain that does not close is an inconsistency of the sweep, never a smaller region.
   std::map<P2, std::vector<int>, LessYX> starts;
   for (size_t i = 0; i < pieces_.size(); ++i) starts[pieces_[i].a].push_back(static_cast<int>(i));
   std::vector<char> used(pieces_.size(), 0);
   std::vector<ExactRing> rings;
+  auto fail = [&](const char* what, const P2& at) {
+    const Vector2d w = rot_.InvertExact(at);
+    throw std::logic_error(std::string("backprojection: ") + what + " at (" + std::to_string(w.x()) + ", " +
+                           std::to_string(w.y()) + ") (a bug: please report the scene and θ)");
+  };
   for (size_t i0 = 0; i0 < pieces_.size(); ++i0) {
     if (used[i0]) continue;
     std::vector<int> ring;
@@ -851,24 +957,18 @@ std::vector<ExactRing> Sweep::Assemble() const {
       used[cur] = 1;
       ring.push_back(cur);
       const Piece& pc = pieces_[cur];
-      if (pc.b == pieces_[i0].a) break;
       auto it = starts.find(pc.b);
-      if (it == starts.end()) break;  // open chain (should not happen)
-      const Vector2d din = ToD(pc.b - pc.a);
-      const double back = std::atan2(-din.y(), -din.x());
+      if (it == starts.end()) fail("open boundary chain", pc.b);
+      const V2 back = pc.a - pc.b;
       int next = -1;
-      double best = 1e9;
+      // The pairing of arriving and leaving pieces is decided among all pieces at the vertex (in and out alternate
+      // around it when the labels are consistent), so it is a bijection; meeting a used piece is an inconsistency.
       for (int cand : it->second) {
-        if (used[cand]) continue;
-        const Vector2d d = ToD(pieces_[cand].b - pieces_[cand].a);
-        double cw = std::fmod(back - std::atan2(d.y(), d.x()) + 4 * M_PI, 2 * M_PI);
-        if (cw <= 1e-15) cw += 2 * M_PI;
-        if (cw < best) {
-          best = cw;
-          next = cand;
-        }
+        const V2 d = pieces_[cand].b - pieces_[cand].a;
+        if (next < 0 || ClockwiseBefore(back, d, pieces_[next].b - pieces_[next].a)) next = cand;
       }
-      if (next < 0) break;
+      if (next == static_cast<int>(i0)) break;
+      if (used[next]) fail("boundary chains meet inconsistently", pc.b);
       cur = next;
     }
     // Merge collinear consecutive pieces with the same provenance.
@@ -909,45 +1009,45 @@ Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
     total += r.area2;
     (CGAL::sign(r.area2) == CGAL::POSITIVE ? outers : holes).push_back(&r);
   }
-  region.area = CGAL::to_double(total) / 2.0;
+  region.area = CGAL::to_double(total / (2 * rot_.Scale2()));
   auto convert = [&](const ExactRing& r) {
     RegionRing out;
     for (size_t i = 0; i < r.vertices.size(); ++i) {
-      out.vertices.push_back(rot_.Invert(ToD(r.vertices[i])) + Vector2d::Zero());  // + 0: no negative zeros
+      out.vertices.push_back(rot_.InvertExact(r.vertices[i]) + Vector2d::Zero());  // + 0: no negative zeros
       out.edges.push_back({r.edges[i].first, names_[r.edges[i].second]});
     }
     return out;
   };
   // Deterministic order: outer rings by their lowest-leftmost vertex in the sweep frame.
-  std::sort(outers.begin(), outers.end(), [](const ExactRing* a, const ExactRing* b) {
-    auto lo = [](const ExactRing* r) { return *std::min_element(r->vertices.begin(), r->vertices.end(), LessYX()); };
-    return LessYX()(lo(a), lo(b));
-  });
-  std::vector<std::vector<Vector2d>> outer_d;
+  auto lowest = [](const ExactRing* r) { return *std::min_element(r->vertices.begin(), r->vertices.end(), LessYX()); };
+  std::sort(outers.begin(), outers.end(),
+            [&](const ExactRing* a, const ExactRing* b) { return LessYX()(lowest(a), lowest(b)); });
+  std::vector<ExactPolygon> outer_exact;
   for (const ExactRing* o : outers) {
     region.polygons.push_back({convert(*o), {}});
-    outer_d.push_back(region.polygons.back().outer.vertices);
+    outer_exact.emplace_back(o->vertices.begin(), o->vertices.end());
   }
   for (const ExactRing* h : holes) {
-    RegionRing ring = convert(*h);
-    // The smallest outer ring containing the hole (test a point just inside the hole's first edge... use the
-    // centroid of its first three vertices' edge midpoint nudged inwards).
-    const Vector2d a = ring.vertices[0], b = ring.vertices[1];
-    const Vector2d mid = 0.5 * (a + b);
-    const Vector2d d = (b - a).normalized();
-    const Vector2d probe =
-        mid + 1e-7 * (b - a).norm() * Vector2d(d.y(), -d.x());  // right of a clockwise edge: outside the hole
+    // The smallest outer ring that contains the hole. Rings do not cross, so any point of the hole's boundary that
+    // is not on an outer ring decides, exactly: the midpoints of its edges are tried in turn.
     int best = -1;
-    double best_area = 1e300;
-    for (size_t i = 0; i < outer_d.size(); ++i) {
-      if (!InsideEvenOdd(outer_d[i], probe)) continue;
-      const double ar = std::abs(SignedAreaD(outer_d[i]));
-      if (ar < best_area) {
-        best_area = ar;
-        best = static_cast<int>(i);
+    for (size_t e = 0; e < h->vertices.size() && best < 0; ++e) {
+      const P2 mid = CGAL::midpoint(h->vertices[e], h->vertices[(e + 1) % h->vertices.size()]);
+      bool on_some_boundary = false;
+      for (size_t i = 0; i < outer_exact.size(); ++i) {
+        const auto side = outer_exact[i].bounded_side(mid);
+        if (side == CGAL::ON_BOUNDARY) on_some_boundary = true;
+        if (side != CGAL::ON_BOUNDED_SIDE) continue;
+        if (best < 0 || CGAL::abs(outers[i]->area2) < CGAL::abs(outers[best]->area2)) best = static_cast<int>(i);
       }
+      if (on_some_boundary) best = -1;  // try another edge: this midpoint cannot tell touching from inside
     }
-    if (best >= 0) region.polygons[best].holes.push_back(std::move(ring));
+    if (best < 0) {
+      const Vector2d w = rot_.InvertExact(h->vertices[0]);
+      throw std::logic_error("backprojection: a hole at (" + std::to_string(w.x()) + ", " + std::to_string(w.y()) +
+                             ") lies in no outer ring (a bug: please report the scene and θ)");
+    }
+    region.polygons[best].holes.push_back(convert(*h));
   }
   return region;
 }
@@ -955,6 +1055,7 @@ Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
 struct SweepResult {
   std::vector<ExactRing> rings;
   Region region;
+  std::set<int> bad_track_rays;
 };
 
 SweepResult RunSweep(const BackprojectionProblem& problem, const std::vector<int>& active) {
@@ -963,6 +1064,7 @@ SweepResult RunSweep(const BackprojectionProblem& problem, const std::vector<int
   SweepResult r;
   r.rings = sweep.Assemble();
   r.region = sweep.ToRegion(r.rings);
+  r.bad_track_rays = sweep.bad_track_rays();
   return r;
 }
 
@@ -1059,6 +1161,8 @@ const char* RaySelectionName(RaySelection selection) {
       return "exact";
     case RaySelection::kGreedy:
       return "greedy";
+    case RaySelection::kTrack:
+      return "track";
   }
   return "?";
 }
@@ -1106,6 +1210,65 @@ std::vector<int> GreedySelection(const BackprojectionProblem& problem, const std
         if (rejected[i] < 0 || rejected[j] < 0) continue;
         if (try_add({rejected[i], rejected[j]})) rejected[i] = rejected[j] = -1;
       }
+    }
+  }
+  return active;
+}
+
+// Track-pruned choice (the default): start with every reliable candidate active and drop, sweep after sweep, the rays
+// with a piece of bad track (complying down from there fails: it ends on a sticking edge, an open end, or switches
+// to a ray that fails), until every active ray leads to good places along its whole length (at most k + 1 sweeps;
+// rays that only help together stay, since their tracks are computed with each other active). That set's region is
+// kept if it contains B_θ(G) (exact polygon difference; otherwise the start is the empty set). Then each dropped ray
+// is tried once more on its own, in id order, and kept if the region grows and still contains the current one.
+// Last, every active ray the region does not need is dropped. At most 3k + 1 sweeps in all, against 2^k for the exact
+// search.
+std::vector<int> TrackSelection(const BackprojectionProblem& problem, const std::vector<int>& candidates,
+                                SweepResult& current, int& sweeps) {
+  const PolygonSet base_set = ToPolygonSet(current.rings);
+  std::vector<int> active = candidates;
+  SweepResult trial;
+  while (!active.empty()) {
+    trial = RunSweep(problem, active);
+    ++sweeps;
+    if (trial.bad_track_rays.empty()) break;
+    std::vector<int> kept;
+    for (int c : active) {
+      if (trial.bad_track_rays.count(c) == 0) kept.push_back(c);
+    }
+    active = std::move(kept);
+  }
+  if (!active.empty() && LargerArea(trial, current) && ContainsSet(base_set, trial.rings)) {
+    current = std::move(trial);
+  } else {
+    active.clear();
+  }
+  PolygonSet current_set = ToPolygonSet(current.rings);
+  for (int c : candidates) {
+    if (std::find(active.begin(), active.end(), c) != active.end()) continue;
+    std::vector<int> with = active;
+    with.push_back(c);
+    SweepResult t = RunSweep(problem, with);
+    ++sweeps;
+    if (!LargerArea(t, current) || !ContainsSet(current_set, t.rings)) continue;
+    active = std::move(with);
+    current = std::move(t);
+    current_set = ToPolygonSet(current.rings);
+  }
+  // Fewest rays: every ray the region does not need is dropped (each one is a servo the robot must run and a line the
+  // camera must see); a ray goes if the region without it still contains the current one.
+  std::sort(active.begin(), active.end());
+  for (size_t i = 0; i < active.size();) {
+    std::vector<int> without = active;
+    without.erase(without.begin() + static_cast<std::ptrdiff_t>(i));
+    SweepResult t = RunSweep(problem, without);
+    ++sweeps;
+    if (ContainsSet(current_set, t.rings)) {
+      active = std::move(without);
+      current = std::move(t);
+      current_set = ToPolygonSet(current.rings);
+    } else {
+      ++i;
     }
   }
   return active;
@@ -1162,7 +1325,10 @@ VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem, 
   std::vector<int> active;
   if (candidates.empty()) {
     out.selection = RaySelection::kNone;
-  } else if (out.candidates <= options.exact_limit) {
+  } else if (options.method == RaySelection::kTrack) {
+    out.selection = RaySelection::kTrack;
+    active = TrackSelection(problem, candidates, result, out.sweeps);
+  } else if (options.method == RaySelection::kExact && out.candidates <= options.exact_limit) {
     out.selection = RaySelection::kExact;
     active = ExactSelection(problem, candidates, result, out.sweeps);
   } else {

@@ -6,8 +6,10 @@
 //
 // The sweep runs in exact arithmetic (CGAL's lazy exact kernel, hidden in backprojection.cc) in a frame rotated so
 // that the commanded velocity points straight down; sticking and sliding are decided with the motion model's own
-// predicates (planning/motion_model.h), so planner and simulator agree on ties. Output coordinates are rotated back
-// to the world frame in double precision.
+// predicates (planning/motion_model.h), so planner and simulator agree on ties. Rings are assembled and holes placed
+// with exact predicates; output coordinates are rotated back to the world frame exactly and rounded once. An
+// inconsistency of the sweep is a std::logic_error (`visco` exits 1 with "internal error"), never a smaller or
+// larger region.
 
 #include <Eigen/Core>
 #include <array>
@@ -32,6 +34,10 @@ struct CvcRayInput {
   std::string id;
   std::string group;  ///< the workspace VC ray it comes from (siblings share it); may be empty
   std::vector<std::array<Eigen::Vector2d, 2>> segments;
+  /// Per segment, per end: true where the end is open (not on a C-obstacle: the bounds clip the ray or it is the
+  /// camera end); complying to an open end fails. Empty: every end is on a C-obstacle. The sweep also treats an end
+  /// outside the bounds as open (it clips the segment to the bounds exactly).
+  std::vector<std::array<bool, 2>> open_ends;
 };
 
 /// Everything a directional backprojection depends on, in C-space (metres, radians).
@@ -81,7 +87,8 @@ struct Region {
 enum class RaySelection : std::uint8_t {
   kNone,    ///< no reliable candidate: nothing to choose
   kExact,   ///< every subset of the reliable candidates was swept: the result is a maximum (see below)
-  kGreedy,  ///< more candidates than the exact limit: single rays in id order, then pairs of rejected rays
+  kGreedy,  ///< single rays in id order, then pairs of rejected rays
+  kTrack,   ///< the default: every candidate, minus those whose track is bad, then the dropped ones one by one
 };
 const char* RaySelectionName(RaySelection selection);
 
@@ -101,8 +108,11 @@ struct VcBackprojection {
 constexpr int kExactRaySelectionLimit = 8;
 
 struct VcSelectionOptions {
-  /// Search all subsets when there are at most this many reliable candidates, otherwise fall back to the greedy
-  /// choice (a negative limit always uses the greedy choice; benchmarks compare the two that way).
+  /// How to choose: kTrack (default, at most 3k + 1 sweeps for k reliable candidates), kExact (every subset: 2^k
+  /// sweeps; the reference the tests measure the others against) or kGreedy.
+  RaySelection method = RaySelection::kTrack;
+  /// kExact only: search all subsets when there are at most this many reliable candidates, otherwise fall back to
+  /// the greedy choice.
   int exact_limit = kExactRaySelectionLimit;
 };
 
@@ -116,14 +126,17 @@ Region BackprojectionWithActiveRays(const BackprojectionProblem& problem, const 
 /// B_vcθ(G). A region swept with an active set S is exactly what S guarantees (the rays are walls for the whole
 /// motion, from every start point), and the sweep's region is not monotone in S (a ray can divert trajectories away
 /// from the goal). The admissible sets are those whose region contains B_θ(G) (the region with no ray, exact
-/// polygon containment); the result is an admissible set of largest area:
+/// polygon containment); the result is an admissible set, chosen by `options.method`:
+///   * track (default): every reliable candidate active, then, sweep after sweep, the rays with a piece of bad track
+///     (complying down from it fails) dropped until none is left; kept if admissible; then each dropped ray tried
+///     alone, kept if the region grows and contains the current one; last, every ray the region does not need is
+///     dropped (fewest rays to comply to). At most 3k + 1 sweeps for k candidates;
 ///   * exact (at most `exact_limit` reliable candidates): every subset is swept; ties in area (1e-12 relative) go to
 ///     the smaller set, then to the lexicographically first one by candidate id; only sets that would improve the
-///     best area so far are checked for containment;
-///   * greedy (more candidates): each reliable candidate in id order, then pairs of rejected candidates (≤ 12
-///     rejected), keeping a set only if its region contains the current one and is strictly larger — admissible,
-///     but not necessarily of largest area.
-/// Either way B_θ(G) ⊆ B_vcθ(G) and the region is sound for the reported active rays.
+///     best area so far are checked for containment: an admissible set of largest area;
+///   * greedy (or exact above the limit): each reliable candidate in id order, then pairs of rejected candidates
+///     (≤ 12 rejected), keeping a set only if its region contains the current one and is strictly larger.
+/// Every way B_θ(G) ⊆ B_vcθ(G) and the region is sound for the reported active rays.
 VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem, const VcSelectionOptions& options = {});
 
 /// True if a CVC ray segment from a to b can be relied on for commanded direction θ (its line is not within

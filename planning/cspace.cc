@@ -471,7 +471,11 @@ CutResult CSpace::CutSegments(const std::vector<OffsetSegment>& segments, const 
   const K::Iso_rectangle_2 box(KPoint(bounds.min.x(), bounds.min.y()), KPoint(bounds.max.x(), bounds.max.y()));
   CutResult result;
   result.parts.resize(n);
+  result.on_cb.resize(n);
   std::vector<std::vector<KSegment>> exact_parts(n);
+  const auto on_boundary = [&](const KPoint& x) {
+    return e.obstacle_union.oriented_side(x) == CGAL::ON_ORIENTED_BOUNDARY;
+  };
   for (std::size_t i = 0; i < n; ++i) {
     const KSegment& seg = exact[i];
     if (seg.is_degenerate()) continue;
@@ -548,6 +552,7 @@ CutResult CSpace::CutSegments(const std::vector<OffsetSegment>& segments, const 
         if (c->is_degenerate()) continue;
         exact_parts[i].push_back(*c);
         result.parts[i].push_back({ToDouble(c->source()), ToDouble(c->target())});
+        result.on_cb[i].push_back({on_boundary(c->source()), on_boundary(c->target())});
       }
     }
   }

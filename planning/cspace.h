@@ -8,6 +8,7 @@
 // (Locate, region tests) are answered on the exact representation. Every boundary edge of the C-obstacles and of
 // their union carries its provenance (EdgeSource: the Minkowski feature it lies on), computed exactly.
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -67,6 +68,9 @@ struct CutResult {
   /// parts[i]: the maximal parts of positive length of input i that stay outside the interior of CB and inside the
   /// closed bounds, ordered from source to target (endpoints rounded to doubles).
   std::vector<std::vector<Segment>> parts;
+  /// on_cb[i][k]: whether the source and the target of parts[i][k] lie on CB's boundary (exact, before rounding).
+  /// An end that does not was clipped by the bounds or is the input's own end in free space.
+  std::vector<std::vector<std::array<bool, 2>>> on_cb;
   /// A point shared by the parts of two different inputs.
   struct Crossing {
     std::size_t first = 0;   // input index, first < second

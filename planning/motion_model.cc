@@ -435,7 +435,17 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
       break;
     case Hit::kRayEnd: {
       const auto& seg = world_.active_rays[hit_ray];
-      q = (seg[0] - p).dot(m) > (seg[1] - p).dot(m) ? seg[0] : seg[1];
+      const int end = (seg[0] - p).dot(m) > (seg[1] - p).dot(m) ? 0 : 1;
+      q = seg[end];
+      const auto& open = world_.active_ray_open_ends;
+      if (static_cast<size_t>(hit_ray) < open.size() && open[hit_ray][end]) {
+        // The servo carries the robot on along the VC line, out of the bounds or onto the camera.
+        result.time = best / speed;
+        ns.position = q;
+        state = ns;
+        result.event = MotionEvent::kOpenRayEnd;
+        return result;
+      }
       break;
     }
     case Hit::kGoal:
@@ -492,6 +502,7 @@ StepResult MotionModel::Advance(MotionState& state, const Vector2d& v, double dt
       case MotionEvent::kStopped:
       case MotionEvent::kReachedGoal:
       case MotionEvent::kLeftBounds:
+      case MotionEvent::kOpenRayEnd:
         return total;
       default:
         break;
@@ -579,6 +590,8 @@ const char* OutcomeName(Outcome o) {
       return "no progress";
     case Outcome::kStartInObstacle:
       return "start in obstacle";
+    case Outcome::kOpenRayEnd:
+      return "open ray end";
   }
   return "?";
 }
@@ -623,6 +636,8 @@ SimulationResult Simulate(const MotionModel& model, const MotionState& start, do
         return finish(Outcome::kReachedGoal);
       case MotionEvent::kLeftBounds:
         return finish(Outcome::kLeftBounds);
+      case MotionEvent::kOpenRayEnd:
+        return finish(Outcome::kOpenRayEnd);
       case MotionEvent::kStopped:
         if (model.InGoal(state.position)) return finish(Outcome::kReachedGoal);
         return finish(Outcome::kStopped);

@@ -42,6 +42,10 @@ struct MotionWorld {
   Eigen::Vector2d bounds_max{0.0, 0.0};
   /// Free-space segments of the active CVC rays (frictionless two-sided walls).
   std::vector<std::array<Eigen::Vector2d, 2>> active_rays;
+  /// Per active ray, per end: true where the end is open (the bounds clip the ray there, or it is the camera end).
+  /// The servo keeps the CM vertex on the VC line past such an end, so reaching it fails (kOpenRayEnd). Empty, or
+  /// shorter than active_rays: the remaining ends are on C-obstacles (contact rules apply there).
+  std::vector<std::array<bool, 2>> active_ray_open_ends;
   /// Friction cone half-angle φ in radians, in [0, π/2).
   double friction_cone = 0.0;
 };
@@ -79,6 +83,7 @@ enum class MotionEvent : std::uint8_t {
   kStopped,       ///< the motion stopped (sticking, a concave vertex, a zero projection on a ray)
   kReachedGoal,   ///< the position entered the closed goal
   kLeftBounds,    ///< the position would leave the bounds rectangle (failure); the position is on the border
+  kOpenRayEnd,    ///< complied to an open end of an active ray (failure, see MotionWorld::active_ray_open_ends)
   kTooManyEvents  ///< Advance gave up after its event budget (a Zeno-like sequence); treat as failure
 };
 
@@ -124,7 +129,8 @@ class MotionModel {
   StepResult AdvanceToEvent(MotionState& state, const Eigen::Vector2d& v, double max_time) const;
 
   /// Moves under actual velocity v for `dt` seconds through any number of events (at most `max_events`), returning
-  /// early on kStopped, kReachedGoal (only when entering the goal from outside), kLeftBounds or kTooManyEvents.
+  /// early on kStopped, kReachedGoal (only when entering the goal from outside), kLeftBounds, kOpenRayEnd or
+  /// kTooManyEvents.
   StepResult Advance(MotionState& state, const Eigen::Vector2d& v, double dt, int max_events = 10000) const;
 
   /// True if p is in the closed goal (within the length tolerance).
@@ -205,7 +211,14 @@ class GreedyAdversary : public Adversary {
 };
 
 /// How a whole trajectory ended.
-enum class Outcome : std::uint8_t { kReachedGoal, kStopped, kLeftBounds, kNoProgress, kStartInObstacle };
+enum class Outcome : std::uint8_t {
+  kReachedGoal,
+  kStopped,
+  kLeftBounds,
+  kNoProgress,
+  kStartInObstacle,
+  kOpenRayEnd,  ///< complied past an active ray's open end (out of the bounds along the VC line, or to the camera)
+};
 
 const char* OutcomeName(Outcome o);
 

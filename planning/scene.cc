@@ -248,11 +248,8 @@ Scene Parse(const Reader& r, const Json& j, const std::string& default_name) {
     obstacle.shape = r.ReadPolygon(o["polygon"], name + ".polygon");
     scene.obstacles.push_back(std::move(obstacle));
   }
-  if (const auto overlap = FindOverlappingObstacles(scene.obstacles)) {
-    r.Fail(ObstacleName(overlap->second, scene.obstacles[overlap->second].id),
-           fmt::format("overlaps {} (obstacles may touch but not overlap; merge them into one polygon)",
-                       ObstacleName(overlap->first, scene.obstacles[overlap->first].id)));
-  }
+  // Obstacles may touch and overlap (scenes are built from parts, e.g. a floor and walls): the obstacle region is
+  // their union (SEMANTICS.md).
 
   r.CheckKeys(j["goal"], "goal", {"polygon"}, {});
   scene.goal = r.ReadPolygon(j["goal"]["polygon"], "goal.polygon");

@@ -110,9 +110,10 @@ struct Scene {
 /// Reads and validates a scene file. Not real-time safe.
 /// @throws visco::InputError naming the file, the object (e.g. "obstacles[1] (left).polygon") and what is wrong:
 ///   unreadable file, invalid JSON, unknown or missing fields, non-finite numbers, polygons with fewer than 3
-///   distinct vertices or self-intersections, overlapping obstacles, a goal or start region entirely inside the
-///   C-obstacles, a camera centre inside an obstacle, an empty or reflex field of view, negative uncertainty, cone
-///   or friction angles outside [0, 90) degrees, bounds with min >= max.
+///   distinct vertices or self-intersections, a goal or start region entirely inside the C-obstacles, a camera
+///   centre inside an obstacle, an empty or reflex field of view, negative uncertainty, cone or friction angles
+///   outside [0, 90) degrees, bounds with min >= max. Obstacles may touch and overlap (their union is the obstacle
+///   region).
 Scene LoadScene(const std::string& path);
 
 /// As LoadScene, from JSON text; `source` names it in messages.

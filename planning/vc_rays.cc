@@ -160,6 +160,9 @@ std::vector<std::pair<Point, Point>> SectorsAtCamera(const Scene& scene, const P
 std::vector<UnoccludedVertex> FindUnoccludedVertices(const Scene& scene) {
   std::vector<UnoccludedVertex> result;
   if (!scene.camera) return result;
+  // The sweep's status order needs edges that do not cross; overlapping obstacles (allowed, SEMANTICS.md) fall back
+  // to the O(n^2) test, which handles a vertex inside another obstacle (its segment to P starts in that interior).
+  if (FindOverlappingObstacles(scene.obstacles)) return FindUnoccludedVerticesReference(scene);
   const Camera& camera = *scene.camera;
   const Point p = camera.center;
   const Point origin(0, 0), d0(camera.fov_first);
@@ -389,7 +392,12 @@ VcRays ComputeVcRays(const Scene& scene, const CSpace& cspace) {
     rays.vc_rays.push_back(std::move(ray));
   }
   CutResult cut = cspace.CutSegments(inputs, scene.bounds, /*crossings=*/true);
-  for (std::size_t i = 0; i < rays.cvc_rays.size(); ++i) rays.cvc_rays[i].segments = std::move(cut.parts[i]);
+  for (std::size_t i = 0; i < rays.cvc_rays.size(); ++i) {
+    rays.cvc_rays[i].segments = std::move(cut.parts[i]);
+    for (const auto& [source_on_cb, target_on_cb] : cut.on_cb[i]) {
+      rays.cvc_rays[i].open_ends.push_back({!source_on_cb, !target_on_cb});
+    }
+  }
   for (const CutResult::Crossing& c : cut.crossings) {
     rays.crossings.push_back({static_cast<int>(c.first), static_cast<int>(c.second), c.point, c.overlap});
   }

@@ -33,10 +33,12 @@ struct UnoccludedVertex {
 
 /// The unoccluded vertices inside the field of view, by a rotational sweep about the projection centre with the
 /// robot's hull-edge directions interleaved (rotating calipers). O((n + m) log n) for n obstacle vertices and m robot
-/// vertices. Sorted by (obstacle, vertex). Empty without a camera. Exact. Not real-time safe.
+/// vertices; scenes whose obstacles overlap use the O(n (n + m)) reference instead (the sweep needs edges that do not
+/// cross). Sorted by (obstacle, vertex). Empty without a camera. Exact. Not real-time safe.
 ///
 /// A vertex b is unoccluded iff b != P, the direction P -> b is in the closed field of view, and the open segment
-/// (P, b) meets no obstacle interior (its own included); touching or running along boundaries does not occlude.
+/// (P, b) meets no obstacle interior (its own included); touching or running along boundaries does not occlude. A
+/// vertex inside another obstacle is occluded (its segment to P starts in that interior).
 std::vector<UnoccludedVertex> FindUnoccludedVertices(const Scene& scene);
 
 /// The same set by the slow obvious method (every vertex against every edge and vertex; CM vertices by scanning the
@@ -65,6 +67,10 @@ struct CvcRay {
   /// Its maximal parts of positive length outside the interior of CB and inside the bounds, from the obstacle end
   /// towards the camera end (rounded to doubles from exact values).
   std::vector<Segment> segments;
+  /// open_ends[k]: per end of segments[k] (source, target), true where it is not on CB's boundary: the bounds clip
+  /// the ray there or it is the camera end. Complying along the ray to an open end fails (SEMANTICS.md: nothing
+  /// physical stops the servo there).
+  std::vector<std::array<bool, 2>> open_ends;
 };
 
 /// Where the free parts of two CVC rays meet (an event for the backprojection, Fox & Hutchinson §III-C-2, §V-A).

@@ -33,8 +33,9 @@ struct Pipeline {
   VcRays rays;
 };
 
-void ExpectSound(const BackprojectionProblem& pr, const VcBackprojection& vc, int grid) {
-  const MotionModel model(ToMotionWorld(pr, vc.active_rays));
+// The simulator sees the scene as the product's simulated robot does (one solid polygon per C-obstacle part).
+void ExpectSound(const Pipeline& pl, const BackprojectionProblem& pr, const VcBackprojection& vc, int grid) {
+  const MotionModel model(ToMotionWorld(pl.cspace, pr, vc.active_rays));
   int inside = 0;
   for (int i = 0; i < grid; ++i) {
     for (int j = 0; j < grid; ++j) {
@@ -54,9 +55,19 @@ TEST(BackprojectScene, Fig13RayFansOutAndEnlargesTheRegion) {
   const BackprojectionProblem pr = pl.Problem(-90);
   ASSERT_FALSE(pr.rays.empty());
   const Region classic = ClassicBackprojection(pr);
-  const VcBackprojection vc = VcEnlargedBackprojection(pr);
+  VcSelectionOptions exact_options;
+  exact_options.method = RaySelection::kExact;
+  const VcBackprojection vc = VcEnlargedBackprojection(pr, exact_options);
   EXPECT_GT(vc.region.area, 5 * classic.area) << classic.area << " vs " << vc.region.area;
   ASSERT_FALSE(vc.active_rays.empty());
+  // The default choice reaches the exact search's area in at most 3k + 1 sweeps.
+  const VcBackprojection track = VcEnlargedBackprojection(pr);
+  EXPECT_EQ(track.selection, RaySelection::kTrack);
+  EXPECT_NEAR(track.region.area, vc.region.area, 1e-12 * vc.region.area);
+  EXPECT_LE(track.sweeps, 3 * track.candidates + 1);
+  std::printf("fig13 θ = -90: track choice %zu active rays in %d sweeps; exact search %d sweeps\n",
+              track.active_rays.size(), track.sweeps, vc.sweeps);
+  ExpectSound(pl, pr, track, 30);
   // The ray through the post's top-right corner for the robot's top-left vertex (its CVC ray ends on the post's
   // right wall and leads down into the goal) is active; its sibling (ending on the sticking top of the post) is not.
   // Ids: vertex 6 of the file is the post's (3, 3); robot vertex 3 is (0, 1), vertex 1 is (1, 0).
@@ -73,7 +84,7 @@ TEST(BackprojectScene, Fig13RayFansOutAndEnlargesTheRegion) {
   EXPECT_EQ(vc.sweeps, 256);
   EXPECT_EQ(vc.active_rays, std::vector<std::string>{"vc6.cm3"});
   VcSelectionOptions greedy_options;
-  greedy_options.exact_limit = -1;
+  greedy_options.method = RaySelection::kGreedy;
   const VcBackprojection greedy = VcEnlargedBackprojection(pr, greedy_options);
   EXPECT_EQ(greedy.selection, RaySelection::kGreedy);
   EXPECT_EQ(greedy.active_rays, (std::vector<std::string>{"vc5.cm1", "vc6.cm3"}));
@@ -83,7 +94,7 @@ TEST(BackprojectScene, Fig13RayFansOutAndEnlargesTheRegion) {
     for (const auto& e : poly.outer.edges) any_vc_edge |= e.kind == EdgeKind::kVc;
   }
   EXPECT_TRUE(any_vc_edge);
-  ExpectSound(pr, vc, 30);
+  ExpectSound(pl, pr, vc, 30);
 }
 
 TEST(BackprojectScene, EqualWhereNoRayHelps) {
@@ -103,9 +114,9 @@ TEST(BackprojectScene, VcRegionContainsTheClassicOneAtManyDirections) {
     for (int deg = -150; deg <= -30; deg += 15) {
       const BackprojectionProblem pr = pl.Problem(deg);
       const Region classic = ClassicBackprojection(pr);
-      // The exact choice at every 45° (2^n sweeps), the greedy one in between (keeps the test fast).
+      // The exact choice at every 45° (2^n sweeps), the default one in between (keeps the test fast).
       VcSelectionOptions options;
-      if (deg % 45 != 0) options.exact_limit = -1;
+      if (deg % 45 == 0) options.method = RaySelection::kExact;
       const VcBackprojection vc = VcEnlargedBackprojection(pr, options);
       EXPECT_GE(vc.region.area, classic.area * (1 - 1e-12)) << path << " θ = " << deg;
       larger += vc.region.area > classic.area * (1 + 1e-9);
@@ -130,7 +141,75 @@ TEST(BackprojectScene, KernelRegionIsSmallerAndSound) {
   EXPECT_GT(b.area, 0);
   VcBackprojection as_vc;
   as_vc.region = b;
-  ExpectSound(kernel, as_vc, 40);
+  ExpectSound(pl, kernel, as_vc, 40);
+}
+
+// Regression (found outside the project, 2026-12-01): active rays whose free segments end where the bounds clip
+// them. A robot that reaches such a ray complies along it out of the bounds (SEMANTICS.md: the bounds are no end of
+// a ray); the VC region used to include such places. The extreme direction θ − ε_v alone refuted most of it.
+TEST(BackprojectScene, RaysClippedByTheBoundsAreNoEnd) {
+  const Pipeline pl("tests/planning/data/cases/ray_leaves_bounds.json");
+  int open_ends = 0;
+  for (const CvcRay& c : pl.rays.cvc_rays) {
+    for (const auto& e : c.open_ends) open_ends += e[0] + e[1];
+  }
+  EXPECT_GT(open_ends, 0);
+  const BackprojectionProblem pr = pl.Problem(-63.3);
+  const Region classic = ClassicBackprojection(pr);
+  const VcBackprojection vc = VcEnlargedBackprojection(pr);
+  EXPECT_GE(vc.region.area, classic.area * (1 - 1e-12));
+  ExpectSound(pl, pr, vc, 40);
+  // The rays that were activated (their free segments end on x = 0): forced active, the region the sweep computes is
+  // what they guarantee, so it must be sound too, with the rays as walls and their open ends failing.
+  for (const std::vector<std::string>& forced :
+       {std::vector<std::string>{"vc3.cm1"}, {"vc3.cm3"}, {"vc3.cm1", "vc3.cm3"}}) {
+    for (const std::string& id : forced) {
+      const auto it = std::find_if(pr.rays.begin(), pr.rays.end(), [&](const CvcRayInput& r) { return r.id == id; });
+      ASSERT_NE(it, pr.rays.end()) << id;
+      bool open = false;
+      for (const auto& e : it->open_ends) open |= e[0] || e[1];
+      EXPECT_TRUE(open) << id << " should end where the bounds clip it";
+    }
+    VcBackprojection with;
+    with.region = BackprojectionWithActiveRays(pr, forced);
+    with.active_rays = forced;
+    ExpectSound(pl, pr, with, 40);
+  }
+  // The constant extreme directions, on a finer grid.
+  const MotionModel model(ToMotionWorld(pl.cspace, pr, vc.active_rays));
+  int inside = 0;
+  for (int i = 0; i < 100; ++i) {
+    for (int j = 0; j < 80; ++j) {
+      const Eigen::Vector2d p(0.1 + 0.2 * i, 0.1 + 0.2 * j);
+      if (!vc.region.Contains(p) || vc.region.BoundaryDistance(p) < 1e-6 || model.InObstacleInterior(p)) continue;
+      ++inside;
+      for (double off : {-pr.velocity_cone, pr.velocity_cone}) {
+        FixedAdversary a(off);
+        const SimulationResult r = Simulate(model, p, pr.theta, pr.velocity_cone, a);
+        EXPECT_EQ(r.outcome, Outcome::kReachedGoal)
+            << "(" << p.x() << ", " << p.y() << ") offset " << off << ": " << OutcomeName(r.outcome);
+      }
+    }
+  }
+  EXPECT_GT(inside, 0);
+}
+
+// Scenes built from overlapping parts (a floor and walls, SEMANTICS.md) load, and their regions are sound.
+TEST(BackprojectScene, OverlappingPartsFunnel) {
+  const Pipeline pl("tests/planning/data/cases/funnel_overlapping.json");
+  ASSERT_FALSE(pl.rays.vc_rays.empty());
+  for (const VcRay& r : pl.rays.vc_rays) {
+    // The walls' lower corners lie inside the floor: occluded, so no ray.
+    EXPECT_FALSE(r.from.y() < 0.5) << r.id;
+  }
+  for (double deg : {-90.0, -75.0, -105.0}) {
+    const BackprojectionProblem pr = pl.Problem(deg, /*kernel=*/true);
+    const Region classic = ClassicBackprojection(pr);
+    const VcBackprojection vc = VcEnlargedBackprojection(pr);
+    EXPECT_GT(classic.area, 0) << deg;
+    EXPECT_GE(vc.region.area, classic.area * (1 - 1e-12)) << deg;
+    ExpectSound(pl, pr, vc, 30);
+  }
 }
 
 }  // namespace

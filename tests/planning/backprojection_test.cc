@@ -264,10 +264,17 @@ TEST(VcBackprojection, ExactChoiceBeatsTheGreedyOneWhenARayDivertsABetterOne) {
   const Region rb = BackprojectionWithActiveRays(pr, {"b"});
   const Region rab = BackprojectionWithActiveRays(pr, {"a", "b"});
   std::printf("areas: none %.4f, {a} %.4f, {b} %.4f, {a, b} %.4f\n", classic.area, ra.area, rb.area, rab.area);
-  const VcBackprojection exact = VcEnlargedBackprojection(pr);
+  VcSelectionOptions exact_options;
+  exact_options.method = RaySelection::kExact;
+  const VcBackprojection exact = VcEnlargedBackprojection(pr, exact_options);
   VcSelectionOptions greedy_options;
-  greedy_options.exact_limit = -1;
+  greedy_options.method = RaySelection::kGreedy;
   const VcBackprojection greedy = VcEnlargedBackprojection(pr, greedy_options);
+  // The default choice drops a2's ray "a" (its track is bad: it ends on the sticking box) and keeps "b".
+  const VcBackprojection track = VcEnlargedBackprojection(pr);
+  EXPECT_EQ(track.selection, RaySelection::kTrack);
+  EXPECT_EQ(track.active_rays, std::vector<std::string>{"b"});
+  EXPECT_EQ(track.region.area, rb.area);
   EXPECT_EQ(exact.selection, RaySelection::kExact);
   EXPECT_EQ(exact.sweeps, 4);
   EXPECT_EQ(exact.active_rays, std::vector<std::string>{"b"});

@@ -9,9 +9,11 @@
 #include <cstdint>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "planning/backprojection.h"
+#include "planning/cspace.h"
 #include "planning/motion_model.h"
 
 namespace visco::planning {
@@ -50,14 +52,20 @@ inline bool InsideConvexOrAny(const NamedPolygon& poly, const Eigen::Vector2d& p
   return inside;
 }
 
-/// The parts of segment [a, b] inside the bounds and outside every obstacle (as CVC rays are, SEMANTICS.md).
-inline std::vector<std::array<Eigen::Vector2d, 2>> CutToFreeSpace(const BackprojectionProblem& pr, Eigen::Vector2d a,
-                                                                  Eigen::Vector2d b) {
-  std::vector<double> ts = {0.0, 1.0};
+/// The parts of segment [a, b] inside the bounds and outside every obstacle (as CVC rays are, SEMANTICS.md), with
+/// their open ends: an end is closed only where an obstacle edge cuts the segment (a bounds cut and the segment's own
+/// ends in free space are open, like a clipped CVC ray's end and its camera end).
+struct FreeParts {
+  std::vector<std::array<Eigen::Vector2d, 2>> segments;
+  std::vector<std::array<bool, 2>> open_ends;
+};
+
+inline FreeParts CutToFreeSpace(const BackprojectionProblem& pr, Eigen::Vector2d a, Eigen::Vector2d b) {
+  std::vector<std::pair<double, bool>> ts = {{0.0, true}, {1.0, true}};  // (parameter, open)
   const Eigen::Vector2d d = b - a;
   for (int axis = 0; axis < 2; ++axis) {
     if (d[axis] == 0) continue;
-    for (double bound : {pr.bounds_min[axis], pr.bounds_max[axis]}) ts.push_back((bound - a[axis]) / d[axis]);
+    for (double bound : {pr.bounds_min[axis], pr.bounds_max[axis]}) ts.emplace_back((bound - a[axis]) / d[axis], true);
   }
   for (const auto& o : pr.obstacles) {
     for (size_t i = 0; i < o.vertices.size(); ++i) {
@@ -67,13 +75,14 @@ inline std::vector<std::array<Eigen::Vector2d, 2>> CutToFreeSpace(const Backproj
       const Eigen::Vector2d ac = c - a;
       const double t = (ac.x() * e.y() - ac.y() * e.x()) / den;
       const double s = (ac.x() * d.y() - ac.y() * d.x()) / den;
-      if (s >= 0 && s <= 1) ts.push_back(t);
+      if (s >= 0 && s <= 1) ts.emplace_back(t, false);
     }
   }
+  // At equal parameters an obstacle cut (closed) comes first: a contact there stops the compliance.
   std::sort(ts.begin(), ts.end());
-  std::vector<std::array<Eigen::Vector2d, 2>> out;
+  FreeParts out;
   for (size_t i = 0; i + 1 < ts.size(); ++i) {
-    const double t0 = std::max(ts[i], 0.0), t1 = std::min(ts[i + 1], 1.0);
+    const double t0 = std::max(ts[i].first, 0.0), t1 = std::min(ts[i + 1].first, 1.0);
     if (t1 - t0 < 1e-6) continue;
     const Eigen::Vector2d mid = a + 0.5 * (t0 + t1) * d;
     if (mid.x() < pr.bounds_min.x() || mid.x() > pr.bounds_max.x() || mid.y() < pr.bounds_min.y() ||
@@ -84,10 +93,19 @@ inline std::vector<std::array<Eigen::Vector2d, 2>> CutToFreeSpace(const Backproj
     for (const auto& o : pr.obstacles) blocked |= InsideConvexOrAny(o, mid);
     if (blocked) continue;
     const Eigen::Vector2d p0 = a + t0 * d, p1 = a + t1 * d;
-    if (!out.empty() && (out.back()[1] - p0).norm() < 1e-12) {
-      out.back()[1] = p1;
+    // The open flag of an end: closed if any obstacle edge meets the segment there.
+    const auto open_at = [&](double t) {
+      for (const auto& [u, open] : ts) {
+        if (!open && std::abs(u - t) < 1e-12) return false;
+      }
+      return true;
+    };
+    if (!out.segments.empty() && (out.segments.back()[1] - p0).norm() < 1e-12) {
+      out.segments.back()[1] = p1;
+      out.open_ends.back()[1] = open_at(t1);
     } else {
-      out.push_back({p0, p1});
+      out.segments.push_back({p0, p1});
+      out.open_ends.push_back({open_at(t0), open_at(t1)});
     }
   }
   return out;
@@ -102,8 +120,10 @@ inline CvcRayInput RandomRay(const BackprojectionProblem& pr, SceneRng& r, std::
   const double gy = pr.goal[0].vertices[0].y();
   const double ax = r.Uniform(0, 10), ay = r.Uniform(gy, 10);
   const double ang = r.Uniform(min_deg, max_deg) * M_PI / 180, len = r.Uniform(2, max_length);
-  ray.segments =
+  FreeParts parts =
       CutToFreeSpace(pr, Eigen::Vector2d(ax, ay), Eigen::Vector2d(ax + len * std::cos(ang), ay + len * std::sin(ang)));
+  ray.segments = std::move(parts.segments);
+  ray.open_ends = std::move(parts.open_ends);
   return ray;
 }
 
@@ -142,7 +162,9 @@ inline BackprojectionProblem RandomScene(std::uint64_t seed, bool with_rays = fa
   return pr;
 }
 
-/// The motion model's view of a backprojection problem with the given rays active.
+/// The motion model's view of a backprojection problem with the given rays active. The problem's C-obstacles must
+/// have no holes (a hole ring would become a solid obstacle): for a scene's problem, whose CB is the union of the
+/// C-obstacles with its holes, use the overload with the CSpace.
 inline MotionWorld ToMotionWorld(const BackprojectionProblem& pr, const std::vector<std::string>& active) {
   MotionWorld w;
   for (const auto& o : pr.obstacles) w.obstacles.push_back(o.vertices);
@@ -153,10 +175,30 @@ inline MotionWorld ToMotionWorld(const BackprojectionProblem& pr, const std::vec
   for (const auto& id : active) {
     for (const auto& ray : pr.rays) {
       if (ray.id != id) continue;
-      for (const auto& s : ray.segments) w.active_rays.push_back(s);
+      for (size_t k = 0; k < ray.segments.size(); ++k) {
+        w.active_rays.push_back(ray.segments[k]);
+        w.active_ray_open_ends.push_back(k < ray.open_ends.size() ? ray.open_ends[k] : std::array<bool, 2>{});
+      }
     }
   }
   return w;
+}
+
+/// As the product's simulated robot sees a scene (control's MakeMotionWorld): one solid polygon per C-obstacle part
+/// (the outer boundary of each CB_i; a pocket between two C-obstacles stays free, a hole of one CB_i is unreachable
+/// from outside), with the problem's rays.
+inline MotionWorld ToMotionWorld(const CSpace& cspace, const BackprojectionProblem& pr,
+                                 const std::vector<std::string>& active) {
+  BackprojectionProblem solid = pr;
+  solid.obstacles.clear();
+  for (std::size_t i = 0; i < cspace.num_c_obstacles(); ++i) {
+    for (const PolygonWithHoles& part : cspace.c_obstacle(i)) {
+      NamedPolygon np;
+      for (const Point& v : part.outer.vertices) np.vertices.push_back(v);
+      solid.obstacles.push_back(std::move(np));
+    }
+  }
+  return ToMotionWorld(solid, active);
 }
 
 }  // namespace visco::planning

@@ -1,7 +1,8 @@
 #pragma once
-// Seeded random scenes for property tests and benchmarks: non-overlapping star-shaped obstacles in grid cells,
-// some touching (cell-filling rectangles), coordinates on a coarse lattice so that collinear vertices, vertices on
-// each other's projection rays, robot edges parallel to rays and cameras on supporting lines happen often.
+// Seeded random scenes for property tests and benchmarks: star-shaped obstacles in grid cells, some touching
+// (cell-filling rectangles), overlapping their neighbours on request, coordinates on a coarse lattice so that collinear
+// vertices, vertices on each other's projection rays, robot edges parallel to rays and cameras on supporting lines
+// happen often.
 
 #include <cmath>
 #include <random>
@@ -20,6 +21,7 @@ struct RandomSceneOptions {
   double fill = 0.6;       // probability that a cell holds an obstacle
   double touching = 0.15;  // probability that an obstacle fills its whole cell (touching its neighbours)
   int max_vertices = 7;    // per obstacle
+  double overlap = 0.0;    // probability that an obstacle reaches into its neighbours' cells (overlapping them)
 };
 
 inline double Snap(double v, double lattice) { return lattice > 0 ? std::round(v / lattice) * lattice : v; }
@@ -61,7 +63,17 @@ inline Scene RandomScene(std::uint64_t seed, const RandomSceneOptions& o = {}) {
       if (unit(rng) > o.fill) continue;
       const Point lo(cx * o.cell, cy * o.cell);
       Polygon p;
-      if (unit(rng) < o.touching) {
+      if (o.overlap > 0 && unit(rng) < o.overlap) {  // no draw otherwise: the other tests' scenes stay the same
+        // A rectangle or a star that reaches into the neighbouring cells: obstacles overlap (SEMANTICS.md allows it).
+        const double grow = o.cell * (0.2 + 0.4 * unit(rng));
+        if (unit(rng) < 0.5) {
+          const Point a(Snap(lo.x() - grow, o.lattice), Snap(lo.y() + 0.3 * o.cell, o.lattice));
+          const Point b(Snap(lo.x() + o.cell + grow, o.lattice), Snap(lo.y() + 0.7 * o.cell, o.lattice));
+          p.vertices = {a, {b.x(), a.y()}, b, {a.x(), b.y()}};
+        } else {
+          p = StarPolygon(rng, lo + Point(o.cell / 2, o.cell / 2), o.cell / 2 + grow, o.max_vertices, o.lattice);
+        }
+      } else if (unit(rng) < o.touching) {
         p.vertices = {lo, lo + Point(o.cell, 0), lo + Point(o.cell, o.cell), lo + Point(0, o.cell)};
       } else {
         // Snapping moves a vertex by at most lattice / 2: it stays in the closed cell (it may touch a neighbour).

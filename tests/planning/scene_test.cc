@@ -135,10 +135,23 @@ TEST(Scene, RejectsBadPolygons) {
   ExpectRejected(j, "obstacles[1] (left).id", "duplicate id");
 }
 
-TEST(Scene, RejectsOverlappingObstaclesButAcceptsTouchingOnes) {
+TEST(Scene, AcceptsOverlappingAndTouchingObstacles) {
+  // SEMANTICS.md: scenes are built from overlapping parts; the obstacle region is their union.
   Json j = BaseScene();
   j["obstacles"][1]["polygon"] = Json::parse("[[3, 1], [10, 1], [10, 2], [3, 2]]");
-  ExpectRejected(j, "obstacles[1] (right)", "overlaps obstacles[0] (left)");
+  j["goal"]["polygon"] = Json::parse("[[4, 2], [4.5, 2], [4.5, 2.5], [4, 2.5]]");
+  EXPECT_NO_THROW(ParseScene(j.dump(), "test.json"));
+  // A funnel: a floor and two walls that overlap it, written in either orientation.
+  j = BaseScene();
+  j["obstacles"] = Json::parse(R"([{"id": "floor", "polygon": [[-1, -1], [11, -1], [11, 0.5], [-1, 0.5]]},
+                                   {"id": "wall_l", "polygon": [[0, 0], [4, 0], [4, 3], [0, 3]]},
+                                   {"id": "wall_r", "polygon": [[10, 0], [10, 3], [5.5, 3], [5.5, 0]]}])");
+  j["goal"]["polygon"] = Json::parse("[[4, 0.5], [4.5, 0.5], [4.5, 1], [4, 1]]");
+  const Scene funnel = ParseScene(j.dump(), "funnel.json");
+  EXPECT_EQ(funnel.obstacles.size(), 3u);
+  // The goal must still keep a free part in the union's C-space.
+  j["goal"]["polygon"] = Json::parse("[[1, 0.5], [2, 0.5], [2, 1], [1, 1]]");
+  ExpectRejected(j, "goal", "entirely inside the C-obstacles");
   j = BaseScene();
   j["obstacles"][1]["polygon"] = Json::parse("[[4, 0], [10, 0], [10, 1], [4, 1]]");  // shares part of an edge
   j["goal"]["polygon"] = Json::parse("[[4, 2], [4.5, 2], [4.5, 2.5], [4, 2.5]]");

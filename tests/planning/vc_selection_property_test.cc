@@ -136,7 +136,9 @@ void CheckSeeds(std::uint64_t first, std::uint64_t last, std::uint64_t step) {
   for (std::uint64_t seed = first; seed <= last; seed += step) {
     const BackprojectionProblem pr = SceneWithRays(seed);
     ++scenes;
-    const VcBackprojection vc = VcEnlargedBackprojection(pr);
+    VcSelectionOptions exact_options;
+    exact_options.method = RaySelection::kExact;
+    const VcBackprojection vc = VcEnlargedBackprojection(pr, exact_options);
     const int n = static_cast<int>(pr.rays.size());
     ASSERT_LE(vc.candidates, 8);
     ASSERT_EQ(vc.candidates + static_cast<int>(vc.unreliable_rays.size()), n) << "seed " << seed;
@@ -179,7 +181,7 @@ void CheckSeeds(std::uint64_t first, std::uint64_t last, std::uint64_t step) {
 
     // Exact is never worse than greedy (the greedy set is admissible).
     VcSelectionOptions greedy_options;
-    greedy_options.exact_limit = -1;
+    greedy_options.method = RaySelection::kGreedy;
     const VcBackprojection greedy = VcEnlargedBackprojection(pr, greedy_options);
     if (vc.candidates > 0) {
       EXPECT_EQ(greedy.selection, RaySelection::kGreedy);
@@ -201,6 +203,51 @@ void CheckSeeds(std::uint64_t first, std::uint64_t last, std::uint64_t step) {
   EXPECT_GT(inside, 100);  // not vacuous
   EXPECT_GE(max_candidates, 6);
 }
+
+// The default (track-pruned) choice against the exact search on seeded random scenes with at most 8 candidates:
+// never unsound (simulated), never smaller than B_θ(G), equal area on at least 95 % of the scenes with candidates.
+void CompareTrackWithExact(std::uint64_t first, std::uint64_t last) {
+  int with_candidates = 0, equal = 0, inside = 0, failures = 0, track_sweeps = 0, exact_sweeps = 0;
+  double worst = 1.0;
+  std::uint64_t worst_seed = 0;
+  for (std::uint64_t seed = first; seed <= last; ++seed) {
+    const BackprojectionProblem pr = SceneWithRays(seed);
+    const VcBackprojection track = VcEnlargedBackprojection(pr);
+    if (track.candidates == 0) continue;
+    ++with_candidates;
+    EXPECT_EQ(track.selection, RaySelection::kTrack);
+    EXPECT_LE(track.sweeps, 3 * track.candidates + 1) << "seed " << seed;
+    VcSelectionOptions exact_options;
+    exact_options.method = RaySelection::kExact;
+    const VcBackprojection exact = VcEnlargedBackprojection(pr, exact_options);
+    const Region classic = ClassicBackprojection(pr);
+    EXPECT_TRUE(ContainedIn(classic, track.region, 1e-7)) << "seed " << seed;
+    EXPECT_EQ(BackprojectionWithActiveRays(pr, track.active_rays).area, track.region.area) << "seed " << seed;
+    track_sweeps += track.sweeps;
+    exact_sweeps += exact.sweeps;
+    const double ratio = exact.region.area > 0 ? track.region.area / exact.region.area : 1.0;
+    EXPECT_LE(ratio, 1 + 1e-9) << "seed " << seed << ": the exact search is a maximum";
+    if (ratio >= 1 - 1e-9) {
+      ++equal;
+    } else if (ratio < worst) {
+      worst = ratio;
+      worst_seed = seed;
+    }
+    failures += SimulationFailures(pr, track, seed, 40, inside);
+  }
+  std::printf(
+      "track vs exact, seeds %llu-%llu: %d scenes with candidates, equal area on %d (%.1f %%), worst ratio %.4f "
+      "(seed %llu); sweeps %d against %d; %d configurations simulated, %d failures\n",
+      static_cast<unsigned long long>(first), static_cast<unsigned long long>(last), with_candidates, equal,
+      100.0 * equal / std::max(1, with_candidates), worst, static_cast<unsigned long long>(worst_seed), track_sweeps,
+      exact_sweeps, inside, failures);
+  EXPECT_EQ(failures, 0);
+  EXPECT_GE(equal, 0.95 * with_candidates);
+  EXPECT_GT(with_candidates, 20);
+}
+
+TEST(VcSelectionProperty, TrackChoiceAgainstTheExactSearch) { CompareTrackWithExact(1, 40); }
+TEST(VcSelectionProperty, TrackChoiceAgainstTheExactSearchMore) { CompareTrackWithExact(41, 80); }
 
 TEST(VcSelectionProperty, ExactChoiceHasTheLargestAdmissibleAreaOverAllSubsets) { CheckSeeds(201, 217, 2); }
 TEST(VcSelectionProperty, ExactChoiceHasTheLargestAdmissibleAreaOverAllSubsetsMore) { CheckSeeds(202, 218, 2); }

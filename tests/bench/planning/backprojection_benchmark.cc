@@ -5,8 +5,9 @@
 // Scaling exponent: compare BM_Classic at 1k and 100k vertices (log(t100k / t1k) / log(100)); the ratio: the
 // reference's time per classified configuration against the sweep's time for the whole region.
 //
-// BM_RaySelection: the VC-enlarged backprojection's choice of active rays, exact (every subset of the reliable
-// candidates) against greedy (single rays, then pairs) on the same scenes in the same run: the example scenes
+// BM_RaySelection: the VC-enlarged backprojection's choice of active rays, the default track-pruned choice (at most
+// 3k + 1 sweeps) against exact (every subset of the reliable candidates) and greedy (single rays, then pairs) on the
+// same scenes in the same run: the example scenes
 // (data/scenes) at a commanded direction with candidates, and random scenes with 4, 8 and 12 candidate rays.
 
 #include <benchmark/benchmark.h>
@@ -143,17 +144,19 @@ const std::vector<SelectionCase>& SelectionCases() {
   return cases;
 }
 
-// range(0): case index; range(1): 1 = exact, 0 = greedy.
+// range(0): case index; range(1): 0 = greedy, 1 = exact, 2 = track (the default).
 void BM_RaySelection(benchmark::State& state) {
   const SelectionCase& c = SelectionCases().at(state.range(0));
   VcSelectionOptions options;
-  options.exact_limit = state.range(1) ? 64 : -1;
+  const RaySelection methods[] = {RaySelection::kGreedy, RaySelection::kExact, RaySelection::kTrack};
+  options.method = methods[state.range(1)];
+  options.exact_limit = 64;
   VcBackprojection vc;
   for (auto _ : state) {
     vc = VcEnlargedBackprojection(c.problem, options);
     benchmark::DoNotOptimize(vc.region.polygons.data());
   }
-  state.SetLabel(c.name + (state.range(1) ? " exact" : " greedy"));
+  state.SetLabel(c.name + " " + RaySelectionName(options.method));
   state.counters["candidates"] = vc.candidates;
   state.counters["sweeps"] = vc.sweeps;
   state.counters["active"] = static_cast<double>(vc.active_rays.size());
@@ -162,7 +165,7 @@ void BM_RaySelection(benchmark::State& state) {
 
 void SelectionArgs(benchmark::internal::Benchmark* b) {
   for (int i = 0; i < static_cast<int>(SelectionCases().size()); ++i) {
-    for (int exact : {0, 1}) b->Args({i, exact});
+    for (int method : {0, 1, 2}) b->Args({i, method});
   }
 }
 
