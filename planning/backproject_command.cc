@@ -136,13 +136,13 @@ void Run(const Args& a) {
                     ": goal: the goal kernel is empty (the goal is narrower than twice the position "
                     "uncertainty)");
   }
-  const Region classic = ClassicBackprojection(pr);
   VcSelectionOptions options;
   options.exact_limit = a.exact_limit;
   options.method = a.method == "exact"    ? RaySelection::kExact
                    : a.method == "greedy" ? RaySelection::kGreedy
                                           : RaySelection::kTrack;
   const VcBackprojection vc = VcEnlargedBackprojection(pr, options);
+  const Region& classic = vc.classic;
   WriteText(BackprojectionToJson(a.theta_deg, classic, vc), a.out);
   if (!a.svg.empty()) WriteText(BackprojectionToSvg(scene, cspace, pr, classic, vc), a.svg);
 }

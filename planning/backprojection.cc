@@ -98,7 +98,7 @@ struct Rotation {
     const FT x(p.x()), y(p.y()), fc(c), fs(s);
     return P2(fc * x - fs * y, fs * x + fc * y);
   }
-  // The exact inverse, rounded once.
+  // The exact inverse, converted to double once (CGAL::to_double of the exact value).
   Vector2d InvertExact(const P2& p) const {
     const FT fc(c), fs(s), det = fc * fc + fs * fs;
     return {CGAL::to_double((fc * p.x() + fs * p.y()) / det), CGAL::to_double((fc * p.y() - fs * p.x()) / det)};
@@ -1321,6 +1321,7 @@ VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem, 
             [&](int a, int b) { return problem.rays[a].id < problem.rays[b].id; });
   out.candidates = static_cast<int>(candidates.size());
   SweepResult result = RunSweep(problem, {});
+  out.classic = result.region;
   out.sweeps = 1;
   std::vector<int> active;
   if (candidates.empty()) {

@@ -7,7 +7,7 @@
 // The sweep runs in exact arithmetic (CGAL's lazy exact kernel, hidden in backprojection.cc) in a frame rotated so
 // that the commanded velocity points straight down; sticking and sliding are decided with the motion model's own
 // predicates (planning/motion_model.h), so planner and simulator agree on ties. Rings are assembled and holes placed
-// with exact predicates; output coordinates are rotated back to the world frame exactly and rounded once. An
+// with exact predicates; output coordinates are rotated back to the world frame exactly, then converted to double. An
 // inconsistency of the sweep is a std::logic_error (`visco` exits 1 with "internal error"), never a smaller or
 // larger region.
 
@@ -95,6 +95,7 @@ const char* RaySelectionName(RaySelection selection);
 /// The VC-enlarged backprojection with the active rays it relies on.
 struct VcBackprojection {
   Region region;
+  Region classic;  ///< B_θ(G), the region with no ray active (swept first; callers need not sweep it again)
   std::vector<std::string> active_rays;      ///< ids of the CVC rays the motion complies to (sorted)
   std::vector<std::string> rejected_rays;    ///< reliable candidates that are not active
   std::vector<std::string> unreliable_rays;  ///< candidates within 90° ± ε_v of θ (never active, SEMANTICS.md)

@@ -221,6 +221,7 @@ void CompareTrackWithExact(std::uint64_t first, std::uint64_t last) {
     exact_options.method = RaySelection::kExact;
     const VcBackprojection exact = VcEnlargedBackprojection(pr, exact_options);
     const Region classic = ClassicBackprojection(pr);
+    EXPECT_EQ(track.classic.area, classic.area) << "seed " << seed;  // the no-ray sweep it reports is B_θ(G)
     EXPECT_TRUE(ContainedIn(classic, track.region, 1e-7)) << "seed " << seed;
     EXPECT_EQ(BackprojectionWithActiveRays(pr, track.active_rays).area, track.region.area) << "seed " << seed;
     track_sweeps += track.sweeps;
