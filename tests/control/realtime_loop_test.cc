@@ -9,6 +9,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <mutex>
 #include <numbers>
 #include <set>
@@ -388,6 +389,91 @@ TEST(RealtimeLoop, RealLcmLinkAgainstTheDriverIsAllocationLockAndExceptionFree) 
   EXPECT_EQ(counts.throws, 0);
   EXPECT_LE(counts.io, loop.cycles());  // the eventfd wake-up of the link's I/O thread, non-blocking
   RecordProperty("io_calls", static_cast<int>(counts.io));
+}
+
+// Issue 15: the robot driver restarts during a run (a new process on the same bus, inside every time-out). The
+// controller must not go on commanding it as if nothing happened: the boot-up heartbeat stops the run, and the stop
+// says why; the restarted driver, disabled, never takes the old run's commands.
+TEST(RealtimeLoop, ADriverRestartDuringARunStopsTheControllerAndSaysWhy) {
+  const std::string url = "udpm://239.255.76.67:" + std::to_string(43000 + getpid() % 20000) + "?ttl=0";
+  struct DriverProcess {
+    explicit DriverProcess(const std::string& lcm_url, std::uint64_t seed) : robot(drivers::SimulatedRobotConfig{}) {
+      drivers::DriverTransportConfig transport_config;
+      transport_config.lcm_url = lcm_url;
+      transport = drivers::MakeLcmDriverTransport(transport_config);
+      drivers::DriverConfig config;
+      config.watchdog_us = 1'000'000;
+      config.session_seed = seed;
+      driver = std::make_unique<drivers::Driver>(config, *transport, robot);
+      thread = std::thread([this] { driver->Run(stop); });
+    }
+    ~DriverProcess() { Kill(); }
+    void Kill() {
+      stop = true;
+      if (thread.joinable()) thread.join();
+    }
+    drivers::SimulatedRobot robot;
+    std::unique_ptr<drivers::DriverTransport> transport;
+    std::unique_ptr<drivers::Driver> driver;
+    std::atomic<bool> stop{false};
+    std::thread thread;
+  };
+  auto first = std::make_unique<DriverProcess>(url, 101);
+  drivers::RobotLinkConfig link_config;
+  link_config.lcm_url = url;
+  link_config.heartbeat_timeout_us = 2'000'000;
+  const auto link = drivers::MakeLcmRobotLink(link_config);
+
+  Task task;
+  Step step;
+  step.theta = 0.0;
+  step.terminate = TerminateKind::kGoal;
+  task.steps.push_back(step);
+  task.speed = 0.2;
+  task.goal = testing::Square({5.0, 0.0}, 0.05);  // far: the run is still going when the driver restarts
+  ExecutorConfig config;
+  config.period_s = 0.002;
+  config.limits.max_speed = 0.5;
+  config.limits.max_accel = 2.0;
+  config.goal_from_odometry = true;
+  config.heartbeat_timeout_s = 1.0;
+  config.startup_timeout_s = 10.0;
+  Executor executor(task, config);
+  LatestValue<VisualFrame> frames;
+  LatestValue<PositionEstimate> estimates;
+  Outbox outbox;
+  LoopConfig loop_config;
+  loop_config.period_s = 0.002;
+  loop_config.realtime = false;
+  LoopSources sources{link.get(), &frames, &estimates, nullptr};
+  ControlLoop loop(executor, sources, loop_config, outbox);
+  std::atomic<bool> stop{false};
+  std::thread rt([&] {
+    executor.Start(MonotonicNs());
+    loop.Run(stop, 5000);
+  });
+  // Wait until the run moves the robot.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (std::chrono::steady_clock::now() < deadline && first->robot.Read().velocity[0] < 0.1) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_GT(first->robot.Read().velocity[0], 0.1) << executor.stop_reason();
+  first.reset();                   // the driver process dies ...
+  DriverProcess second(url, 102);  // ... and a new one starts at once, well within the time-outs
+  rt.join();
+  second.Kill();
+  EXPECT_EQ(executor.mode(), Mode::kStopped);
+  std::printf("driver restart during a run: controller stopped: %s\n", executor.stop_reason());
+  EXPECT_NE(std::string(executor.stop_reason()).find("restarted"), std::string::npos) << executor.stop_reason();
+  FaultEvent fault;
+  bool reported = false;
+  while (outbox.faults.TryPop(fault)) {
+    reported |= fault.robot_stopped && std::string(fault.message).find("restarted") != std::string::npos;
+  }
+  EXPECT_TRUE(reported);
+  EXPECT_EQ(second.driver->stats().commands_applied, 0U);
+  EXPECT_EQ(second.driver->state(), drivers::RobotState::kDisabled);
+  EXPECT_EQ(Norm(loop.last_output().command.velocity), 0.0);
 }
 
 }  // namespace
