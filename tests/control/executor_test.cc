@@ -299,6 +299,24 @@ TEST(Executor, DriverNeverReadyStopsAfterStartupTimeout) {
   EXPECT_NE(std::string(h.executor().stop_reason()).find("no status or heartbeat from the driver"), std::string::npos);
 }
 
+// A driver whose e-stop is latched refuses the executor's reset (drivers/README.md, "Sessions"): the run does not
+// start, and says that the operator must release the e-stop at the driver.
+TEST(Executor, ALatchedDriverEStopIsNotClearedAndTheStopSaysWhatToDo) {
+  Task task;
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));
+  ExecutorConfig config = Config();
+  config.startup_timeout_s = 0.2;
+  Harness h(task, config, {1.0, 1.0});
+  h.driver_fault_bits = robot_status_t::FAULT_ESTOP;
+  h.Start();
+  EXPECT_TRUE(h.Tick().command.reset);
+  h.RunUntilFinished(1.0);
+  EXPECT_EQ(h.executor().mode(), Mode::kStopped);
+  EXPECT_EQ(h.executor().step_index(), -1);  // never started
+  EXPECT_NE(std::string(h.executor().stop_reason()).find("e-stop latched"), std::string::npos)
+      << h.executor().stop_reason();
+}
+
 TEST(Executor, DriverFaultStopsWithItsNames) {
   Task task;
   task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));
