@@ -131,7 +131,9 @@ void ControlLoop::RunCycle(std::int64_t now_ns, std::int64_t now_utime) {
   input_.peer_lost = peer == drivers::PeerState::kLost;
   while (link.TakeFault(fault_scratch_) == drivers::LinkResult::kOk) {
     const drivers::LinkFault& f = fault_scratch_;
-    if (f.cleared || input_.link_fault_code != 0) continue;
+    // A foreign fault is about another controller's session (e.g. the watchdog stop of the controller that ran
+    // before this one): this controller is not commanding the driver, and waits for it to be ready.
+    if (f.cleared || f.foreign || input_.link_fault_code != 0) continue;
     if (f.robot_stopped || f.code == static_cast<std::int32_t>(FaultCode::kCanError)) {
       input_.link_fault_code = f.code != 0 ? f.code : static_cast<std::int32_t>(FaultCode::kPeerTimeout);
       if (f.what != nullptr) {

@@ -78,6 +78,8 @@ inline constexpr std::uint16_t kEmcyBounds = 0x8612;           // reference limi
 inline constexpr std::uint16_t kEmcyResetRefused = 0xFF01;     // manufacturer-specific: reset or NMT start refused
                                                                // because an e-stop is latched (operator release)
 
+static_assert(DriverFaultWhat(kEmcyResetRefused) != nullptr, "robot_link.h explains the refused reset");
+
 /// Result of decoding a frame.
 enum class DecodeStatus : std::uint8_t {
   kOk = 0,

@@ -166,6 +166,7 @@ class LcmRobotLink final : public RobotLink {
     LinkFault f;
     while (incoming_faults_.Pop(f)) {
       f.receive_us = now_us;
+      f.foreign = !session_.owned() && f.emcy_code != 0xFF01;  // 0xFF01: can::kEmcyResetRefused
       ++counters_.faults_received;
       if (!faults_.Push(f)) ++counters_.faults_dropped;
     }
@@ -287,6 +288,7 @@ class LcmRobotLink final : public RobotLink {
     f.fault_bits = static_cast<std::uint16_t>(msg->fault_bits & fault_bits::kAll);
     f.robot_stopped = msg->robot_stopped;
     f.cleared = msg->cleared;
+    f.what = DriverFaultWhat(f.emcy_code);
     incoming_faults_.Push(f);
   }
 

@@ -97,8 +97,19 @@ struct LinkFault {
   bool robot_stopped = false;    // the driver stopped the robot because of it
   bool cleared = false;          // announces that the fault has cleared
   bool local = false;            // detected by this link (bus state, session), not reported by the driver
-  const char* what = nullptr;    // local faults: the reason in words (a static string), or nullptr
+  const char* what = nullptr;    // the reason in words when the link has one (a static string), or nullptr
+  // Reported by the driver while it had accepted none of this link's commands in its session: about another (e.g.
+  // the previous) controller's session, such as its watchdog stop. A refused reset (0xFF01) is never foreign.
+  bool foreign = false;
 };
+
+/// The reason in words of a driver fault that needs one on the controller's side (LinkFault::what), or nullptr: a
+/// refused reset (EMCY 0xFF01) means the operator must release the driver's e-stop. Real-time safe.
+constexpr const char* DriverFaultWhat(std::uint16_t emcy_code) {
+  return emcy_code == 0xFF01 ? "the driver's e-stop is latched: only the operator can release it, at the driver "
+                               "(SIGUSR1)"
+                             : nullptr;
+}
 
 /// Result of a real-time link call.
 enum class LinkResult : std::uint8_t {

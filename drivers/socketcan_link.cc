@@ -243,6 +243,8 @@ class SocketCanRobotLink final : public RobotLink {
           fault.fault_bits = emcy.fault_bits;
           fault.robot_stopped = emcy.robot_stopped;
           fault.cleared = emcy.cleared || emcy.error_code == can::kEmcyNoError;
+          fault.what = DriverFaultWhat(emcy.error_code);
+          fault.foreign = !session_.owned() && emcy.error_code != can::kEmcyResetRefused;
           Push(fault);
         }
         break;
