@@ -173,6 +173,7 @@ void ControlLoop::RunCycle(std::int64_t now_ns, std::int64_t now_utime) {
   command.velocity[1] = output_.command.velocity.y;
   command.estop = output_.command.estop;
   command.reset = output_.command.reset;
+  command.quick_stop = output_.command.quick_stop;
   last_send_result_ = link.SendCommand(command, now_us);
   // kNoSession: the driver's session is not known yet (nothing to command; the executor waits for a ready status).
   if (last_send_result_ != drivers::LinkResult::kNoSession) {

@@ -170,6 +170,7 @@ void Executor::Finish(ExecutorOutput& out, const ExecutorInput& in, Vec2 nominal
   out.command.velocity = command;
   out.command.estop = estop_latched_;
   out.command.reset = mode_ == Mode::kIdle && started_;
+  out.command.quick_stop = mode_ == Mode::kStopped;
   out.mode = mode_;
   out.step_index = step_;
   out.holding = holding_;

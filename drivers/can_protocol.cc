@@ -192,7 +192,8 @@ EncodeStatus EncodeCommand(int node, const CommandFrame& command, Frame& out) {
   out = Frame{};
   out.id = kCommandBase + static_cast<std::uint32_t>(node);
   out.data[0] = static_cast<std::uint8_t>(command.seq & 0xFF);
-  out.data[1] = static_cast<std::uint8_t>((command.estop ? kFlagEStop : 0) | (command.reset ? kFlagReset : 0));
+  out.data[1] = static_cast<std::uint8_t>((command.estop ? kFlagEStop : 0) | (command.reset ? kFlagReset : 0) |
+                                          (command.quick_stop ? kFlagQuickStop : 0));
   PutI16(&out.data[2], static_cast<std::int16_t>(Quantise(command.velocity[0], kVelocityScale, kI16Min, kI16Max)));
   PutI16(&out.data[4], static_cast<std::int16_t>(Quantise(command.velocity[1], kVelocityScale, kI16Min, kI16Max)));
   out.data[6] = static_cast<std::uint8_t>(command.session & 0xFF);
@@ -205,7 +206,7 @@ DecodeStatus DecodeCommand(int node, const Frame& frame, CommandFrame& out) {
   if (!IsDataFrame(frame, kCommandBase + static_cast<std::uint32_t>(node))) return DecodeStatus::kWrongId;
   if (frame.dlc != 8) return DecodeStatus::kBadLength;
   const std::uint8_t flags = frame.data[1];
-  if ((flags & ~(kFlagEStop | kFlagReset)) != 0) return DecodeStatus::kBadReserved;
+  if ((flags & ~(kFlagEStop | kFlagReset | kFlagQuickStop)) != 0) return DecodeStatus::kBadReserved;
   const std::int16_t vx = GetI16(&frame.data[2]);
   const std::int16_t vy = GetI16(&frame.data[4]);
   // -32768 is reserved so that the range is symmetric.
@@ -214,6 +215,7 @@ DecodeStatus DecodeCommand(int node, const Frame& frame, CommandFrame& out) {
   out.session = frame.data[6];
   out.estop = (flags & kFlagEStop) != 0;
   out.reset = (flags & kFlagReset) != 0;
+  out.quick_stop = (flags & kFlagQuickStop) != 0;
   out.velocity[0] = vx * kVelocityScale;
   out.velocity[1] = vy * kVelocityScale;
   return DecodeStatus::kOk;

@@ -55,6 +55,7 @@ inline constexpr double kMaxVelocity = 32767 * kVelocityScale;
 // Command flags (byte 1 of the command frame). Other bits are reserved and must be zero.
 inline constexpr std::uint8_t kFlagEStop = 0x01;
 inline constexpr std::uint8_t kFlagReset = 0x02;
+inline constexpr std::uint8_t kFlagQuickStop = 0x04;  // the controller's stop: quick stop now, STOPPED
 
 // NMT commands (byte 0 of an NMT frame).
 inline constexpr std::uint8_t kNmtStart = 0x01;  // -> operational: no effect on the drive (it never enables or clears)
@@ -75,8 +76,10 @@ inline constexpr std::uint16_t kEmcyPdoLength = 0x8210;        // PDO not proces
 inline constexpr std::uint16_t kEmcyRpdoTimeout = 0x8250;      // RPDO timeout: the command watchdog expired
 inline constexpr std::uint16_t kEmcyVelocityLimit = 0x8400;    // velocity speed controller (command limited)
 inline constexpr std::uint16_t kEmcyBounds = 0x8612;           // reference limit (workspace bounds)
-inline constexpr std::uint16_t kEmcyResetRefused = 0xFF01;     // manufacturer-specific: reset or NMT start refused
-                                                               // because an e-stop is latched (operator release)
+inline constexpr std::uint16_t kEmcyResetRefused = 0xFF01;
+inline constexpr std::uint16_t kEmcyQuickStop =
+    0xFF02;  // manufacturer-specific: quick stop at the controller's request     // manufacturer-specific: reset or NMT
+             // start refused because an e-stop is latched (operator release)
 
 static_assert(DriverFaultWhat(kEmcyResetRefused) != nullptr, "robot_link.h explains the refused reset");
 
@@ -118,6 +121,7 @@ struct CommandFrame {
   std::uint32_t session = 0;  // the driver's session nonce (DecodeCommand: the frame's tag, the low 8 bits)
   bool estop = false;
   bool reset = false;
+  bool quick_stop = false;
   double velocity[2] = {0.0, 0.0};  // m/s, world frame, quantised to kVelocityScale
 };
 

@@ -117,7 +117,7 @@ void RunDriver(const DriverOptions& o) {
   std::printf(
       "{\"commands_applied\": %llu, \"bad_commands\": %llu, \"out_of_sequence\": %llu, \"wrong_session\": %llu, "
       "\"sessions\": %llu, \"refused_resets\": %llu, \"nmt_starts\": %llu, \"nmt_resets\": %llu, "
-      "\"operator_releases\": %llu, \"watchdog_stops\": %llu, "
+      "\"operator_releases\": %llu, \"quick_stops\": %llu, \"watchdog_stops\": %llu, "
       "\"bounds_stops\": %llu, \"estops\": %llu, \"resets\": %llu, \"bus_offs\": %llu, \"statuses_sent\": %llu, "
       "\"faults_sent\": %llu, "
       "\"send_failures\": %llu, \"state\": \"%s\"}\n",
@@ -125,11 +125,12 @@ void RunDriver(const DriverOptions& o) {
       static_cast<unsigned long long>(s.out_of_sequence), static_cast<unsigned long long>(s.wrong_session),
       static_cast<unsigned long long>(s.sessions), static_cast<unsigned long long>(s.refused_resets),
       static_cast<unsigned long long>(s.nmt_starts), static_cast<unsigned long long>(s.nmt_resets),
-      static_cast<unsigned long long>(s.operator_releases), static_cast<unsigned long long>(s.watchdog_stops),
-      static_cast<unsigned long long>(s.bounds_stops), static_cast<unsigned long long>(s.estops),
-      static_cast<unsigned long long>(s.resets), static_cast<unsigned long long>(s.bus_offs),
-      static_cast<unsigned long long>(s.statuses_sent), static_cast<unsigned long long>(s.faults_sent),
-      static_cast<unsigned long long>(s.send_failures), ToString(driver.state()));
+      static_cast<unsigned long long>(s.operator_releases), static_cast<unsigned long long>(s.quick_stops),
+      static_cast<unsigned long long>(s.watchdog_stops), static_cast<unsigned long long>(s.bounds_stops),
+      static_cast<unsigned long long>(s.estops), static_cast<unsigned long long>(s.resets),
+      static_cast<unsigned long long>(s.bus_offs), static_cast<unsigned long long>(s.statuses_sent),
+      static_cast<unsigned long long>(s.faults_sent), static_cast<unsigned long long>(s.send_failures),
+      ToString(driver.state()));
   std::fflush(stdout);
 }
 

@@ -176,6 +176,8 @@ void Driver::OnCommand(const DriverEvent& event, std::int64_t now_us) {
   if (event.command.estop) {
     EStop(now_us, verdict == can::CommandVerdict::kAccept ? "e-stop requested by the controller"
                                                           : "e-stop flag in a command of no valid session (honoured)");
+  } else if (event.command.quick_stop) {
+    QuickStopRequested(verdict == can::CommandVerdict::kAccept);
   }
   if (verdict != can::CommandVerdict::kAccept) {
     Reject(verdict, event, seq);
@@ -189,7 +191,7 @@ void Driver::OnCommand(const DriverEvent& event, std::int64_t now_us) {
   ClearFault(fault_bits::kSequence);
   ClearFault(fault_bits::kSession);
 
-  if (event.command.estop) {
+  if (event.command.estop || event.command.quick_stop) {
     // Stopped above.
   } else if (event.command.reset) {
     OnReset(now_us);
@@ -306,6 +308,16 @@ void Driver::EStop(std::int64_t /*now_us*/, const char* why) {
   StopRobot(RobotState::kEStop);
   refusal_announced_ = false;
   SetFault(fault_bits::kEStop, can::kEmcyGeneric, fault_t::CODE_ESTOP, true, why);
+}
+
+void Driver::QuickStopRequested(bool valid) {
+  robot_.QuickStop();
+  if (state_ != RobotState::kReady && state_ != RobotState::kMoving) return;  // stopped already
+  ++stats_.quick_stops;
+  StopRobot(RobotState::kStopped);
+  Announce(can::kEmcyQuickStop, fault_t::CODE_NONE, true, false,
+           valid ? "quick stop requested by the controller: robot stopped"
+                 : "quick-stop flag in a command of no valid session (honoured): robot stopped");
 }
 
 void Driver::StopRobot(RobotState state) {

@@ -15,6 +15,8 @@
 // - E-stop (a command's e-stop flag, whatever its session, number or CRC; NMT stop): quick stop, state ESTOP,
 //   FAULT_ESTOP, latched until the operator releases it at the driver (RequestOperatorRelease(); `visco driver`:
 //   SIGUSR1), which leaves the driver DISABLED. Resets and NMT start are refused meanwhile (EMCY 0xFF01, once).
+// - Quick stop (a command's quick-stop flag, whatever its session, number or CRC: the controller stopped): quick stop
+//   at once, state STOPPED, EMCY 0xFF02; a reset clears it.
 // - Bus-off or interface down: quick stop, state STOPPED, FAULT_BUS until the bus recovers.
 // - STOPPED is latched: a reset command with the faults gone returns the driver to READY. The reset command's
 //   velocity is ignored. NMT start has no effect; NMT reset node restarts the session (DISABLED, or ESTOP if latched).
@@ -47,6 +49,7 @@ struct DriverStats {
   std::uint64_t watchdog_stops = 0;
   std::uint64_t bounds_stops = 0;  // the robot left its workspace
   std::uint64_t estops = 0;
+  std::uint64_t quick_stops = 0;  // at the controller's request (command flag)
   std::uint64_t resets = 0;
   std::uint64_t refused_resets = 0;  // resets while an e-stop was latched
   std::uint64_t nmt_starts = 0;      // NMT start (no effect)
@@ -91,6 +94,7 @@ class Driver {
   void OnOperatorRelease();
   void RefuseWhileEStop(const char* what);
   void EStop(std::int64_t now_us, const char* why);
+  void QuickStopRequested(bool valid);
   void StopRobot(RobotState state);
   void NewSession(std::int64_t now_us);
   std::uint32_t NextNonce();

@@ -102,7 +102,7 @@ class LcmRobotLink final : public RobotLink {
       }
     }
     // Without a session only an e-stop goes out (the driver honours it whatever the session).
-    if (!session_.have() && !command.estop) return LinkResult::kNoSession;
+    if (!session_.have() && !command.estop && !command.quick_stop) return LinkResult::kNoSession;
     Outgoing out;
     out.command = command;
     out.session = session_.session();
@@ -247,6 +247,7 @@ class LcmRobotLink final : public RobotLink {
       msg.velocity[1] = out.command.velocity[1];
       msg.estop = out.command.estop;
       msg.reset = out.command.reset;
+      msg.quick_stop = out.command.quick_stop;
       io_.lcm().publish(channels::kCommand, &msg);
     }
   }
@@ -457,6 +458,7 @@ class LcmDriverTransport final : public DriverTransport {
       event.command.velocity[1] = msg->velocity[1];
       event.command.estop = msg->estop;
       event.command.reset = msg->reset;
+      event.command.quick_stop = msg->quick_stop;
     }
     if (events_.Push(event)) {
       const std::uint64_t one = 1;

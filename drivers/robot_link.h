@@ -51,6 +51,7 @@ inline constexpr std::uint32_t kStatusWindow = 127;
 struct VelocityCommand {
   double velocity[2] = {0.0, 0.0};  // m/s, world frame (x right, y up)
   bool estop = false;               // stop now and latch until the operator releases it at the driver
+  bool quick_stop = false;          // stop now with the robot's quick-stop deceleration: STOPPED, cleared by a reset
   bool reset = false;  // enable: clear a disabled or stopped driver (not an e-stop); send with zero velocity
 };
 

@@ -77,12 +77,13 @@ class SocketCanRobotLink final : public RobotLink {
 
   LinkResult SendCommand(const VelocityCommand& command, std::int64_t now_us) override {
     // Without a session only an e-stop goes out (the driver honours its flag whatever the session).
-    if (!session_.have() && !command.estop) return LinkResult::kNoSession;
+    if (!session_.have() && !command.estop && !command.quick_stop) return LinkResult::kNoSession;
     can::CommandFrame wire;
     wire.seq = session_.Next();
     wire.session = session_.session();
     wire.estop = command.estop;
     wire.reset = command.reset;
+    wire.quick_stop = command.quick_stop;
     wire.velocity[0] = command.velocity[0];
     wire.velocity[1] = command.velocity[1];
     can::Frame frame;
@@ -596,6 +597,7 @@ class SocketCanDriverTransport final : public DriverTransport {
         out.command.velocity[1] = wire.velocity[1];
         out.command.estop = wire.estop;
         out.command.reset = wire.reset;
+        out.command.quick_stop = wire.quick_stop;
         ++counters_.commands_sent;  // here: commands received
         return true;
       }

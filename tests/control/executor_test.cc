@@ -323,9 +323,13 @@ TEST(Executor, DriverFaultStopsWithItsNames) {
   Harness h(task, Config(), {1.0, 1.0});
   h.Start();
   for (int i = 0; i < 10; ++i) h.Tick();
+  EXPECT_FALSE(h.Tick().command.quick_stop);
   h.driver_fault_bits = robot_status_t::FAULT_WATCHDOG;
   h.Tick();
   EXPECT_EQ(h.executor().mode(), Mode::kStopped);
+  // From the stop on, every command asks the driver for a quick stop (issue 15: not only its watchdog, later).
+  EXPECT_TRUE(h.Tick().command.quick_stop);
+  EXPECT_EQ(Norm(h.Tick().command.velocity), 0.0);
   EXPECT_EQ(h.executor().stop_code(), FaultCode::kPeerTimeout);
   EXPECT_NE(std::string(h.executor().stop_reason()).find("watchdog"), std::string::npos);
 }

@@ -92,6 +92,7 @@ TEST(CanProtocol, CommandRoundTripAgreesWithDbc) {
     command.session = static_cast<std::uint32_t>(rng()) | 1U;
     command.estop = rng() % 2;
     command.reset = rng() % 2;
+    command.quick_stop = rng() % 2;
     command.velocity[0] = speed(rng);
     command.velocity[1] = speed(rng);
     Frame frame;
@@ -101,6 +102,7 @@ TEST(CanProtocol, CommandRoundTripAgreesWithDbc) {
     EXPECT_EQ(RawSig(frame, "CommandSeq"), command.seq & 0xFF);
     EXPECT_EQ(RawSig(frame, "EStop"), command.estop ? 1 : 0);
     EXPECT_EQ(RawSig(frame, "Reset"), command.reset ? 1 : 0);
+    EXPECT_EQ(RawSig(frame, "QuickStop"), command.quick_stop ? 1 : 0);
     EXPECT_EQ(RawSig(frame, "SessionTag"), command.session & 0xFF);
     EXPECT_NEAR(Sig(frame, "VelocityX"), command.velocity[0], kVelocityScale / 2 + 1e-12);
     EXPECT_NEAR(Sig(frame, "VelocityY"), command.velocity[1], kVelocityScale / 2 + 1e-12);
@@ -114,6 +116,7 @@ TEST(CanProtocol, CommandRoundTripAgreesWithDbc) {
     EXPECT_EQ(seq, command.seq);
     EXPECT_EQ(decoded.estop, command.estop);
     EXPECT_EQ(decoded.reset, command.reset);
+    EXPECT_EQ(decoded.quick_stop, command.quick_stop);
     EXPECT_DOUBLE_EQ(decoded.velocity[0], Sig(frame, "VelocityX"));
     EXPECT_DOUBLE_EQ(decoded.velocity[1], Sig(frame, "VelocityY"));
   }
@@ -227,7 +230,7 @@ TEST(CanProtocol, StatusSaturatesInsteadOfWrapping) {
 // reserved bits, then the session tag and the CRC over the nonce and the counter reconstructed 1..window ahead.
 bool ReferenceLayoutOk(const Frame& frame) {
   if (frame.id != 0x201 || frame.dlc != 8) return false;
-  if ((frame.data[1] & 0xFC) != 0) return false;
+  if ((frame.data[1] & 0xF8) != 0) return false;
   return RawSig(frame, "VelocityX") != -32768 && RawSig(frame, "VelocityY") != -32768;
 }
 bool ReferenceAccepts(const Frame& frame, std::uint32_t session, std::uint32_t last) {

@@ -102,6 +102,7 @@ class FakeTransport final : public DriverTransport {
       e.command.velocity[1] = wire.velocity[1];
       e.command.estop = wire.estop;
       e.command.reset = wire.reset;
+      e.command.quick_stop = wire.quick_stop;
     }
     events.push_back(e);
   }
@@ -391,6 +392,49 @@ TEST(Driver, EStopIsHonouredWhateverTheSessionNumberOrChecksum) {
     rig.Run(10);
     EXPECT_EQ(rig.driver.state(), RobotState::kEStop) << "variant " << variant;
     EXPECT_EQ(rig.Speed(), 0.0);
+  }
+}
+
+// The controller's stop (issue 15): its quick-stop flag stops the robot at once with the quick-stop deceleration
+// (not the normal one of a zero velocity, and not a watchdog period later), STOPPED until a reset; honoured whatever
+// the frame's session, number or CRC, like the e-stop flag.
+TEST(Driver, AQuickStopRequestStopsAtOnceAndAResetRecovers) {
+  for (int variant = 0; variant < 2; ++variant) {
+    Rig rig(true, 31 + variant);
+    rig.Enable();
+    for (int i = 0; i < 300; ++i) {
+      rig.transport.Command(0.5, 0.0);
+      rig.Run(1);
+    }
+    ASSERT_NEAR(rig.Speed(), 0.5, 1e-9);
+    can::Frame frame = rig.transport.CommandAs(rig.driver.session(), rig.transport.next++, 0.0, 0.0);
+    rig.transport.events.clear();
+    frame.data[1] |= can::kFlagQuickStop;
+    if (variant == 0) {  // a valid command of the session
+      can::CommandFrame wire;
+      ASSERT_EQ(can::DecodeCommand(1, frame, wire), can::DecodeStatus::kOk);
+      wire.seq = rig.transport.next - 1;
+      wire.session = rig.driver.session();
+      ASSERT_EQ(can::EncodeCommand(1, wire, frame), can::EncodeStatus::kOk);
+    }  // variant 1: the CRC no longer matches (the flag changed after sealing)
+    rig.transport.Frame(frame);
+    int stopped_after_ms = -1;
+    for (int ms = 1; ms <= 100 && stopped_after_ms < 0; ++ms) {
+      rig.Run(1);
+      if (rig.Speed() == 0.0) stopped_after_ms = ms;
+    }
+    // 0.5 m/s at the quick-stop deceleration 50 m/s^2: 10 ms (a zero velocity at 2 m/s^2 would take 250 ms).
+    EXPECT_GT(stopped_after_ms, 0) << "variant " << variant;
+    EXPECT_LE(stopped_after_ms, 11) << "variant " << variant;
+    EXPECT_EQ(rig.driver.state(), RobotState::kStopped);
+    EXPECT_EQ(rig.driver.stats().quick_stops, 1U);
+    EXPECT_TRUE(rig.transport.SawEmcy(can::kEmcyQuickStop));
+    EXPECT_FALSE(rig.driver.fault_bits() & fault_bits::kWatchdog);
+    // Commands do not restart it; a reset (of the new session) does.
+    rig.transport.Command(0.2, 0.0);
+    rig.Run(5);
+    EXPECT_EQ(rig.Speed(), 0.0);
+    rig.Enable();
   }
 }
 

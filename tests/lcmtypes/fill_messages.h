@@ -127,6 +127,7 @@ inline void Fill(velocity_command_t& m) {
   m.velocity[1] = -0.05;
   m.estop = false;
   m.reset = true;
+  m.quick_stop = true;
 }
 inline void Fill(robot_status_t& m) {
   m.utime = 1700000000000011;

@@ -182,7 +182,7 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
         sigs = message["signals"]
         if name == "Command":
             node = node_of(n)
-            if dlc != 8 or data[1] & 0xFC or signal(sigs["VelocityX"], data)[1] == -32768 or \
+            if dlc != 8 or data[1] & 0xF8 or signal(sigs["VelocityX"], data)[1] == -32768 or \
                     signal(sigs["VelocityY"], data)[1] == -32768:
                 verdicts["malformed (length, reserved bits)"] = verdicts.get("malformed (length, reserved bits)", 0) + 1
                 continue
