@@ -134,7 +134,9 @@ void ControlLoop::RunCycle(std::int64_t now_ns, std::int64_t now_utime) {
     // A foreign fault is about another controller's session (e.g. the watchdog stop of the controller that ran
     // before this one): this controller is not commanding the driver, and waits for it to be ready.
     if (f.cleared || f.foreign || input_.link_fault_code != 0) continue;
-    if (f.robot_stopped || f.code == static_cast<std::int32_t>(FaultCode::kCanError)) {
+    // Faults that stop the controller: those the driver stopped the robot for, and the link's own stopping ones
+    // (bus-off, lost frames, a restarted driver, a lost session). Error passive and warning are reported only.
+    if (f.robot_stopped) {
       input_.link_fault_code = f.code != 0 ? f.code : static_cast<std::int32_t>(FaultCode::kPeerTimeout);
       if (f.what != nullptr) {
         CopyText(input_.link_fault, f.what);

@@ -218,7 +218,9 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
   const std::int64_t life_ns = in.have_status ? in.status.receive_ns : 0;
   const bool alive = life_ns > 0 && in.now_ns - life_ns <= Nanoseconds(config_.heartbeat_timeout_s);
   const std::int32_t state = in.status.state;
-  const bool driver_ok = in.have_status && in.status.fault_bits == 0 &&
+  // The bus bit alone (error passive: the driver keeps the robot going) is no reason to stop; bus-off stops the
+  // driver, whose state then says so.
+  const bool driver_ok = in.have_status && (in.status.fault_bits & ~std::int32_t{robot_status_t::FAULT_BUS}) == 0 &&
                          (state == robot_status_t::STATE_READY || state == robot_status_t::STATE_MOVING);
   if (mode_ == Mode::kIdle) {
     // Start when the driver is ready and, if the first step watches the camera, once vision has spoken (so that a

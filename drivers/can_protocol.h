@@ -76,10 +76,11 @@ inline constexpr std::uint16_t kEmcyPdoLength = 0x8210;        // PDO not proces
 inline constexpr std::uint16_t kEmcyRpdoTimeout = 0x8250;      // RPDO timeout: the command watchdog expired
 inline constexpr std::uint16_t kEmcyVelocityLimit = 0x8400;    // velocity speed controller (command limited)
 inline constexpr std::uint16_t kEmcyBounds = 0x8612;           // reference limit (workspace bounds)
+// Manufacturer-specific (0xFF00-0xFFFF): a reset or NMT start refused because an e-stop is latched (the operator must
+// release it); a quick stop at the controller's request; a CAN error warning (reported only, no stop).
 inline constexpr std::uint16_t kEmcyResetRefused = 0xFF01;
-inline constexpr std::uint16_t kEmcyQuickStop =
-    0xFF02;  // manufacturer-specific: quick stop at the controller's request     // manufacturer-specific: reset or NMT
-             // start refused because an e-stop is latched (operator release)
+inline constexpr std::uint16_t kEmcyQuickStop = 0xFF02;
+inline constexpr std::uint16_t kEmcyCanWarning = 0xFF03;
 
 static_assert(DriverFaultWhat(kEmcyResetRefused) != nullptr, "robot_link.h explains the refused reset");
 

@@ -110,6 +110,9 @@ void Driver::Update(std::int64_t now_us) {
       case DriverEventKind::kBusPassive:
         SetFault(fault_bits::kBus, can::kEmcyCanPassive, fault_t::CODE_CAN_ERROR, false, "CAN error passive");
         break;
+      case DriverEventKind::kBusWarning:  // reported, nothing else: the bus still works
+        Announce(can::kEmcyCanWarning, fault_t::CODE_CAN_ERROR, false, false, "CAN error warning");
+        break;
       case DriverEventKind::kBusActive:
         if (!bus_off_) {
           ClearFault(fault_bits::kBus);

@@ -19,7 +19,8 @@ enum class DriverEventKind : std::uint8_t {
   kNmtStart,       // NMT start addressed to us: no effect on the drive (it never enables nor clears a stop)
   kBusOff,         // error frame: bus-off, or the interface went down
   kBusRestarted,   // error frame: restarted after bus-off, or the interface came back
-  kBusPassive,     // error frame: error passive / warning
+  kBusPassive,     // error frame: error passive
+  kBusWarning,     // error frame: error warning (error counters above 96)
   kBusActive,      // error frame: back to error active
   kFramesDropped,  // the kernel dropped `count` received frames (SO_RXQ_OVFL)
 };

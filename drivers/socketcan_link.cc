@@ -30,13 +30,13 @@ CanFilter Exact(std::uint32_t id) { return CanFilter{id, kStdDataMask}; }
 class BusTracker {
  public:
   // Applies an error frame; returns the transition it caused (or none).
-  enum class Change { kNone, kOff, kRestarted, kPassive, kActive };
+  enum class Change { kNone, kOff, kRestarted, kPassive, kWarning, kActive };
   Change OnErrorFrame(const can::ErrorFrameInfo& info) {
     if (info.bus_off) return Set(BusState::kBusOff) ? Change::kOff : Change::kNone;
     if (info.restarted) return Set(BusState::kActive) ? Change::kRestarted : Change::kNone;
     if (info.error_passive) return Set(BusState::kPassive) ? Change::kPassive : Change::kNone;
     if (info.error_warning && state_ == BusState::kActive) {
-      return Set(BusState::kWarning) ? Change::kPassive : Change::kNone;
+      return Set(BusState::kWarning) ? Change::kWarning : Change::kNone;
     }
     if (info.back_to_active && state_ != BusState::kBusOff) {
       return Set(BusState::kActive) ? Change::kActive : Change::kNone;
@@ -131,7 +131,8 @@ class SocketCanRobotLink final : public RobotLink {
     if (rx_.dropped() != dropped_seen_) {
       counters_.rx_overflow_drops += static_cast<std::uint32_t>(rx_.dropped() - dropped_seen_);
       dropped_seen_ = rx_.dropped();
-      PushLocal(now_us, can::kEmcyCanOverrun, false);
+      PushLocal(now_us, can::kEmcyCanOverrun, false, fault_t::CODE_CAN_ERROR, true,
+                "the kernel dropped received frames (receive queue full): the view of the driver is incomplete");
     }
   }
 
@@ -174,7 +175,10 @@ class SocketCanRobotLink final : public RobotLink {
       can::ErrorFrameInfo info;
       can::DecodeErrorFrame(frame, info);
       Note(bus_.OnErrorFrame(info), now_us);
-      if (info.rx_overflow) PushLocal(now_us, can::kEmcyCanOverrun, false);
+      if (info.rx_overflow) {
+        PushLocal(now_us, can::kEmcyCanOverrun, false, fault_t::CODE_CAN_ERROR, true,
+                  "the CAN controller's receive buffer overflowed: frames were lost");
+      }
       return;
     }
     Note(bus_.OnTraffic(), now_us);
@@ -358,11 +362,16 @@ class SocketCanRobotLink final : public RobotLink {
       case BusTracker::Change::kNone:
         return;
       case BusTracker::Change::kOff:
+        // Each bus state by its own code; only bus-off (or the interface down) stops the controller.
         ++counters_.bus_off_events;
-        PushLocal(now_us, can::kEmcyCanPassive, false);
+        PushLocal(now_us, can::kEmcyBusOff, false, fault_t::CODE_CAN_ERROR, true,
+                  "CAN bus-off or the interface is down: nothing reaches the driver");
         return;
       case BusTracker::Change::kPassive:
         PushLocal(now_us, can::kEmcyCanPassive, false);
+        return;
+      case BusTracker::Change::kWarning:
+        PushLocal(now_us, can::kEmcyCanWarning, false);
         return;
       case BusTracker::Change::kRestarted:
         PushLocal(now_us, can::kEmcyBusOffRecovered, true);
@@ -550,6 +559,9 @@ class SocketCanDriverTransport final : public DriverTransport {
       case BusTracker::Change::kPassive:
         out.kind = DriverEventKind::kBusPassive;
         return true;
+      case BusTracker::Change::kWarning:
+        out.kind = DriverEventKind::kBusWarning;
+        return true;
       case BusTracker::Change::kActive:
         out.kind = DriverEventKind::kBusActive;
         return true;
@@ -672,6 +684,8 @@ const char* ToString(DriverEventKind kind) {
       return "bus restarted";
     case DriverEventKind::kBusPassive:
       return "bus error passive";
+    case DriverEventKind::kBusWarning:
+      return "bus error warning";
     case DriverEventKind::kBusActive:
       return "bus error active";
     case DriverEventKind::kFramesDropped:

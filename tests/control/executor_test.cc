@@ -317,6 +317,19 @@ TEST(Executor, ALatchedDriverEStopIsNotClearedAndTheStopSaysWhatToDo) {
       << h.executor().stop_reason();
 }
 
+// Error passive sets the driver's bus bit while it keeps the robot going (drivers/README.md): no reason to stop.
+TEST(Executor, TheBusBitAloneDoesNotStop) {
+  Task task;
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));
+  Harness h(task, Config(), {1.0, 1.0});
+  h.Start();
+  for (int i = 0; i < 10; ++i) h.Tick();
+  h.driver_fault_bits = robot_status_t::FAULT_BUS;
+  for (int i = 0; i < 50; ++i) h.Tick();
+  EXPECT_NE(h.executor().mode(), Mode::kStopped) << h.executor().stop_reason();
+  EXPECT_GT(Norm(h.Tick().command.velocity), 0.0);
+}
+
 TEST(Executor, DriverFaultStopsWithItsNames) {
   Task task;
   task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));

@@ -493,6 +493,35 @@ TEST(Driver, BusOffStopsAndRecoveryNeedsReset) {
   EXPECT_EQ(rig.driver.state(), RobotState::kReady);
 }
 
+// Each bus state by its own code: error warning is reported (EMCY 0xFF03) and nothing else, error passive sets the
+// bus bit (EMCY 0x8120) without a stop, bus-off stops (EMCY 0x8100).
+TEST(Driver, BusWarningAndPassiveAreReportedWithoutAStop) {
+  Rig rig;
+  rig.Enable();
+  for (int i = 0; i < 20; ++i) {
+    rig.transport.Command(0.2, 0.0);
+    rig.Run(5);
+  }
+  rig.transport.Event(DriverEventKind::kBusWarning);
+  rig.transport.Command(0.2, 0.0);
+  rig.Run(5);
+  EXPECT_EQ(rig.driver.state(), RobotState::kMoving);
+  EXPECT_EQ(rig.driver.fault_bits() & fault_bits::kBus, 0);
+  EXPECT_EQ(rig.transport.faults.back().emcy_code, can::kEmcyCanWarning);
+  EXPECT_FALSE(rig.transport.faults.back().robot_stopped);
+  rig.transport.Event(DriverEventKind::kBusPassive);
+  rig.transport.Command(0.2, 0.0);
+  rig.Run(5);
+  EXPECT_EQ(rig.driver.state(), RobotState::kMoving);
+  EXPECT_TRUE(rig.driver.fault_bits() & fault_bits::kBus);
+  EXPECT_EQ(rig.transport.faults.back().emcy_code, can::kEmcyCanPassive);
+  EXPECT_NEAR(rig.Speed(), 0.2, 1e-9);
+  rig.transport.Event(DriverEventKind::kBusOff);
+  rig.Run(10);
+  EXPECT_EQ(rig.driver.state(), RobotState::kStopped);
+  EXPECT_TRUE(rig.transport.SawEmcy(can::kEmcyBusOff));
+}
+
 TEST(Driver, SpeedLimitClampsAndReports) {
   Rig rig;
   rig.Enable();
