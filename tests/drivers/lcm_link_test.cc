@@ -87,7 +87,9 @@ class LcmLink : public ::testing::Test {
   std::unique_ptr<RobotLink> link_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
-  std::uint64_t seed_ = static_cast<std::uint64_t>(getpid()) * 1000;
+  // Seeds unique in the process: the tests share one LCM bus, so a driver must never repeat another test's nonces.
+  static inline std::atomic<std::uint64_t> next_seed_{static_cast<std::uint64_t>(getpid()) * 1000};
+  std::uint64_t seed_ = next_seed_.fetch_add(100);
   VelocityCommand command_;
   RobotStatus last_;
   std::vector<LinkFault> faults_;
