@@ -453,12 +453,16 @@ TEST(RealtimeLoop, ADriverRestartDuringARunStopsTheControllerAndSaysWhy) {
     executor.Start(MonotonicNs());
     loop.Run(stop, 5000);
   });
-  // Wait until the run moves the robot.
+  // Wait until the run moves the robot, seen through the loop's telemetry (its odometry estimate): this thread may
+  // read neither the robot nor the executor while the driver and loop threads run.
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
-  while (std::chrono::steady_clock::now() < deadline && first->robot.Read().velocity[0] < 0.1) {
+  TelemetrySnapshot t;
+  bool moving = false;
+  while (std::chrono::steady_clock::now() < deadline && !moving) {
+    while (outbox.telemetry.TryPop(t)) moving |= t.mode == Mode::kFree && t.estimate.x > 0.01;
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }
-  ASSERT_GT(first->robot.Read().velocity[0], 0.1) << executor.stop_reason();
+  ASSERT_TRUE(moving) << t.stop_reason;
   first.reset();                   // the driver process dies ...
   DriverProcess second(url, 102);  // ... and a new one starts at once, well within the time-outs
   rt.join();
