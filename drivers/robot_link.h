@@ -120,7 +120,7 @@ enum class LinkResult : std::uint8_t {
   kBufferFull,  // the kernel's transmit queue (or the LCM hand-off) is full; the command was not sent
   kOutOfRange,  // the command cannot be represented on the wire (|v| beyond the frame's range); not sent
   kError,       // another I/O error (counted in LinkCounters::io_errors)
-  kNoSession,   // the driver's session is not known yet (no announcement seen): not sent (e-stops are always sent)
+  kNoSession,   // the driver's session is not known yet (no announcement seen): not sent (stops are always sent)
 };
 
 /// Returns a short name for a result ("ok", "bus-off", ...). Real-time safe.
