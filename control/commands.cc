@@ -73,7 +73,8 @@ void RegisterCommands(CLI::App& app) {
   cmd->add_option("--max-speed", o.executor.limits.max_speed, "speed limit, m/s")->capture_default_str();
   cmd->add_option("--max-accel", o.executor.limits.max_accel, "acceleration limit, m/s^2")->capture_default_str();
   cmd->add_option("--bounds-margin", o.executor.limits.bounds_margin,
-                  "within this of a workspace bound, outward motion is removed, m")
+                  "the robot comes to rest this far inside a workspace bound (towards a bound the speed follows the "
+                  "braking curve of --max-accel), m")
       ->capture_default_str();
   cmd->add_option("--gain", o.executor.servo.gain, "visual compliance gain lambda, 1/s")->capture_default_str();
   cmd->add_option("--focal-px", o.executor.servo.focal_px, "camera focal length for the interaction matrix, px")

@@ -131,12 +131,20 @@ void ControlLoop::RunCycle(std::int64_t now_ns, std::int64_t now_utime) {
   input_.peer_lost = peer == drivers::PeerState::kLost;
   while (link.TakeFault(fault_scratch_) == drivers::LinkResult::kOk) {
     const drivers::LinkFault& f = fault_scratch_;
-    if (f.cleared || input_.link_fault_code != 0) continue;
-    if (f.robot_stopped || f.code == static_cast<std::int32_t>(FaultCode::kCanError)) {
+    // A foreign fault is about another controller's session (e.g. the watchdog stop of the controller that ran
+    // before this one): this controller is not commanding the driver, and waits for it to be ready.
+    if (f.cleared || f.foreign || input_.link_fault_code != 0) continue;
+    // Faults that stop the controller: those the driver stopped the robot for, and the link's own stopping ones
+    // (bus-off, lost frames, a restarted driver, a lost session). Error passive and warning are reported only.
+    if (f.robot_stopped) {
       input_.link_fault_code = f.code != 0 ? f.code : static_cast<std::int32_t>(FaultCode::kPeerTimeout);
-      VISCO_FORMAT_TEXT(input_.link_fault, "%s fault code %d (EMCY 0x%04x, driver fault bits 0x%02x)",
-                        f.local ? "link" : "driver", static_cast<int>(f.code), static_cast<unsigned>(f.emcy_code),
-                        static_cast<unsigned>(f.fault_bits));
+      if (f.what != nullptr) {
+        CopyText(input_.link_fault, f.what);
+      } else {
+        VISCO_FORMAT_TEXT(input_.link_fault, "%s fault code %d (EMCY 0x%04x, driver fault bits 0x%02x)",
+                          f.local ? "link" : "driver", static_cast<int>(f.code), static_cast<unsigned>(f.emcy_code),
+                          static_cast<unsigned>(f.fault_bits));
+      }
     }
   }
   if (input_.link_fault_code == 0 && link.bus_state() == drivers::BusState::kBusOff) {
@@ -167,8 +175,12 @@ void ControlLoop::RunCycle(std::int64_t now_ns, std::int64_t now_utime) {
   command.velocity[1] = output_.command.velocity.y;
   command.estop = output_.command.estop;
   command.reset = output_.command.reset;
+  command.quick_stop = output_.command.quick_stop;
   last_send_result_ = link.SendCommand(command, now_us);
-  send_failures_ = last_send_result_ == drivers::LinkResult::kOk ? 0 : send_failures_ + 1;
+  // kNoSession: the driver's session is not known yet (nothing to command; the executor waits for a ready status).
+  if (last_send_result_ != drivers::LinkResult::kNoSession) {
+    send_failures_ = last_send_result_ == drivers::LinkResult::kOk ? 0 : send_failures_ + 1;
+  }
   ++cycles_;
   outbox_.cycles.store(cycles_, std::memory_order_relaxed);
   for (int i = 0; i < output_.num_faults; ++i) outbox_.faults.TryPush(output_.faults[i]);

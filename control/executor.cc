@@ -18,7 +18,8 @@ std::int64_t Nanoseconds(double s) { return static_cast<std::int64_t>(s * kNsPer
 FaultCode CodeForDriverFaults(std::int32_t bits, std::int32_t state) {
   if ((bits & robot_status_t::FAULT_ESTOP) != 0 || state == robot_status_t::STATE_ESTOP) return FaultCode::kEstop;
   if ((bits & robot_status_t::FAULT_BUS) != 0) return FaultCode::kCanError;
-  if ((bits & (int32_t{robot_status_t::FAULT_BAD_FRAME} | int32_t{robot_status_t::FAULT_SEQUENCE})) != 0)
+  if ((bits & (int32_t{robot_status_t::FAULT_BAD_FRAME} | int32_t{robot_status_t::FAULT_SEQUENCE} |
+               int32_t{robot_status_t::FAULT_SESSION})) != 0)
     return FaultCode::kBadMessage;
   if ((bits & (int32_t{robot_status_t::FAULT_LIMIT} | int32_t{robot_status_t::FAULT_BOUNDS})) != 0)
     return FaultCode::kLimit;
@@ -33,7 +34,7 @@ void FaultBitNames(std::int32_t bits, char (&out)[96]) {
   } kNames[] = {{robot_status_t::FAULT_WATCHDOG, "watchdog"}, {robot_status_t::FAULT_BAD_FRAME, "bad-frame"},
                 {robot_status_t::FAULT_SEQUENCE, "sequence"}, {robot_status_t::FAULT_LIMIT, "limit"},
                 {robot_status_t::FAULT_BOUNDS, "bounds"},     {robot_status_t::FAULT_BUS, "bus"},
-                {robot_status_t::FAULT_ESTOP, "estop"}};
+                {robot_status_t::FAULT_ESTOP, "estop"},       {robot_status_t::FAULT_SESSION, "session"}};
   out[0] = '\0';
   std::size_t used = 0;
   for (const auto& entry : kNames) {
@@ -169,6 +170,7 @@ void Executor::Finish(ExecutorOutput& out, const ExecutorInput& in, Vec2 nominal
   out.command.velocity = command;
   out.command.estop = estop_latched_;
   out.command.reset = mode_ == Mode::kIdle && started_;
+  out.command.quick_stop = mode_ == Mode::kStopped;
   out.mode = mode_;
   out.step_index = step_;
   out.holding = holding_;
@@ -216,7 +218,9 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
   const std::int64_t life_ns = in.have_status ? in.status.receive_ns : 0;
   const bool alive = life_ns > 0 && in.now_ns - life_ns <= Nanoseconds(config_.heartbeat_timeout_s);
   const std::int32_t state = in.status.state;
-  const bool driver_ok = in.have_status && in.status.fault_bits == 0 &&
+  // The bus bit alone (error passive: the driver keeps the robot going) is no reason to stop; bus-off stops the
+  // driver, whose state then says so.
+  const bool driver_ok = in.have_status && (in.status.fault_bits & ~std::int32_t{robot_status_t::FAULT_BUS}) == 0 &&
                          (state == robot_status_t::STATE_READY || state == robot_status_t::STATE_MOVING);
   if (mode_ == Mode::kIdle) {
     // Start when the driver is ready and, if the first step watches the camera, once vision has spoken (so that a
@@ -241,6 +245,8 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
       if (!alive) {
         VISCO_FORMAT_TEXT(message, "no status or heartbeat from the driver within %.1f s of start",
                           config_.startup_timeout_s);
+      } else if (state == robot_status_t::STATE_ESTOP) {
+        CopyText(message, "driver e-stop latched: the operator must release it at the driver (visco driver: SIGUSR1)");
       } else {
         char bits[96];
         FaultBitNames(in.status.fault_bits, bits);

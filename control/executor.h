@@ -84,7 +84,7 @@ struct ExecutorInput {
   std::int64_t heartbeat_ns = 0;     // monotonic time the driver's heartbeat was last seen alive (0: never)
   bool peer_lost = false;            // the link judges the driver's heartbeat lost
   std::int32_t link_fault_code = 0;  // FaultCode of a fault the robot link reported (0: none); latched by the loop
-  char link_fault[112] = {};         // ... in words
+  char link_fault[128] = {};         // ... in words
   bool have_frame = false;
   VisualFrame frame;
   bool have_estimate = false;

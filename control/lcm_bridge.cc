@@ -182,6 +182,7 @@ void ControllerBridge::Drain() {
     m.counter = ++heartbeat_counter_;
     m.state = (logged_mode_ == Mode::kStopped || logged_mode_ == Mode::kDone) ? heartbeat_t::STATE_STOPPED
                                                                               : heartbeat_t::STATE_OPERATIONAL;
+    m.session = 0;  // only the robot driver has a session
     lcm_.publish(channels::kHeartbeatController, &m);
   }
 }

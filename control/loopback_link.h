@@ -53,6 +53,7 @@ class LoopbackLink final : public drivers::RobotLink {
   drivers::NmtState peer_nmt_state() const override { return drivers::NmtState::kOperational; }
   drivers::BusState bus_state() const override { return drivers::BusState::kActive; }
   std::uint32_t last_command_seq() const override { return seq_; }
+  std::uint32_t session() const override { return 1; }  // in-process: one session for the link's life
   drivers::LinkCounters counters() const override { return counters_; }
 
   // Robot side (one thread). Real-time safe.

@@ -139,6 +139,9 @@ RunResult RunTask(const Task& task, const RunOptions& options, const std::atomic
   RunResult result;
   std::atomic<bool> loop_stop{false};
   std::atomic<bool> setup_done{false};
+  // The loop thread owns the executor: this thread learns that the run is over from this flag, never by reading the
+  // executor while the loop writes it (a data race, found by ThreadSanitizer).
+  std::atomic<bool> loop_done{false};
   std::thread rt([&] {
     if (o.realtime) {
       result.realtime_setup = ConfigureRealtime(o.priority, true).message;
@@ -148,6 +151,7 @@ RunResult RunTask(const Task& task, const RunOptions& options, const std::atomic
     setup_done.store(true, std::memory_order_release);
     executor.Start(MonotonicNs());
     loop.Run(loop_stop);
+    loop_done.store(true, std::memory_order_release);
   });
   // The real-time thread logs nothing itself; say how it was set up once it has tried.
   const auto start = std::chrono::steady_clock::now();
@@ -159,7 +163,7 @@ RunResult RunTask(const Task& task, const RunOptions& options, const std::atomic
     spdlog::info("run: {}", result.realtime_setup);
   }
   bool estop_sent = false;
-  while (!executor.finished()) {
+  while (!loop_done.load(std::memory_order_acquire)) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
     if (stop.load() && !estop_sent) {
       spdlog::warn("run: stop requested (signal): e-stop");

@@ -1,6 +1,7 @@
 #pragma once
 // Command limits applied to every command before it leaves the controller: speed, acceleration and workspace
-// bounds. Stops do not pass through here: the executor zeroes the command at once (a stop is immediate).
+// bounds (a braking curve towards each bound, applied last). Stops do not pass through here: the executor zeroes the
+// command at once (a stop is immediate).
 
 #include <optional>
 
@@ -10,9 +11,12 @@
 namespace visco::control {
 
 struct SafetyLimits {
-  double max_speed = 0.2;        // m/s, |v| is clipped to this
-  double max_accel = 2.0;        // m/s^2, |dv/dt| is clipped to this
-  double bounds_margin = 0.005;  // metres: within this of a bound, velocity pointing out of the bounds is removed
+  double max_speed = 0.2;  // m/s, |v| is clipped to this
+  double max_accel = 2.0;  // m/s^2, |dv/dt| is clipped to this
+  // metres: the robot comes to rest this far inside a bound. Towards a bound the speed is capped at the braking
+  // speed for the distance to bound - margin (about sqrt(2 a d)), after the speed and acceleration limits, so the
+  // robot decelerates at max_accel and the margin only covers the latency of the measured position.
+  double bounds_margin = 0.005;
 };
 
 /// Outcome of filtering one command.

@@ -20,6 +20,11 @@ namespace {
 
 std::atomic<bool> g_stop{false};
 void OnSignal(int) { g_stop.store(true); }
+std::atomic<SimSession*> g_session{nullptr};
+// SIGUSR1: the operator's e-stop release at the simulated robot's driver (drivers/README.md).
+void OnRelease(int) {
+  if (SimSession* session = g_session.load()) session->ReleaseEStop();
+}
 
 struct SimCli {
   SimOptions sim;
@@ -65,6 +70,11 @@ void RunSim(SimCli& cli) {
   action.sa_handler = OnSignal;
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
+  g_session.store(&session);
+  struct sigaction release {};
+  release.sa_handler = OnRelease;
+  release.sa_flags = SA_RESTART;
+  sigaction(SIGUSR1, &release, nullptr);  // the operator's e-stop release at the driver
   session.Start();
   const auto start = std::chrono::steady_clock::now();
   while (!g_stop.load()) {
@@ -74,6 +84,8 @@ void RunSim(SimCli& cli) {
       break;
     }
   }
+  signal(SIGUSR1, SIG_IGN);
+  g_session.store(nullptr);
   session.Stop();
   std::printf("%s\n", session.Summary().ToJson().c_str());
   std::fflush(stdout);
@@ -94,7 +106,8 @@ void RegisterSimCommands(CLI::App& app) {
       "VISCO_CAMERA_IMAGE for the vision pipeline (`visco track --lcm`), with blur, image noise and frame drops on "
       "request; or, without --objects, publishes VISCO_VISUAL_EVENTS (signed image distance of each CVC ray's CM "
       "vertex to its VC line) and VISCO_ROBOT_ESTIMATE directly. Camera faults can be injected (--occlude, "
-      "--blackout, --stale). Runs until SIGINT/SIGTERM or --duration; prints a JSON summary on exit.");
+      "--blackout, --stale). A latched e-stop is released by the operator with SIGUSR1. Runs until SIGINT/SIGTERM or "
+      "--duration; prints a JSON summary on exit.");
   cmd->add_option("scene", o.scene_path, "scene file (CONTRACT.md)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--rays", o.rays_path,
                   "synthetic events: `visco vcrays` output, the CVC rays to report visual events for")

@@ -43,6 +43,10 @@ std::string SimSummary::ToJson() const {
                  {"commands_applied", driver.commands_applied},
                  {"bad_commands", driver.bad_commands},
                  {"out_of_sequence", driver.out_of_sequence},
+                 {"wrong_session", driver.wrong_session},
+                 {"sessions", driver.sessions},
+                 {"refused_resets", driver.refused_resets},
+                 {"operator_releases", driver.operator_releases},
                  {"watchdog_stops", driver.watchdog_stops},
                  {"bounds_stops", driver.bounds_stops},
                  {"estops", driver.estops},
@@ -126,6 +130,8 @@ void SimSession::Start() {
   driver_thread_ = std::thread([this] { impl_->driver->Run(stop_driver_); });
   camera_thread_ = std::thread([this] { CameraLoop(); });
 }
+
+void SimSession::ReleaseEStop() { impl_->driver->RequestOperatorRelease(); }
 
 void SimSession::KillDriver() {
   stop_driver_.store(true);

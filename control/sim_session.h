@@ -82,6 +82,8 @@ class SimSession {
   void Stop();
   /// Stops only the driver (a killed driver process: no more status or heartbeat); the camera keeps going.
   void KillDriver();
+  /// The operator's e-stop release at the driver (drivers::Driver::RequestOperatorRelease). Async-signal-safe.
+  void ReleaseEStop();
   /// Turns the camera off (no frames at all) or on.
   void SetCameraOn(bool on) { camera_on_.store(on); }
 

@@ -66,6 +66,7 @@ struct RobotCommand {
   Vec2 velocity;  // m/s, world frame
   bool estop = false;
   bool reset = false;
+  bool quick_stop = false;  // the executor stopped: the driver quick-stops at once (not only its watchdog, later)
 };
 
 /// Vision's position estimate of the reference point (robot_estimate_t).

@@ -46,18 +46,24 @@ constexpr std::int32_t kI16Max = 32767;
 constexpr std::int32_t kI24Min = -8388608;
 constexpr std::int32_t kI24Max = 8388607;
 
-// Finishes a checksummed 8-byte frame.
-void Seal(Frame& frame) {
+// Finishes a checksummed 8-byte frame of a session.
+void Seal(Frame& frame, std::uint32_t session, std::uint32_t counter) {
   frame.dlc = 8;
-  frame.data[7] = FrameCrc(frame.id, frame.data);
+  frame.data[7] = SessionCrc(frame.id, session, counter, frame.data);
 }
 
-// Checks id, length and CRC of a checksummed 8-byte frame.
-DecodeStatus CheckSealed(const Frame& frame, std::uint32_t expected_id) {
+// Checks id, length, counter byte and CRC of a checksummed 8-byte frame of a session.
+DecodeStatus CheckSealed(const Frame& frame, std::uint32_t expected_id, std::uint32_t session, std::uint32_t counter) {
   if (!IsDataFrame(frame, expected_id)) return DecodeStatus::kWrongId;
   if (frame.dlc != 8) return DecodeStatus::kBadLength;
-  if (FrameCrc(frame.id, frame.data) != frame.data[7]) return DecodeStatus::kBadChecksum;
+  if (frame.data[0] != (counter & 0xFF) || SessionCrc(frame.id, session, counter, frame.data) != frame.data[7]) {
+    return DecodeStatus::kBadChecksum;
+  }
   return DecodeStatus::kOk;
+}
+
+bool CommandCrcOk(const Frame& frame, std::uint32_t session, std::uint32_t counter) {
+  return SessionCrc(frame.id, session, counter, frame.data) == frame.data[7];
 }
 
 }  // namespace
@@ -112,9 +118,51 @@ std::uint8_t FrameCrc(std::uint32_t id, const std::uint8_t* data7) {
   return Crc8SaeJ1850(bytes, 9);
 }
 
-bool SequenceAdvances(std::uint8_t last, std::uint8_t seq) {
-  const auto ahead = static_cast<std::uint8_t>(seq - last);
-  return ahead >= 1 && ahead <= 127;
+std::uint8_t SessionCrc(std::uint32_t id, std::uint32_t session, std::uint32_t counter, const std::uint8_t* data7) {
+  std::uint8_t bytes[16];
+  const std::uint32_t sff = id & kSffMask;
+  bytes[0] = static_cast<std::uint8_t>(sff & 0xFF);
+  bytes[1] = static_cast<std::uint8_t>(sff >> 8);
+  for (int i = 0; i < 4; ++i) bytes[2 + i] = static_cast<std::uint8_t>(session >> (8 * i));
+  for (int i = 0; i < 3; ++i) bytes[6 + i] = static_cast<std::uint8_t>(counter >> (8 * (i + 1)));
+  for (int i = 0; i < 7; ++i) bytes[9 + i] = data7[i];
+  return Crc8SaeJ1850(bytes, 16);
+}
+
+const char* ToString(CommandVerdict verdict) {
+  switch (verdict) {
+    case CommandVerdict::kAccept:
+      return "accepted";
+    case CommandVerdict::kStale:
+      return "stale (a duplicate or a replay)";
+    case CommandVerdict::kAhead:
+      return "too far ahead";
+    case CommandVerdict::kWrongSession:
+      return "of another session";
+    case CommandVerdict::kBadChecksum:
+      return "bad checksum";
+  }
+  return "?";
+}
+
+CommandVerdict JudgeCommand(const Frame& frame, std::uint32_t session, std::uint32_t last, std::uint32_t window,
+                            std::uint32_t& seq) {
+  if (frame.data[6] != (session & 0xFF)) return CommandVerdict::kWrongSession;
+  const std::uint32_t ahead = CounterAhead(last, frame.data[0]);  // last + 1..256
+  if (ahead - last <= window && CommandCrcOk(frame, session, ahead)) {
+    seq = ahead;
+    return CommandVerdict::kAccept;
+  }
+  const std::uint32_t behind = ahead - 256;  // last - 0..255
+  if (CommandCrcOk(frame, session, behind)) {
+    seq = behind;
+    return CommandVerdict::kStale;
+  }
+  if (ahead - last > window && CommandCrcOk(frame, session, ahead)) {
+    seq = ahead;
+    return CommandVerdict::kAhead;
+  }
+  return CommandVerdict::kBadChecksum;
 }
 
 FrameKind Classify(const Frame& frame, int node) {
@@ -129,6 +177,7 @@ FrameKind Classify(const Frame& frame, int node) {
   if (id == kCommandBase + n) return FrameKind::kCommand;
   if (id == kPositionBase + n) return FrameKind::kPosition;
   if (id == kForceBase + n) return FrameKind::kForce;
+  if (id == kSessionBase + n) return FrameKind::kSession;
   if (id == kHeartbeatBase + n) return FrameKind::kHeartbeat;
   return FrameKind::kOther;
 }
@@ -142,28 +191,31 @@ EncodeStatus EncodeCommand(int node, const CommandFrame& command, Frame& out) {
   }
   out = Frame{};
   out.id = kCommandBase + static_cast<std::uint32_t>(node);
-  out.data[0] = command.seq;
-  out.data[1] = static_cast<std::uint8_t>((command.estop ? kFlagEStop : 0) | (command.reset ? kFlagReset : 0));
+  out.data[0] = static_cast<std::uint8_t>(command.seq & 0xFF);
+  out.data[1] = static_cast<std::uint8_t>((command.estop ? kFlagEStop : 0) | (command.reset ? kFlagReset : 0) |
+                                          (command.quick_stop ? kFlagQuickStop : 0));
   PutI16(&out.data[2], static_cast<std::int16_t>(Quantise(command.velocity[0], kVelocityScale, kI16Min, kI16Max)));
   PutI16(&out.data[4], static_cast<std::int16_t>(Quantise(command.velocity[1], kVelocityScale, kI16Min, kI16Max)));
-  out.data[6] = 0;
-  Seal(out);
+  out.data[6] = static_cast<std::uint8_t>(command.session & 0xFF);
+  Seal(out, command.session, command.seq);
   return EncodeStatus::kOk;
 }
 
 DecodeStatus DecodeCommand(int node, const Frame& frame, CommandFrame& out) {
   if (!ValidNode(node)) return DecodeStatus::kWrongId;
-  const DecodeStatus status = CheckSealed(frame, kCommandBase + static_cast<std::uint32_t>(node));
-  if (status != DecodeStatus::kOk) return status;
+  if (!IsDataFrame(frame, kCommandBase + static_cast<std::uint32_t>(node))) return DecodeStatus::kWrongId;
+  if (frame.dlc != 8) return DecodeStatus::kBadLength;
   const std::uint8_t flags = frame.data[1];
-  if ((flags & ~(kFlagEStop | kFlagReset)) != 0 || frame.data[6] != 0) return DecodeStatus::kBadReserved;
+  if ((flags & ~(kFlagEStop | kFlagReset | kFlagQuickStop)) != 0) return DecodeStatus::kBadReserved;
   const std::int16_t vx = GetI16(&frame.data[2]);
   const std::int16_t vy = GetI16(&frame.data[4]);
   // -32768 is reserved so that the range is symmetric.
   if (vx == kI16Min || vy == kI16Min) return DecodeStatus::kBadReserved;
   out.seq = frame.data[0];
+  out.session = frame.data[6];
   out.estop = (flags & kFlagEStop) != 0;
   out.reset = (flags & kFlagReset) != 0;
+  out.quick_stop = (flags & kFlagQuickStop) != 0;
   out.velocity[0] = vx * kVelocityScale;
   out.velocity[1] = vy * kVelocityScale;
   return DecodeStatus::kOk;
@@ -175,42 +227,44 @@ EncodeStatus EncodeStatusFrames(int node, const StatusFrames& status, Frame out[
   Frame& s = out[0];
   s = Frame{};
   s.id = kStatusBase + n;
-  s.data[0] = status.seq;
+  s.data[0] = static_cast<std::uint8_t>(status.seq & 0xFF);
   s.data[1] = status.command_seq;
   PutI16(&s.data[2], static_cast<std::int16_t>(Quantise(status.velocity[0], kVelocityScale, kI16Min + 1, kI16Max)));
   PutI16(&s.data[4], static_cast<std::int16_t>(Quantise(status.velocity[1], kVelocityScale, kI16Min + 1, kI16Max)));
   s.data[6] = static_cast<std::uint8_t>((static_cast<std::uint8_t>(status.state) & 0x0F) | (status.contact ? 0x10 : 0));
-  Seal(s);
+  Seal(s, status.session, status.seq);
 
   Frame& p = out[1];
   p = Frame{};
   p.id = kPositionBase + n;
-  p.data[0] = status.seq;
+  p.data[0] = static_cast<std::uint8_t>(status.seq & 0xFF);
   PutI24(&p.data[1], Quantise(status.position[0], kPositionScale, kI24Min + 1, kI24Max));
   PutI24(&p.data[4], Quantise(status.position[1], kPositionScale, kI24Min + 1, kI24Max));
-  Seal(p);
+  Seal(p, status.session, status.seq);
 
   Frame& f = out[2];
   f = Frame{};
   f.id = kForceBase + n;
-  f.data[0] = status.seq;
+  f.data[0] = static_cast<std::uint8_t>(status.seq & 0xFF);
   PutI16(&f.data[1], static_cast<std::int16_t>(Quantise(status.contact_force[0], kForceScale, kI16Min + 1, kI16Max)));
   PutI16(&f.data[3], static_cast<std::int16_t>(Quantise(status.contact_force[1], kForceScale, kI16Min + 1, kI16Max)));
   PutU16(&f.data[5], static_cast<std::uint16_t>(status.fault_bits & fault_bits::kAll));
-  Seal(f);
+  Seal(f, status.session, status.seq);
   return EncodeStatus::kOk;
 }
 
-DecodeStatus DecodeStatusFrame(int node, const Frame& frame, StatusFrames& out) {
+DecodeStatus DecodeStatusFrame(int node, const Frame& frame, std::uint32_t session, std::uint32_t seq,
+                               StatusFrames& out) {
   if (!ValidNode(node)) return DecodeStatus::kWrongId;
-  const DecodeStatus status = CheckSealed(frame, kStatusBase + static_cast<std::uint32_t>(node));
+  const DecodeStatus status = CheckSealed(frame, kStatusBase + static_cast<std::uint32_t>(node), session, seq);
   if (status != DecodeStatus::kOk) return status;
   const std::uint8_t state_byte = frame.data[6];
   const std::uint8_t state = state_byte & 0x0F;
   if ((state_byte & 0xE0) != 0 || state > static_cast<std::uint8_t>(RobotState::kEStop)) {
     return DecodeStatus::kBadReserved;
   }
-  out.seq = frame.data[0];
+  out.seq = seq;
+  out.session = session;
   out.command_seq = frame.data[1];
   out.velocity[0] = GetI16(&frame.data[2]) * kVelocityScale;
   out.velocity[1] = GetI16(&frame.data[4]) * kVelocityScale;
@@ -219,26 +273,57 @@ DecodeStatus DecodeStatusFrame(int node, const Frame& frame, StatusFrames& out) 
   return DecodeStatus::kOk;
 }
 
-DecodeStatus DecodePositionFrame(int node, const Frame& frame, StatusFrames& out) {
+DecodeStatus DecodePositionFrame(int node, const Frame& frame, std::uint32_t session, std::uint32_t seq,
+                                 StatusFrames& out) {
   if (!ValidNode(node)) return DecodeStatus::kWrongId;
-  const DecodeStatus status = CheckSealed(frame, kPositionBase + static_cast<std::uint32_t>(node));
+  const DecodeStatus status = CheckSealed(frame, kPositionBase + static_cast<std::uint32_t>(node), session, seq);
   if (status != DecodeStatus::kOk) return status;
-  out.seq = frame.data[0];
+  out.seq = seq;
+  out.session = session;
   out.position[0] = GetI24(&frame.data[1]) * kPositionScale;
   out.position[1] = GetI24(&frame.data[4]) * kPositionScale;
   return DecodeStatus::kOk;
 }
 
-DecodeStatus DecodeForceFrame(int node, const Frame& frame, StatusFrames& out) {
+DecodeStatus DecodeForceFrame(int node, const Frame& frame, std::uint32_t session, std::uint32_t seq,
+                              StatusFrames& out) {
   if (!ValidNode(node)) return DecodeStatus::kWrongId;
-  const DecodeStatus status = CheckSealed(frame, kForceBase + static_cast<std::uint32_t>(node));
+  const DecodeStatus status = CheckSealed(frame, kForceBase + static_cast<std::uint32_t>(node), session, seq);
   if (status != DecodeStatus::kOk) return status;
   const std::uint16_t bits = GetU16(&frame.data[5]);
   if ((bits & ~fault_bits::kAll) != 0) return DecodeStatus::kBadReserved;
-  out.seq = frame.data[0];
+  out.seq = seq;
+  out.session = session;
   out.contact_force[0] = GetI16(&frame.data[1]) * kForceScale;
   out.contact_force[1] = GetI16(&frame.data[3]) * kForceScale;
   out.fault_bits = bits;
+  return DecodeStatus::kOk;
+}
+
+EncodeStatus EncodeSession(int node, const SessionFrame& session, Frame& out) {
+  if (!ValidNode(node)) return EncodeStatus::kBadNode;
+  if (session.session == 0 || session.status_epoch > 0xFFFFFFU) return EncodeStatus::kOutOfRange;
+  out = Frame{};
+  out.id = kSessionBase + static_cast<std::uint32_t>(node);
+  for (int i = 0; i < 4; ++i) out.data[i] = static_cast<std::uint8_t>(session.session >> (8 * i));
+  PutI24(&out.data[4], static_cast<std::int32_t>(session.status_epoch));
+  out.dlc = 8;
+  out.data[7] = FrameCrc(out.id, out.data);
+  return EncodeStatus::kOk;
+}
+
+DecodeStatus DecodeSession(int node, const Frame& frame, SessionFrame& out) {
+  if (!ValidNode(node) || !IsDataFrame(frame, kSessionBase + static_cast<std::uint32_t>(node))) {
+    return DecodeStatus::kWrongId;
+  }
+  if (frame.dlc != 8) return DecodeStatus::kBadLength;
+  if (FrameCrc(frame.id, frame.data) != frame.data[7]) return DecodeStatus::kBadChecksum;
+  const std::uint32_t nonce =
+      static_cast<std::uint32_t>(frame.data[0]) | (static_cast<std::uint32_t>(frame.data[1]) << 8) |
+      (static_cast<std::uint32_t>(frame.data[2]) << 16) | (static_cast<std::uint32_t>(frame.data[3]) << 24);
+  if (nonce == 0) return DecodeStatus::kBadReserved;
+  out.session = nonce;
+  out.status_epoch = static_cast<std::uint32_t>(GetI24(&frame.data[4])) & 0xFFFFFFU;
   return DecodeStatus::kOk;
 }
 

@@ -1,8 +1,9 @@
 #pragma once
 // The controller <-> robot driver CAN protocol (drivers/README.md, drivers/visco.dbc): CANopen-style identifiers,
-// classic CAN frames of 8 bytes, little-endian (Intel) signals, an 8-bit sequence counter and a CRC-8 in every
-// command and status frame. Pure encode/decode, independent of SocketCAN: every function here is real-time safe
-// (no allocation, no exception, no I/O) and returns an enum class status.
+// classic CAN frames of 8 bytes, little-endian (Intel) signals, and in every command and status frame the low 8 bits
+// of a 32-bit counter and a CRC-8 that also covers the driver's 32-bit session nonce and the counter's upper 24
+// bits (which the frame does not carry). Pure encode/decode, independent of SocketCAN: every function here is real-time
+// safe (no allocation, no exception, no I/O) and returns an enum class status.
 //
 //   id            dir                what                                  bytes
 //   0x000         controller->all    NMT (byte0 command, byte1 node or 0)  2
@@ -11,6 +12,7 @@
 //   0x200+node    controller->driver velocity command                      8 (RPDO1)
 //   0x280+node    driver->controller position                              8 (TPDO2)
 //   0x380+node    driver->controller contact force and fault bits          8 (TPDO3)
+//   0x480+node    driver->all        session: nonce, status epoch          8 (TPDO4)
 //   0x700+node    driver->all        heartbeat (NMT state)                 1
 
 #include <cstdint>
@@ -39,6 +41,7 @@ inline constexpr std::uint32_t kStatusBase = 0x180;    // TPDO1
 inline constexpr std::uint32_t kCommandBase = 0x200;   // RPDO1
 inline constexpr std::uint32_t kPositionBase = 0x280;  // TPDO2
 inline constexpr std::uint32_t kForceBase = 0x380;     // TPDO3
+inline constexpr std::uint32_t kSessionBase = 0x480;   // TPDO4
 inline constexpr std::uint32_t kHeartbeatBase = 0x700;
 inline constexpr int kMinNode = 1;
 inline constexpr int kMaxNode = 127;
@@ -52,13 +55,14 @@ inline constexpr double kMaxVelocity = 32767 * kVelocityScale;
 // Command flags (byte 1 of the command frame). Other bits are reserved and must be zero.
 inline constexpr std::uint8_t kFlagEStop = 0x01;
 inline constexpr std::uint8_t kFlagReset = 0x02;
+inline constexpr std::uint8_t kFlagQuickStop = 0x04;  // the controller's stop: quick stop now, STOPPED
 
 // NMT commands (byte 0 of an NMT frame).
-inline constexpr std::uint8_t kNmtStart = 0x01;  // -> operational (the driver treats it as a reset request)
+inline constexpr std::uint8_t kNmtStart = 0x01;  // -> operational: no effect on the drive (it never enables or clears)
 inline constexpr std::uint8_t kNmtStop = 0x02;   // -> stopped: the driver latches an e-stop
 inline constexpr std::uint8_t kNmtPreOperational = 0x80;
-inline constexpr std::uint8_t kNmtResetNode = 0x81;  // the driver treats it as a reset request
-inline constexpr std::uint8_t kNmtResetCommunication = 0x82;
+inline constexpr std::uint8_t kNmtResetNode = 0x81;  // the driver restarts: new session, disabled (an e-stop stays)
+inline constexpr std::uint8_t kNmtResetCommunication = 0x82;  // the same as reset node
 
 // EMCY error codes (CANopen CiA 301 / 402 meanings).
 inline constexpr std::uint16_t kEmcyNoError = 0x0000;          // error reset: the fault has cleared
@@ -72,6 +76,13 @@ inline constexpr std::uint16_t kEmcyPdoLength = 0x8210;        // PDO not proces
 inline constexpr std::uint16_t kEmcyRpdoTimeout = 0x8250;      // RPDO timeout: the command watchdog expired
 inline constexpr std::uint16_t kEmcyVelocityLimit = 0x8400;    // velocity speed controller (command limited)
 inline constexpr std::uint16_t kEmcyBounds = 0x8612;           // reference limit (workspace bounds)
+// Manufacturer-specific (0xFF00-0xFFFF): a reset or NMT start refused because an e-stop is latched (the operator must
+// release it); a quick stop at the controller's request; a CAN error warning (reported only, no stop).
+inline constexpr std::uint16_t kEmcyResetRefused = 0xFF01;
+inline constexpr std::uint16_t kEmcyQuickStop = 0xFF02;
+inline constexpr std::uint16_t kEmcyCanWarning = 0xFF03;
+
+static_assert(DriverFaultWhat(kEmcyResetRefused) != nullptr, "robot_link.h explains the refused reset");
 
 /// Result of decoding a frame.
 enum class DecodeStatus : std::uint8_t {
@@ -93,26 +104,35 @@ enum class EncodeStatus : std::uint8_t {
 const char* ToString(EncodeStatus status);
 
 /// CRC-8/SAE-J1850 (polynomial 0x1D, init 0xFF, final xor 0xFF) of the frame's 11-bit id (two bytes, little-endian)
-/// followed by data[0..6]: byte 7 of command and status frames. Covering the id catches a frame that arrives under
-/// the wrong id. Real-time safe.
+/// followed by data[0..6]: byte 7 of the session frame. Covering the id catches a frame that arrives under the wrong
+/// id. Real-time safe.
 std::uint8_t FrameCrc(std::uint32_t id, const std::uint8_t* data7);
+/// The CRC of command and status frames (byte 7): CRC-8/SAE-J1850 of the 11-bit id (two bytes, little-endian), the
+/// session nonce (four bytes, little-endian), the counter's upper 24 bits (`counter >> 8`, three bytes,
+/// little-endian; byte 0 of the frame carries `counter & 0xFF`) and data[0..6]. A frame of another session, or one
+/// replayed 256 or more counts later, fails it. Real-time safe.
+std::uint8_t SessionCrc(std::uint32_t id, std::uint32_t session, std::uint32_t counter, const std::uint8_t* data7);
 /// Plain CRC-8/SAE-J1850 of `size` bytes (check value of "123456789" is 0x4B). Real-time safe.
 std::uint8_t Crc8SaeJ1850(const std::uint8_t* bytes, int size);
 
-/// The wire form of a command (what RobotLink sends, what the driver receives).
+/// The wire form of a command (what RobotLink sends, what the driver receives). Byte 0 is `seq & 0xFF`, byte 6 the
+/// session tag `session & 0xFF`; the CRC covers all of both.
 struct CommandFrame {
-  std::uint8_t seq = 0;
+  std::uint32_t seq = 0;      // command counter in the session (DecodeCommand: the frame's low 8 bits only)
+  std::uint32_t session = 0;  // the driver's session nonce (DecodeCommand: the frame's tag, the low 8 bits)
   bool estop = false;
   bool reset = false;
+  bool quick_stop = false;
   double velocity[2] = {0.0, 0.0};  // m/s, world frame, quantised to kVelocityScale
 };
 
 /// The three status frames' content (one status update = TPDO1 + TPDO2 + TPDO3 with the same seq).
 struct StatusFrames {
-  std::uint8_t seq = 0;
-  std::uint8_t command_seq = 0;
+  std::uint32_t seq = 0;         // status counter (the frames carry its low 8 bits in byte 0)
+  std::uint32_t session = 0;     // the driver's session nonce (only in the CRC)
+  std::uint8_t command_seq = 0;  // low 8 bits of the last accepted command's number
   double velocity[2] = {0.0, 0.0};
-  RobotState state = RobotState::kInit;
+  RobotState state = RobotState::kDisabled;
   bool contact = false;
   double position[2] = {0.0, 0.0};
   double contact_force[2] = {0.0, 0.0};
@@ -131,6 +151,14 @@ struct EmcyFrame {
   std::uint8_t counter = 0;
 };
 
+/// The session frame's content (TPDO4, 0x480+N): bytes 0-3 the session nonce, bytes 4-6 the status epoch (bits 8..31
+/// of the counter of the last status update sent, so that a listener can check the next statuses' CRCs), byte 7
+/// FrameCrc. Sent at every new session and with every heartbeat.
+struct SessionFrame {
+  std::uint32_t session = 0;       // never 0
+  std::uint32_t status_epoch = 0;  // 24 bits
+};
+
 /// The kind of a frame from its id alone.
 enum class FrameKind : std::uint8_t {
   kOther = 0,
@@ -140,6 +168,7 @@ enum class FrameKind : std::uint8_t {
   kCommand,
   kPosition,
   kForce,
+  kSession,
   kHeartbeat,
   kError,
 };
@@ -147,15 +176,47 @@ enum class FrameKind : std::uint8_t {
 FrameKind Classify(const Frame& frame, int node);
 
 EncodeStatus EncodeCommand(int node, const CommandFrame& command, Frame& out);
+/// Decodes a command's layout (id, length, reserved bits and values) without its CRC, which needs the receiver's
+/// session and counter (JudgeCommand): `out.seq` and `out.session` get the frame's low 8 bits. Real-time safe.
 DecodeStatus DecodeCommand(int node, const Frame& frame, CommandFrame& out);
 
-/// Encodes the three status frames (status, position, force; in that order). Values beyond a signal's range
-/// saturate; NaN is sent as zero. Real-time safe.
+/// What the driver makes of a command frame whose layout decoded (drivers/README.md, "Sessions").
+enum class CommandVerdict : std::uint8_t {
+  kAccept = 0,    // current session, 1..window ahead of the last accepted command
+  kStale,         // current session, not ahead: a duplicate or a replay
+  kAhead,         // current session, more than the window ahead
+  kWrongSession,  // another session's tag
+  kBadChecksum,   // the CRC fails for the current session and every plausible counter
+};
+const char* ToString(CommandVerdict verdict);
+/// Judges a command frame against the receiver's `session` and the last accepted counter `last`: reconstructs the
+/// counter from the frame's low 8 bits (ahead: last + 1..255; behind: last - 0..255) and checks the CRC with it.
+/// `seq` gets the reconstructed counter (for kAccept, kStale, kAhead). Real-time safe.
+CommandVerdict JudgeCommand(const Frame& frame, std::uint32_t session, std::uint32_t last, std::uint32_t window,
+                            std::uint32_t& seq);
+
+/// The counter value nearest after `last` (1..256 ahead) whose low 8 bits are `low`; minus 256 for the one behind.
+/// Real-time safe.
+inline std::uint32_t CounterAhead(std::uint32_t last, std::uint8_t low) {
+  const std::uint32_t k = static_cast<std::uint8_t>(low - static_cast<std::uint8_t>(last));
+  return last + (k == 0 ? 256 : k);
+}
+
+/// Encodes the three status frames (status, position, force; in that order) of `status.session` and counter
+/// `status.seq`. Values beyond a signal's range saturate; NaN is sent as zero. Real-time safe.
 EncodeStatus EncodeStatusFrames(int node, const StatusFrames& status, Frame out[3]);
-/// Decoders of the three status frames: each fills only its own fields of `out`.
-DecodeStatus DecodeStatusFrame(int node, const Frame& frame, StatusFrames& out);
-DecodeStatus DecodePositionFrame(int node, const Frame& frame, StatusFrames& out);
-DecodeStatus DecodeForceFrame(int node, const Frame& frame, StatusFrames& out);
+/// Decoders of the three status frames for session `session` and status counter `seq` (byte 0 must be its low 8
+/// bits and the CRC must match, else kBadChecksum): each fills only its own fields of `out` (and seq, session).
+DecodeStatus DecodeStatusFrame(int node, const Frame& frame, std::uint32_t session, std::uint32_t seq,
+                               StatusFrames& out);
+DecodeStatus DecodePositionFrame(int node, const Frame& frame, std::uint32_t session, std::uint32_t seq,
+                                 StatusFrames& out);
+DecodeStatus DecodeForceFrame(int node, const Frame& frame, std::uint32_t session, std::uint32_t seq,
+                              StatusFrames& out);
+
+/// The session frame (plain FrameCrc). Nonce 0 is invalid (kBadReserved), as are epochs beyond 24 bits.
+EncodeStatus EncodeSession(int node, const SessionFrame& session, Frame& out);
+DecodeStatus DecodeSession(int node, const Frame& frame, SessionFrame& out);
 
 EncodeStatus EncodeHeartbeat(int node, NmtState state, Frame& out);
 DecodeStatus DecodeHeartbeat(int node, const Frame& frame, NmtState& out);
@@ -199,9 +260,5 @@ inline constexpr std::uint8_t kCrtlTxWarning = 0x08;
 inline constexpr std::uint8_t kCrtlRxPassive = 0x10;
 inline constexpr std::uint8_t kCrtlTxPassive = 0x20;
 inline constexpr std::uint8_t kCrtlActive = 0x40;
-
-/// Accepts `seq` after `last` if it is 1..127 ahead (modulo 256): gaps (lost frames) are tolerated, duplicates and
-/// older frames are not. Real-time safe.
-bool SequenceAdvances(std::uint8_t last, std::uint8_t seq);
 
 }  // namespace visco::drivers::can

@@ -20,7 +20,12 @@ namespace visco::drivers {
 namespace {
 
 std::atomic<bool> g_stop{false};
+std::atomic<Driver*> g_driver{nullptr};
 void OnSignal(int) { g_stop.store(true); }
+// SIGUSR1: the operator's e-stop release (drivers/README.md): an action at the driver, never a bus message.
+void OnRelease(int) {
+  if (Driver* driver = g_driver.load()) driver->RequestOperatorRelease();
+}
 
 struct DriverOptions {
   std::string can_interface;
@@ -85,6 +90,11 @@ void RunDriver(const DriverOptions& o) {
   action.sa_handler = OnSignal;
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
+  g_driver.store(&driver);
+  struct sigaction release {};
+  release.sa_handler = OnRelease;
+  release.sa_flags = SA_RESTART;
+  sigaction(SIGUSR1, &release, nullptr);
   std::thread timer;
   if (o.duration_s > 0.0) {
     timer = std::thread([d = o.duration_s] {
@@ -100,19 +110,27 @@ void RunDriver(const DriverOptions& o) {
                                        : "CAN " + o.can_interface,
                o.watchdog_ms, o.start[0], o.start[1]);
   driver.Run(g_stop);
+  signal(SIGUSR1, SIG_IGN);
+  g_driver.store(nullptr);
   if (timer.joinable()) timer.join();
   const DriverStats& s = driver.stats();
   std::printf(
-      "{\"commands_applied\": %llu, \"bad_commands\": %llu, \"out_of_sequence\": %llu, \"watchdog_stops\": %llu, "
+      "{\"commands_applied\": %llu, \"bad_commands\": %llu, \"out_of_sequence\": %llu, \"wrong_session\": %llu, "
+      "\"sessions\": %llu, \"refused_resets\": %llu, \"nmt_starts\": %llu, \"nmt_resets\": %llu, "
+      "\"operator_releases\": %llu, \"quick_stops\": %llu, \"watchdog_stops\": %llu, "
       "\"bounds_stops\": %llu, \"estops\": %llu, \"resets\": %llu, \"bus_offs\": %llu, \"statuses_sent\": %llu, "
       "\"faults_sent\": %llu, "
       "\"send_failures\": %llu, \"state\": \"%s\"}\n",
       static_cast<unsigned long long>(s.commands_applied), static_cast<unsigned long long>(s.bad_commands),
-      static_cast<unsigned long long>(s.out_of_sequence), static_cast<unsigned long long>(s.watchdog_stops),
-      static_cast<unsigned long long>(s.bounds_stops), static_cast<unsigned long long>(s.estops),
-      static_cast<unsigned long long>(s.resets), static_cast<unsigned long long>(s.bus_offs),
-      static_cast<unsigned long long>(s.statuses_sent), static_cast<unsigned long long>(s.faults_sent),
-      static_cast<unsigned long long>(s.send_failures), ToString(driver.state()));
+      static_cast<unsigned long long>(s.out_of_sequence), static_cast<unsigned long long>(s.wrong_session),
+      static_cast<unsigned long long>(s.sessions), static_cast<unsigned long long>(s.refused_resets),
+      static_cast<unsigned long long>(s.nmt_starts), static_cast<unsigned long long>(s.nmt_resets),
+      static_cast<unsigned long long>(s.operator_releases), static_cast<unsigned long long>(s.quick_stops),
+      static_cast<unsigned long long>(s.watchdog_stops), static_cast<unsigned long long>(s.bounds_stops),
+      static_cast<unsigned long long>(s.estops), static_cast<unsigned long long>(s.resets),
+      static_cast<unsigned long long>(s.bus_offs), static_cast<unsigned long long>(s.statuses_sent),
+      static_cast<unsigned long long>(s.faults_sent), static_cast<unsigned long long>(s.send_failures),
+      ToString(driver.state()));
   std::fflush(stdout);
 }
 
@@ -124,8 +142,10 @@ void RegisterCommands(CLI::App& app) {
       "driver",
       "Robot driver process: receives velocity commands over SocketCAN (--can IFACE) or LCM (default), drives the "
       "simulated robot, answers every command with a status, sends heartbeats and EMCY/fault messages, and stops "
-      "the robot when no valid command arrives within the watchdog period (protocol: drivers/README.md). Runs until "
-      "SIGINT/SIGTERM or --duration; prints a JSON summary on exit.");
+      "the robot when no valid command arrives within the watchdog period (protocol: drivers/README.md). It boots "
+      "disabled in a fresh session and accepts only commands of its current session. A latched e-stop is released "
+      "only by the operator: send the driver SIGUSR1 (kill -USR1 PID); it is then disabled until a controller's "
+      "reset. Runs until SIGINT/SIGTERM or --duration; prints a JSON summary on exit.");
   cmd->add_option("--can", options->can_interface, "SocketCAN interface (e.g. vcan0); without it, LCM is used");
   cmd->add_option("--lcm-url", options->lcm_url, "LCM provider URL (LCM's default when empty)");
   cmd->add_option("--node", options->node, "CAN node id of the robot, 1..127")->check(CLI::Range(1, 127));

@@ -1,6 +1,7 @@
 #include "drivers/driver.h"
 
 #include <spdlog/spdlog.h>
+#include <sys/random.h>
 #include <time.h>
 
 #include <algorithm>
@@ -20,13 +21,42 @@ Driver::Driver(const DriverConfig& config, DriverTransport& transport, RobotInte
   if (config.status_period_us <= 0) throw InputError("command line", "--status-period-ms", "must be positive");
   if (config.heartbeat_period_us <= 0) throw InputError("command line", "--heartbeat-ms", "must be positive");
   if (!(config.max_speed > 0.0)) throw InputError("command line", "--max-speed", "must be positive");
+  rng_ = config.session_seed;
+  if (rng_ == 0 && getrandom(&rng_, sizeof(rng_), GRND_NONBLOCK) != static_cast<ssize_t>(sizeof(rng_))) {
+    timespec ts{};
+    clock_gettime(CLOCK_REALTIME, &ts);  // no entropy yet (early boot): the clock still differs per start
+    rng_ = static_cast<std::uint64_t>(ts.tv_sec) * 1'000'000'000ULL + static_cast<std::uint64_t>(ts.tv_nsec);
+  }
+}
+
+std::uint32_t Driver::NextNonce() {
+  // splitmix64 (Steele, Lea, Flood 2014): every seed gives a long, well-mixed sequence.
+  rng_ += 0x9E3779B97F4A7C15ULL;
+  std::uint64_t z = rng_;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+  return static_cast<std::uint32_t>((z ^ (z >> 31)) >> 16);
+}
+
+void Driver::NewSession(std::int64_t now_us) {
+  std::uint32_t nonce = NextNonce();
+  while (nonce == 0 || nonce == session_) nonce = NextNonce();
+  session_ = nonce;
+  last_seq_ = 0;
+  last_valid_us_ = -1;  // the watchdog waits for the session's first command
+  session_expired_ = false;
+  ++stats_.sessions;
+  if (transport_.SendSession(session_, status_seq_) != LinkResult::kOk) ++stats_.send_failures;
+  spdlog::info("driver: session 0x{:08X} ({})", session_, ToString(state_));
+  SendStatus(now_us);
 }
 
 void Driver::Start(std::int64_t now_us) {
   transport_.SendHeartbeat(NmtState::kBootUp);
   last_update_us_ = now_us;
-  next_status_us_ = now_us;
   next_heartbeat_us_ = now_us + config_.heartbeat_period_us;
+  state_ = RobotState::kDisabled;
+  NewSession(now_us);
 }
 
 void Driver::Update(std::int64_t now_us) {
@@ -34,6 +64,7 @@ void Driver::Update(std::int64_t now_us) {
   // keeps filling (a slow CPU, a flood of frames) must not go on with an ever older `now_us`. Run() calls again at
   // once with a fresh time.
   constexpr int kMaxEventsPerUpdate = 16;
+  if (operator_release_.exchange(false, std::memory_order_relaxed)) OnOperatorRelease();
   DriverEvent event;
   bool drained = false;
   for (int handled = 0; handled < kMaxEventsPerUpdate; ++handled) {
@@ -56,7 +87,10 @@ void Driver::Update(std::int64_t now_us) {
         EStop(now_us, "NMT stop");
         break;
       case DriverEventKind::kResetRequest:
-        OnReset(now_us);
+        OnNmtReset();
+        break;
+      case DriverEventKind::kNmtStart:
+        OnNmtStart();
         break;
       case DriverEventKind::kBusOff:
         ++stats_.bus_offs;
@@ -75,6 +109,9 @@ void Driver::Update(std::int64_t now_us) {
         break;
       case DriverEventKind::kBusPassive:
         SetFault(fault_bits::kBus, can::kEmcyCanPassive, fault_t::CODE_CAN_ERROR, false, "CAN error passive");
+        break;
+      case DriverEventKind::kBusWarning:  // reported, nothing else: the bus still works
+        Announce(can::kEmcyCanWarning, fault_t::CODE_CAN_ERROR, false, false, "CAN error warning");
         break;
       case DriverEventKind::kBusActive:
         if (!bus_off_) {
@@ -101,6 +138,11 @@ void Driver::Update(std::int64_t now_us) {
                   (now_us - last_valid_us_) / 1e3, config_.watchdog_us / 1e3);
     SetFault(fault_bits::kWatchdog, can::kEmcyRpdoTimeout, fault_t::CODE_PEER_TIMEOUT, true, message);
   }
+  // A session that accepted commands and hears none for a watchdog period ends, whatever the state: a controller
+  // that comes later starts from a fresh session, and the old controller's frames are void.
+  if (drained && last_seq_ != 0 && last_valid_us_ >= 0 && now_us - last_valid_us_ > config_.watchdog_us) {
+    session_expired_ = true;
+  }
 
   // Robot.
   if (last_update_us_ >= 0 && now_us > last_update_us_) robot_.Step((now_us - last_update_us_) * 1e-6);
@@ -118,33 +160,42 @@ void Driver::Update(std::int64_t now_us) {
   }
   out_of_bounds_ = feedback.out_of_bounds;
 
+  if (session_expired_) NewSession(now_us);  // after this update's EMCYs, which say why
   if (now_us >= next_status_us_) SendStatus(now_us);
   if (now_us >= next_heartbeat_us_) {
     transport_.SendHeartbeat(NmtState::kOperational);
+    transport_.SendSession(session_, status_seq_);  // for controllers and tools that join later
     next_heartbeat_us_ = now_us + config_.heartbeat_period_us;
   }
 }
 
 void Driver::OnCommand(const DriverEvent& event, std::int64_t now_us) {
   const std::uint32_t modulus = transport_.sequence_modulus();
-  if (have_seq_ && !SequenceAdvances(last_seq_, event.seq, modulus)) {
-    ++stats_.out_of_sequence;
-    char message[100];
-    std::snprintf(message, sizeof(message), "command %u out of sequence (last accepted %u): ignored", event.seq,
-                  last_seq_);
-    SetFault(fault_bits::kSequence, can::kEmcyProtocol, fault_t::CODE_BAD_MESSAGE, false, message);
-    SendStatus(now_us);  // the answer shows the fault bit and the last accepted sequence number
+  std::uint32_t seq = event.seq;
+  const can::CommandVerdict verdict =
+      event.has_frame ? can::JudgeCommand(event.frame, session_, last_seq_, kCommandWindow, seq)
+                      : JudgeSequence(event.session, event.seq, session_, last_seq_, kCommandWindow, modulus);
+  // An e-stop is honoured from any well-formed command frame, whatever its session, number or checksum.
+  if (event.command.estop) {
+    EStop(now_us, verdict == can::CommandVerdict::kAccept ? "e-stop requested by the controller"
+                                                          : "e-stop flag in a command of no valid session (honoured)");
+  } else if (event.command.quick_stop) {
+    QuickStopRequested(verdict == can::CommandVerdict::kAccept);
+  }
+  if (verdict != can::CommandVerdict::kAccept) {
+    Reject(verdict, event, seq);
+    SendStatus(now_us);  // the answer shows the fault bit and the last accepted number
     return;
   }
-  if (have_seq_) stats_.sequence_gaps += (event.seq + modulus - last_seq_) % modulus - 1;
-  have_seq_ = true;
-  last_seq_ = event.seq;
+  stats_.sequence_gaps += (seq + modulus - last_seq_) % modulus - 1;
+  last_seq_ = seq;
   last_valid_us_ = std::max(now_us, event.receive_us);
   ClearFault(fault_bits::kBadFrame);
   ClearFault(fault_bits::kSequence);
+  ClearFault(fault_bits::kSession);
 
-  if (event.command.estop) {
-    EStop(now_us, "e-stop requested by the controller");
+  if (event.command.estop || event.command.quick_stop) {
+    // Stopped above.
   } else if (event.command.reset) {
     OnReset(now_us);
   } else if (state_ == RobotState::kReady || state_ == RobotState::kMoving) {
@@ -163,13 +214,57 @@ void Driver::OnCommand(const DriverEvent& event, std::int64_t now_us) {
     state_ = (v[0] != 0.0 || v[1] != 0.0) ? RobotState::kMoving : RobotState::kReady;
     ++stats_.commands_applied;
   }
-  SendStatus(now_us);  // every command gets an answer with its sequence number
+  SendStatus(now_us);  // every command gets an answer with its number
+}
+
+void Driver::Reject(can::CommandVerdict verdict, const DriverEvent& event, std::uint32_t seq) {
+  char message[120];
+  switch (verdict) {
+    case can::CommandVerdict::kWrongSession:
+      ++stats_.wrong_session;
+      std::snprintf(message, sizeof(message), "command of another session (0x%X, current 0x%08X): ignored",
+                    event.session, session_);
+      SetFault(fault_bits::kSession, can::kEmcyProtocol, fault_t::CODE_BAD_MESSAGE, false, message);
+      return;
+    case can::CommandVerdict::kStale:
+      ++stats_.out_of_sequence;
+      std::snprintf(message, sizeof(message), "command %u is stale (last accepted %u): a duplicate or replay, ignored",
+                    seq, last_seq_);
+      SetFault(fault_bits::kSequence, can::kEmcyProtocol, fault_t::CODE_BAD_MESSAGE, false, message);
+      return;
+    case can::CommandVerdict::kAhead:
+      ++stats_.out_of_sequence;
+      std::snprintf(message, sizeof(message), "command %u is more than %u ahead of the last accepted %u: ignored", seq,
+                    kCommandWindow, last_seq_);
+      SetFault(fault_bits::kSequence, can::kEmcyProtocol, fault_t::CODE_BAD_MESSAGE, false, message);
+      return;
+    case can::CommandVerdict::kBadChecksum:
+    case can::CommandVerdict::kAccept:
+      break;
+  }
+  ++stats_.bad_commands;
+  SetFault(fault_bits::kBadFrame, can::kEmcyProtocol, fault_t::CODE_BAD_MESSAGE, false,
+           "bad checksum for this session (corrupted, or replayed from an earlier wrap of the counter): ignored");
+}
+
+void Driver::RefuseWhileEStop(const char* what) {
+  ++stats_.refused_resets;
+  if (refusal_announced_) return;  // once per e-stop episode
+  refusal_announced_ = true;
+  char message[120];
+  std::snprintf(message, sizeof(message), "%s refused: e-stop latched, the operator must release it at the driver",
+                what);
+  Announce(can::kEmcyResetRefused, fault_t::CODE_ESTOP, true, false, message);
 }
 
 void Driver::OnReset(std::int64_t now_us) {
   ++stats_.resets;
+  if (state_ == RobotState::kEStop) {
+    RefuseWhileEStop("reset");
+    return;
+  }
   if (bus_off_) return;  // cannot reset while the bus is off
-  const bool was_latched = state_ == RobotState::kStopped || state_ == RobotState::kEStop || fault_bits_ != 0;
+  const bool was_latched = (state_ != RobotState::kReady && state_ != RobotState::kMoving) || fault_bits_ != 0;
   const double zero[2] = {0.0, 0.0};
   robot_.SetVelocity(zero);
   fault_bits_ = 0;
@@ -178,15 +273,60 @@ void Driver::OnReset(std::int64_t now_us) {
   if (was_latched) Announce(can::kEmcyNoError, fault_t::CODE_NONE, false, true, "reset: faults cleared, ready");
 }
 
+void Driver::OnNmtReset() {
+  ++stats_.nmt_resets;
+  StopRobot(state_ == RobotState::kEStop ? RobotState::kEStop : RobotState::kDisabled);
+  fault_bits_ = static_cast<std::uint16_t>(fault_bits_ & (fault_bits::kEStop | fault_bits::kBus));
+  transport_.SendHeartbeat(NmtState::kBootUp);  // CANopen: a reset node boots up again
+  spdlog::warn("driver: NMT reset: restarting the session ({})", ToString(state_));
+}
+
+void Driver::OnNmtStart() {
+  ++stats_.nmt_starts;
+  if (state_ == RobotState::kEStop) RefuseWhileEStop("NMT start");
+}
+
+void Driver::OnOperatorRelease() {
+  if (state_ != RobotState::kEStop) {
+    spdlog::info("driver: operator release: no e-stop latched ({})", ToString(state_));
+    return;
+  }
+  ++stats_.operator_releases;
+  const double zero[2] = {0.0, 0.0};
+  robot_.SetVelocity(zero);
+  fault_bits_ = static_cast<std::uint16_t>(fault_bits_ & fault_bits::kBus);
+  state_ = RobotState::kDisabled;
+  refusal_announced_ = false;
+  session_expired_ = true;
+  Announce(can::kEmcyNoError, fault_t::CODE_ESTOP, false, true,
+           "e-stop released by the operator: disabled until a controller's reset");
+}
+
 void Driver::EStop(std::int64_t /*now_us*/, const char* why) {
+  if (state_ == RobotState::kEStop) {
+    robot_.QuickStop();
+    return;
+  }
   ++stats_.estops;
   StopRobot(RobotState::kEStop);
+  refusal_announced_ = false;
   SetFault(fault_bits::kEStop, can::kEmcyGeneric, fault_t::CODE_ESTOP, true, why);
+}
+
+void Driver::QuickStopRequested(bool valid) {
+  robot_.QuickStop();
+  if (state_ != RobotState::kReady && state_ != RobotState::kMoving) return;  // stopped already
+  ++stats_.quick_stops;
+  StopRobot(RobotState::kStopped);
+  Announce(can::kEmcyQuickStop, fault_t::CODE_NONE, true, false,
+           valid ? "quick stop requested by the controller: robot stopped"
+                 : "quick-stop flag in a command of no valid session (honoured): robot stopped");
 }
 
 void Driver::StopRobot(RobotState state) {
   robot_.QuickStop();
   state_ = state;
+  session_expired_ = true;  // every stop ends the session: frames of the controller that ran are void
 }
 
 void Driver::SetFault(std::uint16_t bit, std::uint16_t emcy, std::int32_t code, bool stopped, const char* message) {
@@ -223,7 +363,8 @@ void Driver::SendStatus(std::int64_t now_us) {
   const RobotFeedback feedback = robot_.Read();
   RobotStatus status;
   status.utime = WallMicros();
-  status.seq = ++status_seq_ % transport_.sequence_modulus();
+  status.session = session_;
+  status.seq = ++status_seq_;
   status.command_seq = last_seq_;
   for (int i = 0; i < 2; ++i) {
     status.position[i] = feedback.position[i];

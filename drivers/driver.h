@@ -4,14 +4,22 @@
 // EMCY/fault announcements. `visco driver` runs it; tests drive Update() with their own clock.
 //
 // Safety rules (drivers/README.md):
-// - Only well-formed, in-sequence commands count. Malformed or out-of-sequence commands are ignored and reported
+// - Sessions: the driver issues a random 32-bit nonce at start-up, at an NMT reset, at every stop, at the operator's
+//   e-stop release and when a session that accepted commands sees none for a watchdog period; it announces it
+//   (DriverTransport::SendSession). Only commands of the current session, 1..kCommandWindow ahead of the last
+//   accepted one (and on CAN with a CRC over the nonce and the full counter) count. Others are ignored and reported
 //   (fault bit + EMCY once per episode); the bit clears with the next valid command.
-// - The watchdog (armed by the first valid command) quick-stops the robot when no valid command arrives within the
-//   watchdog period: state STOPPED, FAULT_WATCHDOG, EMCY 0x8250 "RPDO timeout".
-// - E-stop (command flag or NMT stop): quick stop, state ESTOP, FAULT_ESTOP.
+// - The driver boots DISABLED: a reset command of the session enables it (READY).
+// - The watchdog (armed by the first valid command of the session) quick-stops the robot when no valid command
+//   arrives within the watchdog period: state STOPPED, FAULT_WATCHDOG, EMCY 0x8250 "RPDO timeout".
+// - E-stop (a command's e-stop flag, whatever its session, number or CRC; NMT stop): quick stop, state ESTOP,
+//   FAULT_ESTOP, latched until the operator releases it at the driver (RequestOperatorRelease(); `visco driver`:
+//   SIGUSR1), which leaves the driver DISABLED. Resets and NMT start are refused meanwhile (EMCY 0xFF01, once).
+// - Quick stop (a command's quick-stop flag, whatever its session, number or CRC: the controller stopped): quick stop
+//   at once, state STOPPED, EMCY 0xFF02; a reset clears it.
 // - Bus-off or interface down: quick stop, state STOPPED, FAULT_BUS until the bus recovers.
-// - STOPPED and ESTOP are latched: only a reset (command flag, NMT start or reset node) with the faults gone returns
-//   the driver to READY. The reset command's velocity is ignored.
+// - STOPPED is latched: a reset command with the faults gone returns the driver to READY. The reset command's
+//   velocity is ignored. NMT start has no effect; NMT reset node restarts the session (DISABLED, or ESTOP if latched).
 
 #include <atomic>
 #include <cstdint>
@@ -27,19 +35,27 @@ struct DriverConfig {
   std::int64_t period_us = 1'000;          // robot update period
   std::int64_t status_period_us = 10'000;  // status when no command arrives (a status also follows every command)
   std::int64_t heartbeat_period_us = 100'000;
-  double max_speed = 1.0;  // m/s, commanded speeds above it are clamped (FAULT_LIMIT)
+  double max_speed = 1.0;          // m/s, commanded speeds above it are clamped (FAULT_LIMIT)
+  std::uint64_t session_seed = 0;  // seed of the session nonces; 0: from the operating system (getrandom)
 };
 
 /// Counts of what the driver saw (for logs and tests).
 struct DriverStats {
   std::uint64_t commands_applied = 0;
   std::uint64_t bad_commands = 0;
-  std::uint64_t out_of_sequence = 0;
-  std::uint64_t sequence_gaps = 0;  // command numbers skipped (lost commands)
+  std::uint64_t out_of_sequence = 0;  // stale (duplicates, replays) or too far ahead
+  std::uint64_t wrong_session = 0;    // commands of another session
+  std::uint64_t sequence_gaps = 0;    // command numbers skipped (lost commands)
   std::uint64_t watchdog_stops = 0;
   std::uint64_t bounds_stops = 0;  // the robot left its workspace
   std::uint64_t estops = 0;
+  std::uint64_t quick_stops = 0;  // at the controller's request (command flag)
   std::uint64_t resets = 0;
+  std::uint64_t refused_resets = 0;  // resets while an e-stop was latched
+  std::uint64_t nmt_starts = 0;      // NMT start (no effect)
+  std::uint64_t nmt_resets = 0;
+  std::uint64_t operator_releases = 0;
+  std::uint64_t sessions = 0;  // sessions issued
   std::uint64_t bus_offs = 0;
   std::uint64_t statuses_sent = 0;
   std::uint64_t send_failures = 0;
@@ -51,7 +67,7 @@ class Driver {
   /// Not real-time safe. @throws visco::InputError for a non-positive period, watchdog or speed limit.
   Driver(const DriverConfig& config, DriverTransport& transport, RobotInterface& robot);
 
-  /// Sends the boot-up heartbeat. Call once before the first Update().
+  /// Sends the boot-up heartbeat and announces the first session. Call once before the first Update().
   void Start(std::int64_t now_us);
   /// One iteration at `now_us` (monotonic): handles up to 16 pending events (taken to arrive at `now_us`), steps the
   /// robot by the time since the last call, runs the watchdog, sends the periodic status and heartbeat.
@@ -60,15 +76,28 @@ class Driver {
   /// Runs Start() and Update() at the configured period until `stop` becomes true.
   void Run(const std::atomic<bool>& stop);
 
+  /// The operator's e-stop release (an explicit action at the driver, never a bus message): the next Update() clears
+  /// a latched e-stop and leaves the driver DISABLED in a new session. Async-signal-safe (one atomic store).
+  void RequestOperatorRelease() { operator_release_.store(true, std::memory_order_relaxed); }
+
   RobotState state() const { return state_; }
   std::uint16_t fault_bits() const { return fault_bits_; }
+  std::uint32_t session() const { return session_; }
   const DriverStats& stats() const { return stats_; }
 
  private:
   void OnCommand(const DriverEvent& event, std::int64_t now_us);
+  void Reject(can::CommandVerdict verdict, const DriverEvent& event, std::uint32_t seq);
   void OnReset(std::int64_t now_us);
+  void OnNmtReset();
+  void OnNmtStart();
+  void OnOperatorRelease();
+  void RefuseWhileEStop(const char* what);
   void EStop(std::int64_t now_us, const char* why);
+  void QuickStopRequested(bool valid);
   void StopRobot(RobotState state);
+  void NewSession(std::int64_t now_us);
+  std::uint32_t NextNonce();
   void SetFault(std::uint16_t bit, std::uint16_t emcy, std::int32_t code, bool stopped, const char* message);
   void ClearFault(std::uint16_t bit);
   void Announce(std::uint16_t emcy, std::int32_t code, bool stopped, bool cleared, const char* message);
@@ -77,12 +106,16 @@ class Driver {
   const DriverConfig config_;
   DriverTransport& transport_;
   RobotInterface& robot_;
-  RobotState state_ = RobotState::kReady;
+  RobotState state_ = RobotState::kDisabled;
   std::uint16_t fault_bits_ = 0;
   bool bus_off_ = false;
   bool out_of_bounds_ = false;  // the robot reported itself outside its workspace (one fault per episode)
-  bool have_seq_ = false;
-  std::uint32_t last_seq_ = 0;
+  std::uint64_t rng_ = 0;       // splitmix64 state of the nonces
+  std::uint32_t session_ = 0;
+  std::uint32_t last_seq_ = 0;    // last accepted command number in the session (0: none)
+  bool session_expired_ = false;  // a new session starts at the end of this Update()
+  bool refusal_announced_ = false;
+  std::atomic<bool> operator_release_{false};
   std::int64_t last_valid_us_ = -1;  // -1: watchdog not armed
   std::int64_t last_update_us_ = -1;
   std::int64_t next_status_us_ = 0;

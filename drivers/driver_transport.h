@@ -12,13 +12,15 @@
 namespace visco::drivers {
 
 enum class DriverEventKind : std::uint8_t {
-  kCommand = 0,    // a well-formed command (sequence not yet checked)
+  kCommand = 0,    // a well-formed command (session, sequence and, on CAN, CRC not yet checked)
   kBadCommand,     // a command frame that failed to decode (see `decode`)
   kEStop,          // NMT stop addressed to us
-  kResetRequest,   // NMT start / reset node addressed to us
+  kResetRequest,   // NMT reset node / reset communication addressed to us: the driver restarts its session
+  kNmtStart,       // NMT start addressed to us: no effect on the drive (it never enables nor clears a stop)
   kBusOff,         // error frame: bus-off, or the interface went down
   kBusRestarted,   // error frame: restarted after bus-off, or the interface came back
-  kBusPassive,     // error frame: error passive / warning
+  kBusPassive,     // error frame: error passive
+  kBusWarning,     // error frame: error warning (error counters above 96)
   kBusActive,      // error frame: back to error active
   kFramesDropped,  // the kernel dropped `count` received frames (SO_RXQ_OVFL)
 };
@@ -26,9 +28,12 @@ const char* ToString(DriverEventKind kind);
 
 struct DriverEvent {
   DriverEventKind kind = DriverEventKind::kCommand;
-  std::int64_t receive_us = 0;                        // arrival, monotonic clock of the driver (>= now_us)
-  std::uint32_t seq = 0;                              // kCommand: the command's sequence number
-  VelocityCommand command;                            // kCommand
+  std::int64_t receive_us = 0;  // arrival, monotonic clock of the driver (>= now_us)
+  std::uint32_t seq = 0;        // kCommand: the command's number (CAN: the frame's low 8 bits; LCM: 31 bits)
+  std::uint32_t session = 0;    // kCommand: the session it claims (CAN: the frame's tag, 8 bits; LCM: the nonce)
+  bool has_frame = false;       // kCommand on CAN: `frame` holds the frame, whose CRC the driver checks
+  can::Frame frame;             // kCommand on CAN
+  VelocityCommand command;      // kCommand
   can::DecodeStatus decode = can::DecodeStatus::kOk;  // kBadCommand
   std::uint32_t count = 0;                            // kFramesDropped
 };
@@ -54,14 +59,18 @@ class DriverTransport {
   virtual LinkResult SendStatus(const RobotStatus& status) = 0;
   virtual LinkResult SendHeartbeat(NmtState state) = 0;
   virtual LinkResult SendFault(const DriverFault& fault) = 0;
+  /// Announces the driver's session: CAN sends the session frame; LCM carries the nonce in every heartbeat and
+  /// status from now on. `status_seq` is the counter of the last status sent.
+  virtual LinkResult SendSession(std::uint32_t session, std::uint32_t status_seq) = 0;
   /// Sequence numbers of commands wrap at this modulus (CAN 256, LCM 2^31).
   virtual std::uint32_t sequence_modulus() const = 0;
   virtual LinkCounters counters() const = 0;
 };
 
-/// Accepts `seq` after `last` if it is 1..modulus/2-1 ahead (modulo `modulus`): gaps are tolerated, duplicates and
-/// older numbers are not. Real-time safe.
-bool SequenceAdvances(std::uint32_t last, std::uint32_t seq, std::uint32_t modulus);
+/// The LCM twin of can::JudgeCommand: a command claiming session `claimed` with number `seq` against the driver's
+/// `session` and last accepted number `last` (numbers modulo `modulus`). Real-time safe.
+can::CommandVerdict JudgeSequence(std::uint32_t claimed, std::uint32_t seq, std::uint32_t session, std::uint32_t last,
+                                  std::uint32_t window, std::uint32_t modulus);
 
 struct DriverTransportConfig {
   int node_id = 1;

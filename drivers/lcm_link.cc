@@ -101,43 +101,72 @@ class LcmRobotLink final : public RobotLink {
         return LinkResult::kOutOfRange;
       }
     }
+    // Without a session only an e-stop goes out (the driver honours it whatever the session).
+    if (!session_.have() && !command.estop && !command.quick_stop) return LinkResult::kNoSession;
     Outgoing out;
     out.command = command;
-    out.seq = seq_.Next();
+    out.session = session_.session();
+    out.seq = session_.Next() % kLcmSeqModulus;
     out.utime = WallMicros();
     if (!outgoing_.Push(out)) {
       ++counters_.send_failures;
       return LinkResult::kBufferFull;
     }
-    seq_.Sent(out.seq);
+    session_.Sent(out.seq);
     ++counters_.commands_sent;
     io_.Wake();
     return LinkResult::kOk;
   }
 
   void Poll(std::int64_t now_us) override {
-    RobotStatus s;
-    while (statuses_.Pop(s)) {
-      if (have_status_ever_) {
-        const std::uint32_t gap = (s.seq - status_.seq - 1) % kLcmSeqModulus;
-        if (gap < kLcmSeqModulus / 2) counters_.status_gaps += gap;
+    Incoming in;
+    while (incoming_.Pop(in)) {
+      if (in.heartbeat) {
+        ++counters_.heartbeats_received;
+        nmt_state_ = in.nmt;
+        if (session_.OnHeartbeat(in.nmt == NmtState::kBootUp)) {
+          ++counters_.boot_ups;
+          status_synced_ = false;
+          PushLocal(now_us, fault_t::CODE_PEER_TIMEOUT,
+                    "the driver restarted (boot-up heartbeat): its session and this controller's commands are void");
+        } else if (in.nmt != NmtState::kBootUp) {
+          Announce(in.status.session, now_us);
+        }
+        continue;
       }
-      have_status_ever_ = true;
+      // Statuses never announce a session (only heartbeats do): a replayed status of an old session is ignored.
+      RobotStatus& s = in.status;
+      if (!session_.have() || s.session != session_.session()) continue;
+      if (status_synced_) {
+        const std::uint32_t ahead = (s.seq - status_last_) % kLcmSeqModulus;
+        if (ahead == 0 || ahead > kStatusWindow) {
+          // A status of this session that is not newer than the last one: a replay or a duplicate. It must not
+          // refresh the view of the driver; the controller stops (once per episode).
+          ++counters_.stale_statuses;
+          if (!stale_reported_) {
+            stale_reported_ = true;
+            PushLocal(now_us, fault_t::CODE_BAD_MESSAGE,
+                      "a status of the driver's session out of sequence (a replay, or the driver restarted its "
+                      "numbering)");
+          }
+          continue;
+        }
+        counters_.status_gaps += ahead - 1;
+      }
+      status_synced_ = true;
+      stale_reported_ = false;
+      status_last_ = s.seq;
+      last_status_us_ = now_us;
       s.receive_us = now_us;
-      seq_.OnStatus(s.command_seq);
+      session_.OnStatus(s.command_seq);
       status_ = s;
       fresh_status_ = true;
       ++counters_.statuses_received;
     }
-    const std::uint64_t beats = heartbeats_.load(std::memory_order_acquire);
-    if (beats != beats_seen_) {
-      counters_.heartbeats_received += beats - beats_seen_;
-      beats_seen_ = beats;
-      last_heartbeat_us_ = now_us;
-    }
     LinkFault f;
     while (incoming_faults_.Pop(f)) {
       f.receive_us = now_us;
+      f.foreign = !session_.owned() && f.emcy_code != 0xFF01;  // 0xFF01: can::kEmcyResetRefused
       ++counters_.faults_received;
       if (!faults_.Push(f)) ++counters_.faults_dropped;
     }
@@ -152,20 +181,58 @@ class LcmRobotLink final : public RobotLink {
   }
   LinkResult TakeFault(LinkFault& out) override { return faults_.Pop(out) ? LinkResult::kOk : LinkResult::kNoData; }
   PeerState peer_state(std::int64_t now_us) const override {
-    if (last_heartbeat_us_ < 0) return PeerState::kUnknown;
-    return now_us - last_heartbeat_us_ <= heartbeat_timeout_us_ ? PeerState::kAlive : PeerState::kLost;
+    if (last_status_us_ < 0) return PeerState::kUnknown;
+    return now_us - last_status_us_ <= heartbeat_timeout_us_ ? PeerState::kAlive : PeerState::kLost;
   }
-  NmtState peer_nmt_state() const override { return static_cast<NmtState>(nmt_state_.load(std::memory_order_relaxed)); }
+  NmtState peer_nmt_state() const override { return nmt_state_; }
   BusState bus_state() const override { return BusState::kActive; }
-  std::uint32_t last_command_seq() const override { return seq_.last(); }
+  std::uint32_t last_command_seq() const override { return session_.last(); }
+  std::uint32_t session() const override { return session_.session(); }
   LinkCounters counters() const override { return counters_; }
 
  private:
   struct Outgoing {
     VelocityCommand command;
+    std::uint32_t session = 0;
     std::uint32_t seq = 0;
     std::int64_t utime = 0;
   };
+  // What the I/O thread hands over, in arrival order: a status, or a heartbeat (its session in status.session).
+  struct Incoming {
+    bool heartbeat = false;
+    NmtState nmt = NmtState::kBootUp;
+    RobotStatus status;
+  };
+
+  // Real-time side: an announced session (a heartbeat's or a status's).
+  void Announce(std::uint32_t nonce, std::int64_t now_us) {
+    switch (session_.OnAnnounce(nonce)) {
+      case SessionView::Change::kNone:
+        return;
+      case SessionView::Change::kFirst:
+        break;
+      case SessionView::Change::kAdopted:
+        ++counters_.session_changes;
+        break;
+      case SessionView::Change::kLost:
+        ++counters_.session_changes;
+        PushLocal(now_us, fault_t::CODE_PEER_TIMEOUT,
+                  "the driver started a new session (it stopped, restarted or was reset): this controller's commands "
+                  "are void");
+        break;
+    }
+    status_synced_ = false;
+    stale_reported_ = false;
+  }
+  void PushLocal(std::int64_t now_us, std::int32_t code, const char* what) {
+    LinkFault fault;
+    fault.receive_us = now_us;
+    fault.code = code;
+    fault.robot_stopped = true;
+    fault.local = true;
+    fault.what = what;
+    if (!faults_.Push(fault)) ++counters_.faults_dropped;
+  }
 
   // I/O thread.
   void Flush() {
@@ -174,11 +241,13 @@ class LcmRobotLink final : public RobotLink {
       velocity_command_t msg{};
       msg.utime = out.utime;
       msg.node_id = node_;
+      msg.session = static_cast<std::int32_t>(out.session);
       msg.seq = static_cast<std::int32_t>(out.seq);
       msg.velocity[0] = out.command.velocity[0];
       msg.velocity[1] = out.command.velocity[1];
       msg.estop = out.command.estop;
       msg.reset = out.command.reset;
+      msg.quick_stop = out.command.quick_stop;
       io_.lcm().publish(channels::kCommand, &msg);
     }
   }
@@ -188,8 +257,10 @@ class LcmRobotLink final : public RobotLink {
       bad_messages_.fetch_add(1, std::memory_order_relaxed);
       return;
     }
-    RobotStatus s;
+    Incoming in;
+    RobotStatus& s = in.status;
     s.utime = msg->utime;
+    s.session = static_cast<std::uint32_t>(msg->session);
     s.seq = static_cast<std::uint32_t>(msg->seq);
     s.command_seq = static_cast<std::uint32_t>(msg->command_seq);
     for (int i = 0; i < 2; ++i) {
@@ -200,12 +271,15 @@ class LcmRobotLink final : public RobotLink {
     s.contact = msg->contact;
     s.state = static_cast<RobotState>(msg->state);
     s.fault_bits = static_cast<std::uint16_t>(msg->fault_bits & fault_bits::kAll);
-    statuses_.Push(s);
+    incoming_.Push(in);
   }
   void OnHeartbeat(const lcm::ReceiveBuffer*, const std::string&, const heartbeat_t* msg) {
     if (msg->node_id != node_) return;
-    nmt_state_.store(static_cast<std::uint8_t>(msg->state), std::memory_order_relaxed);
-    heartbeats_.fetch_add(1, std::memory_order_release);
+    Incoming in;
+    in.heartbeat = true;
+    in.nmt = static_cast<NmtState>(static_cast<std::uint8_t>(msg->state));
+    in.status.session = static_cast<std::uint32_t>(msg->session);
+    incoming_.Push(in);
   }
   void OnFault(const lcm::ReceiveBuffer*, const std::string&, const fault_t* msg) {
     if (msg->source != "driver") return;
@@ -215,24 +289,25 @@ class LcmRobotLink final : public RobotLink {
     f.fault_bits = static_cast<std::uint16_t>(msg->fault_bits & fault_bits::kAll);
     f.robot_stopped = msg->robot_stopped;
     f.cleared = msg->cleared;
+    f.what = DriverFaultWhat(f.emcy_code);
     incoming_faults_.Push(f);
   }
 
   const int node_;
   const std::int64_t heartbeat_timeout_us_;
   SpscQueue<Outgoing, 256> outgoing_;
-  SpscQueue<RobotStatus, 64> statuses_;
+  SpscQueue<Incoming, 128> incoming_;
   SpscQueue<LinkFault, 64> incoming_faults_;
-  std::atomic<std::uint64_t> heartbeats_{0};
-  std::atomic<std::uint8_t> nmt_state_{0};
   std::atomic<std::uint64_t> bad_messages_{0};
   // Real-time side only.
-  CommandSequence seq_{kLcmSeqModulus};
-  std::uint64_t beats_seen_ = 0;
-  bool have_status_ever_ = false;
+  SessionView session_;
+  NmtState nmt_state_ = NmtState::kBootUp;
+  bool status_synced_ = false;
+  bool stale_reported_ = false;
+  std::uint32_t status_last_ = 0;
   RobotStatus status_;
   bool fresh_status_ = false;
-  std::int64_t last_heartbeat_us_ = -1;
+  std::int64_t last_status_us_ = -1;
   FixedQueue<LinkFault, 64> faults_;
   LinkCounters counters_;
   LcmIo io_;  // last: its thread stops before the queues go away
@@ -278,6 +353,8 @@ class LcmDriverTransport final : public DriverTransport {
     Out out;
     out.kind = Out::kHeartbeat;
     out.nmt = state;
+    out.session = session_;
+    last_nmt_ = state;
     out.utime = WallMicros();
     return Queue(out);
   }
@@ -288,6 +365,13 @@ class LcmDriverTransport final : public DriverTransport {
     out.utime = WallMicros();
     return Queue(out);
   }
+  LinkResult SendSession(std::uint32_t session, std::uint32_t /*status_seq*/) override {
+    if (session == session_) return LinkResult::kOk;  // (repeated with every heartbeat, which carries it)
+    session_ = session;                               // in every heartbeat from now on (statuses carry their own)
+    // A new one is announced at once with a heartbeat of the current NMT state (after the boot-up one:
+    // pre-operational).
+    return SendHeartbeat(last_nmt_ == NmtState::kBootUp ? NmtState::kPreOperational : last_nmt_);
+  }
   std::uint32_t sequence_modulus() const override { return kLcmSeqModulus; }
   LinkCounters counters() const override { return counters_; }
 
@@ -296,6 +380,7 @@ class LcmDriverTransport final : public DriverTransport {
     enum Kind : std::uint8_t { kStatus, kHeartbeat, kFault } kind = kStatus;
     RobotStatus status;
     NmtState nmt = NmtState::kBootUp;
+    std::uint32_t session = 0;  // heartbeats
     DriverFault fault;
     std::int64_t utime = 0;
   };
@@ -314,7 +399,8 @@ class LcmDriverTransport final : public DriverTransport {
           robot_status_t msg{};
           msg.utime = out.utime;
           msg.node_id = node_;
-          msg.seq = static_cast<std::int32_t>(out.status.seq);
+          msg.session = static_cast<std::int32_t>(out.status.session);
+          msg.seq = static_cast<std::int32_t>(out.status.seq % kLcmSeqModulus);
           msg.command_seq = static_cast<std::int32_t>(out.status.command_seq);
           for (int i = 0; i < 2; ++i) {
             msg.position[i] = out.status.position[i];
@@ -334,6 +420,7 @@ class LcmDriverTransport final : public DriverTransport {
           msg.node_id = node_;
           msg.counter = heartbeat_counter_++;
           msg.state = static_cast<std::int8_t>(out.nmt);
+          msg.session = static_cast<std::int32_t>(out.session);
           io_.lcm().publish(channels::kHeartbeatDriver, &msg);
           break;
         }
@@ -366,10 +453,12 @@ class LcmDriverTransport final : public DriverTransport {
     } else {
       event.kind = DriverEventKind::kCommand;
       event.seq = static_cast<std::uint32_t>(msg->seq);
+      event.session = static_cast<std::uint32_t>(msg->session);
       event.command.velocity[0] = msg->velocity[0];
       event.command.velocity[1] = msg->velocity[1];
       event.command.estop = msg->estop;
       event.command.reset = msg->reset;
+      event.command.quick_stop = msg->quick_stop;
     }
     if (events_.Push(event)) {
       const std::uint64_t one = 1;
@@ -379,7 +468,9 @@ class LcmDriverTransport final : public DriverTransport {
 
   const int node_;
   int rx_ready_ = -1;
-  std::int32_t heartbeat_counter_ = 0;  // I/O thread only
+  std::uint32_t session_ = 0;              // driver thread only
+  NmtState last_nmt_ = NmtState::kBootUp;  // driver thread only
+  std::int32_t heartbeat_counter_ = 0;     // I/O thread only
   SpscQueue<DriverEvent, 256> events_;
   SpscQueue<Out, 256> outgoing_;
   LinkCounters counters_;

@@ -27,14 +27,16 @@ const char* ToString(LinkResult result) {
       return "out of range";
     case LinkResult::kError:
       return "error";
+    case LinkResult::kNoSession:
+      return "no session";
   }
   return "?";
 }
 
 const char* ToString(RobotState state) {
   switch (state) {
-    case RobotState::kInit:
-      return "init";
+    case RobotState::kDisabled:
+      return "disabled";
     case RobotState::kReady:
       return "ready";
     case RobotState::kMoving:

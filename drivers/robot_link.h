@@ -18,43 +18,55 @@ namespace visco::drivers {
 
 /// Robot driver state, the same numbers as visco::robot_status_t::STATE_*.
 enum class RobotState : std::uint8_t {
-  kInit = 0,
-  kReady = 1,    // enabled, zero velocity
-  kMoving = 2,   // executing a velocity command
-  kStopped = 3,  // stopped by its command watchdog or a fault; needs a reset command
-  kEStop = 4,    // e-stop latched; needs a reset command
+  kDisabled = 0,  // after boot-up, an NMT reset or an operator's e-stop release: needs a reset command of the session
+  kReady = 1,     // enabled, zero velocity
+  kMoving = 2,    // executing a velocity command
+  kStopped = 3,   // stopped by its command watchdog or a fault; needs a reset command
+  kEStop = 4,     // e-stop latched; needs a reset command
 };
 
 /// Fault bits of the driver (RobotStatus::fault_bits), the same values as visco::robot_status_t::FAULT_*.
 namespace fault_bits {
-inline constexpr std::uint16_t kWatchdog = 1;  // no valid command within the watchdog period
-inline constexpr std::uint16_t kBadFrame = 2;  // malformed command (checksum, length, reserved bits)
-inline constexpr std::uint16_t kSequence = 4;  // command out of sequence (duplicate or older)
-inline constexpr std::uint16_t kLimit = 8;     // command beyond the velocity limit (clamped)
-inline constexpr std::uint16_t kBounds = 16;   // position outside the workspace bounds
-inline constexpr std::uint16_t kBus = 32;      // CAN error passive, bus-off, or the interface went down
-inline constexpr std::uint16_t kEStop = 64;    // e-stop requested
-inline constexpr std::uint16_t kAll = 127;
+inline constexpr std::uint16_t kWatchdog = 1;   // no valid command within the watchdog period
+inline constexpr std::uint16_t kBadFrame = 2;   // malformed command (checksum, length, reserved bits)
+inline constexpr std::uint16_t kSequence = 4;   // command out of sequence (duplicate or older)
+inline constexpr std::uint16_t kLimit = 8;      // command beyond the velocity limit (clamped)
+inline constexpr std::uint16_t kBounds = 16;    // position outside the workspace bounds
+inline constexpr std::uint16_t kBus = 32;       // CAN error passive, bus-off, or the interface went down
+inline constexpr std::uint16_t kEStop = 64;     // e-stop requested
+inline constexpr std::uint16_t kSession = 128;  // command of another session (a stale controller or a replay)
+inline constexpr std::uint16_t kAll = 255;
 }  // namespace fault_bits
 
-/// A velocity command for the robot's reference point. The link numbers the commands itself.
+/// The session rules (drivers/README.md, "Sessions"). A driver accepts a command only if it carries the driver's
+/// current session nonce and its number is 1..kCommandWindow ahead of the last command it accepted in that session:
+/// up to kCommandWindow - 1 lost commands in a row are tolerated (at 500 Hz, 14 ms; the watchdog covers longer
+/// silences). A status is accepted by the controller only if it belongs to the current session and its number is
+/// 1..kStatusWindow ahead of the last accepted status.
+inline constexpr std::uint32_t kCommandWindow = 8;
+inline constexpr std::uint32_t kStatusWindow = 127;
+
+/// A velocity command for the robot's reference point. The link numbers the commands and binds them to the driver's
+/// session itself.
 struct VelocityCommand {
   double velocity[2] = {0.0, 0.0};  // m/s, world frame (x right, y up)
-  bool estop = false;               // stop now and latch until a reset
-  bool reset = false;               // clear a latched e-stop or stop (send with zero velocity)
+  bool estop = false;               // stop now and latch until the operator releases it at the driver
+  bool quick_stop = false;          // stop now with the robot's quick-stop deceleration: STOPPED, cleared by a reset
+  bool reset = false;  // enable: clear a disabled or stopped driver (not an e-stop); send with zero velocity
 };
 
 /// The driver's feedback.
 struct RobotStatus {
   std::int64_t utime = 0;           // wall-clock time of the status (LCM: the driver's; CAN: the kernel receive time)
   std::int64_t receive_us = 0;      // caller's monotonic clock when the link received it (the Poll() time)
-  std::uint32_t seq = 0;            // status sequence counter (CAN: 8 bits)
-  std::uint32_t command_seq = 0;    // seq of the last command the driver applied (CAN: 8 bits)
+  std::uint32_t session = 0;        // the driver's session nonce (never 0)
+  std::uint32_t seq = 0;            // status counter (CAN carries its low 8 bits; the CRC covers the rest)
+  std::uint32_t command_seq = 0;    // number of the last command the driver accepted in this session (0: none)
   double position[2] = {0.0, 0.0};  // metres, reference point in the world frame
   double velocity[2] = {0.0, 0.0};  // m/s, actual reference point velocity in the world frame
   bool contact = false;             // the robot touches something
   double contact_force[2] = {0.0, 0.0};  // newtons, contact force on the robot, world frame
-  RobotState state = RobotState::kInit;
+  RobotState state = RobotState::kDisabled;
   std::uint16_t fault_bits = 0;  // OR of fault_bits::k*
 };
 
@@ -67,10 +79,13 @@ enum class NmtState : std::uint8_t {
 };
 
 /// Liveness of the driver as seen through its heartbeats.
+/// Liveness of the driver. Heartbeats carry no checksum or number, so a replayed one proves nothing: the driver is
+/// alive while statuses of its current session, in sequence, keep arriving (it sends one at least every status
+/// period and after every command).
 enum class PeerState : std::uint8_t {
-  kUnknown = 0,  // no heartbeat seen yet
-  kAlive = 1,    // last heartbeat younger than the heartbeat timeout
-  kLost = 2,     // heartbeat seen before, but older than the timeout: the controller must stop
+  kUnknown = 0,  // no accepted status yet
+  kAlive = 1,    // last accepted status younger than the heartbeat timeout
+  kLost = 2,     // accepted statuses before, but none within the timeout: the controller must stop
 };
 
 /// A fault announced by the driver (CAN: an EMCY frame; LCM: a fault_t message) or detected by the link itself
@@ -82,8 +97,20 @@ struct LinkFault {
   std::uint16_t fault_bits = 0;  // the driver's fault bits at that moment
   bool robot_stopped = false;    // the driver stopped the robot because of it
   bool cleared = false;          // announces that the fault has cleared
-  bool local = false;            // detected by this link (bus state), not reported by the driver
+  bool local = false;            // detected by this link (bus state, session), not reported by the driver
+  const char* what = nullptr;    // the reason in words when the link has one (a static string), or nullptr
+  // Reported by the driver while it had accepted none of this link's commands in its session: about another (e.g.
+  // the previous) controller's session, such as its watchdog stop. A refused reset (0xFF01) is never foreign.
+  bool foreign = false;
 };
+
+/// The reason in words of a driver fault that needs one on the controller's side (LinkFault::what), or nullptr: a
+/// refused reset (EMCY 0xFF01) means the operator must release the driver's e-stop. Real-time safe.
+constexpr const char* DriverFaultWhat(std::uint16_t emcy_code) {
+  return emcy_code == 0xFF01 ? "the driver's e-stop is latched: only the operator can release it, at the driver "
+                               "(SIGUSR1)"
+                             : nullptr;
+}
 
 /// Result of a real-time link call.
 enum class LinkResult : std::uint8_t {
@@ -93,6 +120,7 @@ enum class LinkResult : std::uint8_t {
   kBufferFull,  // the kernel's transmit queue (or the LCM hand-off) is full; the command was not sent
   kOutOfRange,  // the command cannot be represented on the wire (|v| beyond the frame's range); not sent
   kError,       // another I/O error (counted in LinkCounters::io_errors)
+  kNoSession,   // the driver's session is not known yet (no announcement seen): not sent (stops are always sent)
 };
 
 /// Returns a short name for a result ("ok", "bus-off", ...). Real-time safe.
@@ -110,51 +138,78 @@ struct LinkCounters {
   std::uint64_t heartbeats_received = 0;
   std::uint64_t faults_received = 0;    // EMCY frames / fault_t messages from the driver
   std::uint64_t bad_frames = 0;         // frames for us that failed to decode (checksum, length)
+  std::uint64_t unverified_frames = 0;  // status frames dropped because no session was known yet
   std::uint64_t status_gaps = 0;        // status sequence numbers skipped (lost statuses)
   std::uint64_t error_frames = 0;       // CAN error frames seen
   std::uint64_t bus_off_events = 0;     // transitions into bus-off / interface down
   std::uint64_t rx_overflow_drops = 0;  // frames the kernel dropped because our receive queue was full (SO_RXQ_OVFL)
   std::uint64_t faults_dropped = 0;     // faults lost because the caller did not take them fast enough
   std::uint64_t io_errors = 0;
+  std::uint64_t session_changes = 0;  // announcements of a session other than the current one
+  std::uint64_t stale_statuses = 0;   // statuses of the current session out of sequence (replays, duplicates)
+  std::uint64_t boot_ups = 0;         // boot-up heartbeats after the driver had been seen operational
 };
 
 /// Bus state as the link sees it (always kActive for LCM).
 enum class BusState : std::uint8_t { kActive = 0, kWarning, kPassive, kBusOff };
 
-/// The controller's command numbering. A controller that (re)starts against a driver that is already running (the
-/// previous controller was killed) must continue the driver's numbering, or the driver rejects its commands as out of
-/// sequence (drivers/README.md). Until the driver has acknowledged one of this link's own commands (a status whose
-/// last-accepted number is one this link sent since it last synchronised), every status whose last-accepted number
-/// is foreign moves the numbering there; afterwards statuses are ignored. Real-time safe.
-class CommandSequence {
+/// The controller's view of the driver's session (drivers/README.md, "Sessions"), shared by the SocketCAN and LCM
+/// links. The driver issues a new nonce at boot-up, at an NMT reset, at every stop and when its session expires; the
+/// link numbers its commands in the session it knows, from 1. Real-time safe.
+class SessionView {
  public:
-  explicit CommandSequence(std::uint32_t modulus) : modulus_(modulus) {}
-  /// The number of the next command; call Sent() once it went out.
-  std::uint32_t Next() const { return (last_ + 1) % modulus_; }
-  void Sent(std::uint32_t seq) {
-    last_ = seq;
-    ++sent_since_sync_;
+  /// What an announcement (CAN: the session frame; LCM: a heartbeat or status) did.
+  enum class Change : std::uint8_t {
+    kNone = 0,  // the current session
+    kFirst,     // the first session seen: adopted
+    kAdopted,   // another session, while this link had no command accepted in the old one: adopted
+    kLost,      // another session while this link's commands were being accepted: adopted, and a fault
+  };
+  Change OnAnnounce(std::uint32_t nonce) {
+    if (nonce == 0) return Change::kNone;  // 0 is never a session
+    if (have_ && nonce == session_) return Change::kNone;
+    const bool first = !have_;
+    const bool owned = owned_;
+    have_ = true;
+    session_ = nonce;
+    last_ = 0;
+    owned_ = false;
+    if (first) return Change::kFirst;
+    return owned ? Change::kLost : Change::kAdopted;
   }
-  /// A status from the driver with its last accepted command number.
-  void OnStatus(std::uint32_t accepted) {
-    if (acknowledged_) return;
-    const std::uint32_t back = (last_ + modulus_ - accepted) % modulus_;  // 0 = the newest sent
-    if (back < sent_since_sync_) {
-      acknowledged_ = true;  // one of ours
-    } else if (accepted != synced_to_) {
-      last_ = synced_to_ = accepted;  // foreign: continue from there
-      sent_since_sync_ = 0;
+  /// A boot-up heartbeat: true if the driver had been seen operational before (it restarted). The session is
+  /// forgotten until the next announcement.
+  bool OnHeartbeat(bool boot_up) {
+    if (!boot_up) {
+      operational_ = true;
+      return false;
     }
+    const bool restarted = operational_;
+    operational_ = false;
+    have_ = false;
+    owned_ = false;
+    last_ = 0;
+    return restarted;
   }
+  /// An accepted status of the current session saying the driver accepted `accepted` (0: none yet).
+  void OnStatus(std::uint32_t accepted) {
+    if (accepted != 0 && accepted <= last_) owned_ = true;
+  }
+  bool have() const { return have_; }
+  std::uint32_t session() const { return session_; }
+  /// The number of the next command; call Sent() once it went out.
+  std::uint32_t Next() const { return last_ + 1; }
+  void Sent(std::uint32_t seq) { last_ = seq; }
   std::uint32_t last() const { return last_; }
-  bool acknowledged() const { return acknowledged_; }
+  /// True once the driver accepted this link's commands in the current session.
+  bool owned() const { return owned_; }
 
  private:
-  std::uint32_t modulus_;
+  bool have_ = false;
+  bool owned_ = false;
+  bool operational_ = false;
+  std::uint32_t session_ = 0;
   std::uint32_t last_ = 0;
-  std::uint32_t synced_to_ = 0;
-  std::uint32_t sent_since_sync_ = 0;
-  bool acknowledged_ = false;
 };
 
 /// The controller side of the robot link.
@@ -177,16 +232,18 @@ class RobotLink {
   /// Takes the oldest pending fault (a small fixed queue; overflow is counted). Real-time safe.
   virtual LinkResult TakeFault(LinkFault& out) = 0;
 
-  /// The driver's liveness at `now_us` judged by its heartbeats (and, for the driver's NMT state, the last
-  /// heartbeat's content). Real-time safe.
+  /// The driver's liveness at `now_us`, judged by its accepted statuses (PeerState); the driver's NMT state is the
+  /// last heartbeat's content. Real-time safe.
   virtual PeerState peer_state(std::int64_t now_us) const = 0;
   virtual NmtState peer_nmt_state() const = 0;
 
   /// Bus state (CAN error frames, bus-off, interface down). Real-time safe.
   virtual BusState bus_state() const = 0;
 
-  /// Sequence number of the last command sent (0 before the first). Real-time safe.
+  /// Number of the last command sent in the current session (0 before the first). Real-time safe.
   virtual std::uint32_t last_command_seq() const = 0;
+  /// The driver's session nonce as the link knows it (0: none yet). Real-time safe.
+  virtual std::uint32_t session() const = 0;
 
   virtual LinkCounters counters() const = 0;
 };
@@ -194,7 +251,7 @@ class RobotLink {
 /// Configuration of a RobotLink.
 struct RobotLinkConfig {
   int node_id = 1;                              // the robot's CAN node id, 1..127 (also LCM node_id)
-  std::int64_t heartbeat_timeout_us = 300'000;  // peer lost when no heartbeat for this long
+  std::int64_t heartbeat_timeout_us = 300'000;  // peer lost when no accepted status for this long
   std::string can_interface;                    // SocketCAN interface ("vcan0"); for MakeSocketCanRobotLink
   std::string lcm_url;                          // LCM provider URL ("" = LCM's default); for MakeLcmRobotLink
 };

@@ -30,13 +30,13 @@ CanFilter Exact(std::uint32_t id) { return CanFilter{id, kStdDataMask}; }
 class BusTracker {
  public:
   // Applies an error frame; returns the transition it caused (or none).
-  enum class Change { kNone, kOff, kRestarted, kPassive, kActive };
+  enum class Change { kNone, kOff, kRestarted, kPassive, kWarning, kActive };
   Change OnErrorFrame(const can::ErrorFrameInfo& info) {
     if (info.bus_off) return Set(BusState::kBusOff) ? Change::kOff : Change::kNone;
     if (info.restarted) return Set(BusState::kActive) ? Change::kRestarted : Change::kNone;
     if (info.error_passive) return Set(BusState::kPassive) ? Change::kPassive : Change::kNone;
     if (info.error_warning && state_ == BusState::kActive) {
-      return Set(BusState::kWarning) ? Change::kPassive : Change::kNone;
+      return Set(BusState::kWarning) ? Change::kWarning : Change::kNone;
     }
     if (info.back_to_active && state_ != BusState::kBusOff) {
       return Set(BusState::kActive) ? Change::kActive : Change::kNone;
@@ -76,10 +76,14 @@ class SocketCanRobotLink final : public RobotLink {
         tx_(CanSocketOptions{config.can_interface, false, {}, 0, 0}) {}
 
   LinkResult SendCommand(const VelocityCommand& command, std::int64_t now_us) override {
+    // Without a session only an e-stop goes out (the driver honours its flag whatever the session).
+    if (!session_.have() && !command.estop && !command.quick_stop) return LinkResult::kNoSession;
     can::CommandFrame wire;
-    wire.seq = static_cast<std::uint8_t>(seq_.Next());
+    wire.seq = session_.Next();
+    wire.session = session_.session();
     wire.estop = command.estop;
     wire.reset = command.reset;
+    wire.quick_stop = command.quick_stop;
     wire.velocity[0] = command.velocity[0];
     wire.velocity[1] = command.velocity[1];
     can::Frame frame;
@@ -90,7 +94,7 @@ class SocketCanRobotLink final : public RobotLink {
     const CanIo io = tx_.Write(frame);
     switch (io) {
       case CanIo::kOk:
-        seq_.Sent(wire.seq);
+        session_.Sent(wire.seq);
         ++counters_.commands_sent;
         Note(bus_.OnTraffic(), now_us);
         return LinkResult::kOk;
@@ -127,7 +131,8 @@ class SocketCanRobotLink final : public RobotLink {
     if (rx_.dropped() != dropped_seen_) {
       counters_.rx_overflow_drops += static_cast<std::uint32_t>(rx_.dropped() - dropped_seen_);
       dropped_seen_ = rx_.dropped();
-      PushLocal(now_us, can::kEmcyCanOverrun, false);
+      PushLocal(now_us, can::kEmcyCanOverrun, false, fault_t::CODE_CAN_ERROR, true,
+                "the kernel dropped received frames (receive queue full): the view of the driver is incomplete");
     }
   }
 
@@ -141,12 +146,13 @@ class SocketCanRobotLink final : public RobotLink {
   LinkResult TakeFault(LinkFault& out) override { return faults_.Pop(out) ? LinkResult::kOk : LinkResult::kNoData; }
 
   PeerState peer_state(std::int64_t now_us) const override {
-    if (last_heartbeat_us_ < 0) return PeerState::kUnknown;
-    return now_us - last_heartbeat_us_ <= heartbeat_timeout_us_ ? PeerState::kAlive : PeerState::kLost;
+    if (last_status_us_ < 0) return PeerState::kUnknown;
+    return now_us - last_status_us_ <= heartbeat_timeout_us_ ? PeerState::kAlive : PeerState::kLost;
   }
   NmtState peer_nmt_state() const override { return nmt_; }
   BusState bus_state() const override { return bus_.state(); }
-  std::uint32_t last_command_seq() const override { return seq_.last(); }
+  std::uint32_t last_command_seq() const override { return session_.last(); }
+  std::uint32_t session() const override { return session_.session(); }
   LinkCounters counters() const override { return counters_; }
 
  private:
@@ -155,8 +161,8 @@ class SocketCanRobotLink final : public RobotLink {
     const auto n = static_cast<std::uint32_t>(config.node_id);
     CanSocketOptions options;
     options.interface = config.can_interface;
-    options.filters = {Exact(can::kStatusBase + n), Exact(can::kPositionBase + n), Exact(can::kForceBase + n),
-                       Exact(can::kHeartbeatBase + n), Exact(can::kEmcyBase + n)};
+    options.filters = {Exact(can::kStatusBase + n),  Exact(can::kPositionBase + n),  Exact(can::kForceBase + n),
+                       Exact(can::kSessionBase + n), Exact(can::kHeartbeatBase + n), Exact(can::kEmcyBase + n)};
     options.error_mask = DefaultErrorMask();
     return options;
   }
@@ -169,46 +175,65 @@ class SocketCanRobotLink final : public RobotLink {
       can::ErrorFrameInfo info;
       can::DecodeErrorFrame(frame, info);
       Note(bus_.OnErrorFrame(info), now_us);
-      if (info.rx_overflow) PushLocal(now_us, can::kEmcyCanOverrun, false);
+      if (info.rx_overflow) {
+        PushLocal(now_us, can::kEmcyCanOverrun, false, fault_t::CODE_CAN_ERROR, true,
+                  "the CAN controller's receive buffer overflowed: frames were lost");
+      }
       return;
     }
     Note(bus_.OnTraffic(), now_us);
     can::DecodeStatus result = can::DecodeStatus::kWrongId;
     switch (kind) {
       case can::FrameKind::kStatus:
-        result = can::DecodeStatusFrame(node_, frame, partial_);
-        if (result == can::DecodeStatus::kOk) {
-          have_ = 1;
-          partial_seq_ = partial_.seq;
-          partial_utime_ = in.utime;
-        }
+        result = OnStatusFrame(frame, in.utime, now_us);
         break;
       case can::FrameKind::kPosition: {
-        can::StatusFrames p;
-        result = can::DecodePositionFrame(node_, frame, p);
-        if (result == can::DecodeStatus::kOk && (have_ & 1) && p.seq == partial_seq_) {
-          partial_.position[0] = p.position[0];
-          partial_.position[1] = p.position[1];
-          have_ |= 2;
+        // Only as the second frame of the triple being assembled; a lone one (e.g. replayed) is dropped.
+        result = can::DecodeStatus::kOk;
+        if (have_ == 1) {
+          can::StatusFrames p;
+          result = can::DecodePositionFrame(node_, frame, session_.session(), partial_.seq, p);
+          have_ = 0;
+          if (result == can::DecodeStatus::kOk) {
+            partial_.position[0] = p.position[0];
+            partial_.position[1] = p.position[1];
+            have_ = 3;
+          }
         }
         break;
       }
       case can::FrameKind::kForce: {
-        can::StatusFrames f;
-        result = can::DecodeForceFrame(node_, frame, f);
-        if (result == can::DecodeStatus::kOk && (have_ & 3) == 3 && f.seq == partial_seq_) {
-          partial_.contact_force[0] = f.contact_force[0];
-          partial_.contact_force[1] = f.contact_force[1];
-          partial_.fault_bits = f.fault_bits;
-          Complete(now_us);
+        result = can::DecodeStatus::kOk;
+        if (have_ == 3) {
+          can::StatusFrames f;
+          result = can::DecodeForceFrame(node_, frame, session_.session(), partial_.seq, f);
+          if (result == can::DecodeStatus::kOk) {
+            partial_.contact_force[0] = f.contact_force[0];
+            partial_.contact_force[1] = f.contact_force[1];
+            partial_.fault_bits = f.fault_bits;
+            Complete(now_us);
+          }
         }
+        have_ = 0;
+        break;
+      }
+      case can::FrameKind::kSession: {
+        can::SessionFrame announced;
+        result = can::DecodeSession(node_, frame, announced);
+        if (result == can::DecodeStatus::kOk) OnSession(announced, now_us);
         break;
       }
       case can::FrameKind::kHeartbeat:
         result = can::DecodeHeartbeat(node_, frame, nmt_);
         if (result == can::DecodeStatus::kOk) {
-          last_heartbeat_us_ = now_us;
           ++counters_.heartbeats_received;
+          if (session_.OnHeartbeat(nmt_ == NmtState::kBootUp)) {
+            ++counters_.boot_ups;
+            status_synced_ = false;
+            have_ = 0;
+            PushLocal(now_us, 0, false, fault_t::CODE_PEER_TIMEOUT, true,
+                      "the driver restarted (boot-up heartbeat): its session and this controller's commands are void");
+          }
         }
         break;
       case can::FrameKind::kEmcy: {
@@ -223,6 +248,8 @@ class SocketCanRobotLink final : public RobotLink {
           fault.fault_bits = emcy.fault_bits;
           fault.robot_stopped = emcy.robot_stopped;
           fault.cleared = emcy.cleared || emcy.error_code == can::kEmcyNoError;
+          fault.what = DriverFaultWhat(emcy.error_code);
+          fault.foreign = !session_.owned() && emcy.error_code != can::kEmcyResetRefused;
           Push(fault);
         }
         break;
@@ -233,18 +260,91 @@ class SocketCanRobotLink final : public RobotLink {
     if (result != can::DecodeStatus::kOk) ++counters_.bad_frames;
   }
 
-  void Complete(std::int64_t now_us) {
-    if (have_status_ever_) {
-      const auto gap = static_cast<std::uint8_t>(partial_.seq - static_cast<std::uint8_t>(status_.seq) - 1);
-      if (gap < 128) counters_.status_gaps += gap;
+  // A status frame (TPDO1) starts a triple: its counter is reconstructed from the low 8 bits (ahead of the last
+  // accepted status, or from the announced epoch before the first) and checked by the CRC with the session.
+  can::DecodeStatus OnStatusFrame(const can::Frame& frame, std::int64_t utime, std::int64_t now_us) {
+    have_ = 0;
+    if (!session_.have()) {
+      ++counters_.unverified_frames;  // no session known yet: nothing to check it against
+      return can::DecodeStatus::kOk;
     }
-    have_status_ever_ = true;
+    const std::uint32_t session = session_.session();
+    const std::uint8_t low = frame.data[0];
+    std::uint32_t candidates[2];
+    if (status_synced_) {
+      candidates[0] = can::CounterAhead(status_last_, low);  // status_last_ + 1..256
+      candidates[1] = candidates[0] - 256;                   // status_last_ - 0..255
+    } else {
+      candidates[0] = (status_epoch_ << 8) | low;
+      candidates[1] = ((status_epoch_ + 1) << 8) | low;  // a wrap since the announcement
+    }
+    for (int i = 0; i < 2; ++i) {
+      can::StatusFrames s;
+      const can::DecodeStatus r = can::DecodeStatusFrame(node_, frame, session, candidates[i], s);
+      if (r == can::DecodeStatus::kBadChecksum) continue;
+      if (r != can::DecodeStatus::kOk) return r;
+      const bool ahead = !status_synced_ || (i == 0 && candidates[0] - status_last_ <= kStatusWindow);
+      if (!ahead) {
+        // A status of this session that is not newer than the last one: a replay or a duplicate. It must not refresh
+        // the view of the driver; the controller stops (once per episode).
+        ++counters_.stale_statuses;
+        if (!stale_reported_) {
+          stale_reported_ = true;
+          PushLocal(now_us, can::kEmcyProtocol, false, fault_t::CODE_BAD_MESSAGE, true,
+                    "a status of the driver's session out of sequence (a replay, or the driver restarted its "
+                    "numbering)");
+        }
+        return can::DecodeStatus::kOk;
+      }
+      partial_ = s;
+      partial_utime_ = utime;
+      have_ = 1;
+      return can::DecodeStatus::kOk;
+    }
+    return can::DecodeStatus::kBadChecksum;  // another session's, or corrupted
+  }
+
+  void OnSession(const can::SessionFrame& announced, std::int64_t now_us) {
+    switch (session_.OnAnnounce(announced.session)) {
+      case SessionView::Change::kNone:
+        if (!status_synced_) status_epoch_ = announced.status_epoch;
+        return;
+      case SessionView::Change::kFirst:
+        break;
+      case SessionView::Change::kAdopted:
+        ++counters_.session_changes;
+        break;
+      case SessionView::Change::kLost:
+        ++counters_.session_changes;
+        PushLocal(now_us, 0, false, fault_t::CODE_PEER_TIMEOUT, true,
+                  "the driver started a new session (it stopped, restarted or was reset): this controller's commands "
+                  "are void");
+        break;
+    }
+    status_epoch_ = announced.status_epoch;
+    status_synced_ = false;
+    stale_reported_ = false;
+    have_ = 0;
+  }
+
+  void Complete(std::int64_t now_us) {
+    if (status_synced_) {
+      counters_.status_gaps += partial_.seq - status_last_ - 1;
+    }
+    status_synced_ = true;
+    status_last_ = partial_.seq;
+    stale_reported_ = false;
+    last_status_us_ = now_us;
     have_ = 0;
     status_.utime = partial_utime_;
     status_.receive_us = now_us;
+    status_.session = partial_.session;
     status_.seq = partial_.seq;
-    status_.command_seq = partial_.command_seq;
-    seq_.OnStatus(status_.command_seq);
+    // The frame carries the low 8 bits of the driver's last accepted command: the newest of this link's numbers with
+    // those bits (0: none accepted in this session).
+    const std::uint32_t last = session_.last();
+    status_.command_seq = last - static_cast<std::uint8_t>(static_cast<std::uint8_t>(last) - partial_.command_seq);
+    session_.OnStatus(status_.command_seq);
     for (int i = 0; i < 2; ++i) {
       status_.position[i] = partial_.position[i];
       status_.velocity[i] = partial_.velocity[i];
@@ -262,11 +362,16 @@ class SocketCanRobotLink final : public RobotLink {
       case BusTracker::Change::kNone:
         return;
       case BusTracker::Change::kOff:
+        // Each bus state by its own code; only bus-off (or the interface down) stops the controller.
         ++counters_.bus_off_events;
-        PushLocal(now_us, can::kEmcyCanPassive, false);
+        PushLocal(now_us, can::kEmcyBusOff, false, fault_t::CODE_CAN_ERROR, true,
+                  "CAN bus-off or the interface is down: nothing reaches the driver");
         return;
       case BusTracker::Change::kPassive:
         PushLocal(now_us, can::kEmcyCanPassive, false);
+        return;
+      case BusTracker::Change::kWarning:
+        PushLocal(now_us, can::kEmcyCanWarning, false);
         return;
       case BusTracker::Change::kRestarted:
         PushLocal(now_us, can::kEmcyBusOffRecovered, true);
@@ -277,14 +382,17 @@ class SocketCanRobotLink final : public RobotLink {
     }
   }
 
-  void PushLocal(std::int64_t now_us, std::uint16_t emcy_code, bool cleared) {
+  void PushLocal(std::int64_t now_us, std::uint16_t emcy_code, bool cleared,
+                 std::int32_t code = fault_t::CODE_CAN_ERROR, bool stopped = false, const char* what = nullptr) {
     LinkFault fault;
     fault.receive_us = now_us;
     fault.emcy_code = emcy_code;
-    fault.code = fault_t::CODE_CAN_ERROR;
-    fault.fault_bits = fault_bits::kBus;
+    fault.code = code;
+    fault.fault_bits = code == fault_t::CODE_CAN_ERROR ? fault_bits::kBus : 0;
     fault.cleared = cleared;
+    fault.robot_stopped = stopped;
     fault.local = true;
+    fault.what = what;
     Push(fault);
   }
   void Push(const LinkFault& fault) {
@@ -296,16 +404,18 @@ class SocketCanRobotLink final : public RobotLink {
   CanSocket rx_;
   CanSocket tx_;
   BusTracker bus_;
-  CommandSequence seq_{256};
+  SessionView session_;
   std::uint32_t dropped_seen_ = 0;
   can::StatusFrames partial_;
-  std::uint8_t partial_seq_ = 0;
   std::int64_t partial_utime_ = 0;
-  int have_ = 0;  // bit 0 status, bit 1 position
-  bool have_status_ever_ = false;
+  int have_ = 0;                    // 1: status frame, 3: and position frame of the triple being assembled
+  bool status_synced_ = false;      // status_last_ is known (an accepted status in this session)
+  std::uint32_t status_last_ = 0;   // counter of the last accepted status
+  std::uint32_t status_epoch_ = 0;  // from the session frame, until the first accepted status
+  bool stale_reported_ = false;
   RobotStatus status_;
   bool fresh_status_ = false;
-  std::int64_t last_heartbeat_us_ = -1;
+  std::int64_t last_status_us_ = -1;
   NmtState nmt_ = NmtState::kBootUp;
   FixedQueue<LinkFault, 64> faults_;
   LinkCounters counters_;
@@ -346,7 +456,8 @@ class SocketCanDriverTransport final : public DriverTransport {
 
   LinkResult SendStatus(const RobotStatus& status) override {
     can::StatusFrames wire;
-    wire.seq = static_cast<std::uint8_t>(status.seq);
+    wire.seq = status.seq;
+    wire.session = status.session;
     wire.command_seq = static_cast<std::uint8_t>(status.command_seq);
     for (int i = 0; i < 2; ++i) {
       wire.velocity[i] = status.velocity[i];
@@ -386,6 +497,15 @@ class SocketCanDriverTransport final : public DriverTransport {
     emcy.counter = emcy_counter_++;
     can::Frame frame;
     can::EncodeEmcy(node_, emcy, frame);
+    return Write(frame);
+  }
+
+  LinkResult SendSession(std::uint32_t session, std::uint32_t status_seq) override {
+    can::SessionFrame announce;
+    announce.session = session;
+    announce.status_epoch = status_seq >> 8;
+    can::Frame frame;
+    if (can::EncodeSession(node_, announce, frame) != can::EncodeStatus::kOk) return LinkResult::kOutOfRange;
     return Write(frame);
   }
 
@@ -439,6 +559,9 @@ class SocketCanDriverTransport final : public DriverTransport {
       case BusTracker::Change::kPassive:
         out.kind = DriverEventKind::kBusPassive;
         return true;
+      case BusTracker::Change::kWarning:
+        out.kind = DriverEventKind::kBusWarning;
+        return true;
       case BusTracker::Change::kActive:
         out.kind = DriverEventKind::kBusActive;
         return true;
@@ -479,10 +602,14 @@ class SocketCanDriverTransport final : public DriverTransport {
         }
         out.kind = DriverEventKind::kCommand;
         out.seq = wire.seq;
+        out.session = wire.session;
+        out.has_frame = true;
+        out.frame = frame;
         out.command.velocity[0] = wire.velocity[0];
         out.command.velocity[1] = wire.velocity[1];
         out.command.estop = wire.estop;
         out.command.reset = wire.reset;
+        out.command.quick_stop = wire.quick_stop;
         ++counters_.commands_sent;  // here: commands received
         return true;
       }
@@ -495,7 +622,11 @@ class SocketCanDriverTransport final : public DriverTransport {
           out.kind = DriverEventKind::kEStop;
           return true;
         }
-        if (command == can::kNmtStart || command == can::kNmtResetNode) {
+        if (command == can::kNmtStart) {
+          out.kind = DriverEventKind::kNmtStart;
+          return true;
+        }
+        if (command == can::kNmtResetNode || command == can::kNmtResetCommunication) {
           out.kind = DriverEventKind::kResetRequest;
           return true;
         }
@@ -526,9 +657,13 @@ std::unique_ptr<DriverTransport> MakeSocketCanDriverTransport(const DriverTransp
   return std::make_unique<SocketCanDriverTransport>(config);
 }
 
-bool SequenceAdvances(std::uint32_t last, std::uint32_t seq, std::uint32_t modulus) {
+can::CommandVerdict JudgeSequence(std::uint32_t claimed, std::uint32_t seq, std::uint32_t session, std::uint32_t last,
+                                  std::uint32_t window, std::uint32_t modulus) {
+  if (claimed != session) return can::CommandVerdict::kWrongSession;
   const std::uint64_t ahead = (static_cast<std::uint64_t>(seq) + modulus - (last % modulus)) % modulus;
-  return ahead >= 1 && ahead < modulus / 2;
+  if (ahead >= 1 && ahead <= window) return can::CommandVerdict::kAccept;
+  if (ahead == 0 || ahead >= modulus / 2) return can::CommandVerdict::kStale;
+  return can::CommandVerdict::kAhead;
 }
 
 const char* ToString(DriverEventKind kind) {
@@ -540,13 +675,17 @@ const char* ToString(DriverEventKind kind) {
     case DriverEventKind::kEStop:
       return "NMT stop (e-stop)";
     case DriverEventKind::kResetRequest:
-      return "NMT reset request";
+      return "NMT reset node";
+    case DriverEventKind::kNmtStart:
+      return "NMT start";
     case DriverEventKind::kBusOff:
       return "bus-off";
     case DriverEventKind::kBusRestarted:
       return "bus restarted";
     case DriverEventKind::kBusPassive:
       return "bus error passive";
+    case DriverEventKind::kBusWarning:
+      return "bus error warning";
     case DriverEventKind::kBusActive:
       return "bus error active";
     case DriverEventKind::kFramesDropped:

@@ -299,15 +299,50 @@ TEST(Executor, DriverNeverReadyStopsAfterStartupTimeout) {
   EXPECT_NE(std::string(h.executor().stop_reason()).find("no status or heartbeat from the driver"), std::string::npos);
 }
 
+// A driver whose e-stop is latched refuses the executor's reset (drivers/README.md, "Sessions"): the run does not
+// start, and says that the operator must release the e-stop at the driver.
+TEST(Executor, ALatchedDriverEStopIsNotClearedAndTheStopSaysWhatToDo) {
+  Task task;
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));
+  ExecutorConfig config = Config();
+  config.startup_timeout_s = 0.2;
+  Harness h(task, config, {1.0, 1.0});
+  h.driver_fault_bits = robot_status_t::FAULT_ESTOP;
+  h.Start();
+  EXPECT_TRUE(h.Tick().command.reset);
+  h.RunUntilFinished(1.0);
+  EXPECT_EQ(h.executor().mode(), Mode::kStopped);
+  EXPECT_EQ(h.executor().step_index(), -1);  // never started
+  EXPECT_NE(std::string(h.executor().stop_reason()).find("e-stop latched"), std::string::npos)
+      << h.executor().stop_reason();
+}
+
+// Error passive sets the driver's bus bit while it keeps the robot going (drivers/README.md): no reason to stop.
+TEST(Executor, TheBusBitAloneDoesNotStop) {
+  Task task;
+  task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));
+  Harness h(task, Config(), {1.0, 1.0});
+  h.Start();
+  for (int i = 0; i < 10; ++i) h.Tick();
+  h.driver_fault_bits = robot_status_t::FAULT_BUS;
+  for (int i = 0; i < 50; ++i) h.Tick();
+  EXPECT_NE(h.executor().mode(), Mode::kStopped) << h.executor().stop_reason();
+  EXPECT_GT(Norm(h.Tick().command.velocity), 0.0);
+}
+
 TEST(Executor, DriverFaultStopsWithItsNames) {
   Task task;
   task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));
   Harness h(task, Config(), {1.0, 1.0});
   h.Start();
   for (int i = 0; i < 10; ++i) h.Tick();
+  EXPECT_FALSE(h.Tick().command.quick_stop);
   h.driver_fault_bits = robot_status_t::FAULT_WATCHDOG;
   h.Tick();
   EXPECT_EQ(h.executor().mode(), Mode::kStopped);
+  // From the stop on, every command asks the driver for a quick stop (issue 15: not only its watchdog, later).
+  EXPECT_TRUE(h.Tick().command.quick_stop);
+  EXPECT_EQ(Norm(h.Tick().command.velocity), 0.0);
   EXPECT_EQ(h.executor().stop_code(), FaultCode::kPeerTimeout);
   EXPECT_NE(std::string(h.executor().stop_reason()).find("watchdog"), std::string::npos);
 }

@@ -75,7 +75,9 @@ class Harness {
       in_.status.velocity = plant.velocity;
       in_.status.contact = plant.contact;
       in_.status.fault_bits = driver_fault_bits;
-      in_.status.state = driver_fault_bits != 0
+      in_.status.state = (driver_fault_bits & robot_status_t::FAULT_ESTOP) != 0
+                             ? std::int32_t{robot_status_t::STATE_ESTOP}
+                         : (driver_fault_bits & ~std::int32_t{robot_status_t::FAULT_BUS}) != 0
                              ? std::int32_t{robot_status_t::STATE_STOPPED}
                              : (Norm(plant.velocity) > 0 ? std::int32_t{robot_status_t::STATE_MOVING}
                                                          : std::int32_t{robot_status_t::STATE_READY});

@@ -9,6 +9,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <mutex>
 #include <numbers>
 #include <set>
@@ -20,6 +21,7 @@
 #include "control/control_loop.h"
 #include "control/loopback_link.h"
 #include "control/synthetic_camera.h"
+#include "drivers/can_protocol.h"
 #include "drivers/driver.h"
 #include "drivers/driver_transport.h"
 #include "drivers/robot_link.h"
@@ -388,6 +390,189 @@ TEST(RealtimeLoop, RealLcmLinkAgainstTheDriverIsAllocationLockAndExceptionFree) 
   EXPECT_EQ(counts.throws, 0);
   EXPECT_LE(counts.io, loop.cycles());  // the eventfd wake-up of the link's I/O thread, non-blocking
   RecordProperty("io_calls", static_cast<int>(counts.io));
+}
+
+// Issue 15: the robot driver restarts during a run (a new process on the same bus, inside every time-out). The
+// controller must not go on commanding it as if nothing happened: the boot-up heartbeat stops the run, and the stop
+// says why; the restarted driver, disabled, never takes the old run's commands.
+TEST(RealtimeLoop, ADriverRestartDuringARunStopsTheControllerAndSaysWhy) {
+  const std::string url = "udpm://239.255.76.67:" + std::to_string(43000 + getpid() % 20000) + "?ttl=0";
+  struct DriverProcess {
+    explicit DriverProcess(const std::string& lcm_url, std::uint64_t seed) : robot(drivers::SimulatedRobotConfig{}) {
+      drivers::DriverTransportConfig transport_config;
+      transport_config.lcm_url = lcm_url;
+      transport = drivers::MakeLcmDriverTransport(transport_config);
+      drivers::DriverConfig config;
+      config.watchdog_us = 1'000'000;
+      config.session_seed = seed;
+      driver = std::make_unique<drivers::Driver>(config, *transport, robot);
+      thread = std::thread([this] { driver->Run(stop); });
+    }
+    ~DriverProcess() { Kill(); }
+    void Kill() {
+      stop = true;
+      if (thread.joinable()) thread.join();
+    }
+    drivers::SimulatedRobot robot;
+    std::unique_ptr<drivers::DriverTransport> transport;
+    std::unique_ptr<drivers::Driver> driver;
+    std::atomic<bool> stop{false};
+    std::thread thread;
+  };
+  auto first = std::make_unique<DriverProcess>(url, 101);
+  drivers::RobotLinkConfig link_config;
+  link_config.lcm_url = url;
+  link_config.heartbeat_timeout_us = 2'000'000;
+  const auto link = drivers::MakeLcmRobotLink(link_config);
+
+  Task task;
+  Step step;
+  step.theta = 0.0;
+  step.terminate = TerminateKind::kGoal;
+  task.steps.push_back(step);
+  task.speed = 0.2;
+  task.goal = testing::Square({5.0, 0.0}, 0.05);  // far: the run is still going when the driver restarts
+  ExecutorConfig config;
+  config.period_s = 0.002;
+  config.limits.max_speed = 0.5;
+  config.limits.max_accel = 2.0;
+  config.goal_from_odometry = true;
+  config.heartbeat_timeout_s = 1.0;
+  config.startup_timeout_s = 10.0;
+  Executor executor(task, config);
+  LatestValue<VisualFrame> frames;
+  LatestValue<PositionEstimate> estimates;
+  Outbox outbox;
+  LoopConfig loop_config;
+  loop_config.period_s = 0.002;
+  loop_config.realtime = false;
+  LoopSources sources{link.get(), &frames, &estimates, nullptr};
+  ControlLoop loop(executor, sources, loop_config, outbox);
+  std::atomic<bool> stop{false};
+  std::thread rt([&] {
+    executor.Start(MonotonicNs());
+    loop.Run(stop, 5000);
+  });
+  // Wait until the run moves the robot, seen through the loop's telemetry (its odometry estimate): this thread may
+  // read neither the robot nor the executor while the driver and loop threads run.
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  TelemetrySnapshot t;
+  bool moving = false;
+  while (std::chrono::steady_clock::now() < deadline && !moving) {
+    while (outbox.telemetry.TryPop(t)) moving |= t.mode == Mode::kFree && t.estimate.x > 0.01;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_TRUE(moving) << t.stop_reason;
+  first.reset();                   // the driver process dies ...
+  DriverProcess second(url, 102);  // ... and a new one starts at once, well within the time-outs
+  rt.join();
+  second.Kill();
+  EXPECT_EQ(executor.mode(), Mode::kStopped);
+  std::printf("driver restart during a run: controller stopped: %s\n", executor.stop_reason());
+  EXPECT_NE(std::string(executor.stop_reason()).find("restarted"), std::string::npos) << executor.stop_reason();
+  FaultEvent fault;
+  bool reported = false;
+  while (outbox.faults.TryPop(fault)) {
+    reported |= fault.robot_stopped && std::string(fault.message).find("restarted") != std::string::npos;
+  }
+  EXPECT_TRUE(reported);
+  EXPECT_EQ(second.driver->stats().commands_applied, 0U);
+  EXPECT_EQ(second.driver->state(), drivers::RobotState::kDisabled);
+  EXPECT_EQ(Norm(loop.last_output().command.velocity), 0.0);
+}
+
+// A link whose driver is always ready and whose faults the test queues: which faults stop the controller.
+class ScriptedLink final : public drivers::RobotLink {
+ public:
+  drivers::LinkResult SendCommand(const drivers::VelocityCommand& command, std::int64_t) override {
+    last = command;
+    ++seq_;
+    return drivers::LinkResult::kOk;
+  }
+  void Poll(std::int64_t now_us) override { now_us_ = now_us; }
+  drivers::LinkResult TakeStatus(drivers::RobotStatus& out) override {
+    out = drivers::RobotStatus{};
+    out.receive_us = now_us_;
+    out.session = 1;
+    out.seq = ++status_seq_;
+    out.command_seq = seq_;
+    out.state = drivers::RobotState::kReady;
+    return drivers::LinkResult::kOk;
+  }
+  drivers::LinkResult TakeFault(drivers::LinkFault& out) override {
+    if (next_fault_ >= faults.size()) return drivers::LinkResult::kNoData;
+    out = faults[next_fault_++];
+    return drivers::LinkResult::kOk;
+  }
+  drivers::PeerState peer_state(std::int64_t) const override { return drivers::PeerState::kAlive; }
+  drivers::NmtState peer_nmt_state() const override { return drivers::NmtState::kOperational; }
+  drivers::BusState bus_state() const override { return drivers::BusState::kActive; }
+  std::uint32_t last_command_seq() const override { return seq_; }
+  std::uint32_t session() const override { return 1; }
+  drivers::LinkCounters counters() const override { return {}; }
+
+  std::vector<drivers::LinkFault> faults;  // set before the loop runs
+  drivers::VelocityCommand last;
+
+ private:
+  std::size_t next_fault_ = 0;
+  std::uint32_t seq_ = 0;
+  std::uint32_t status_seq_ = 0;
+  std::int64_t now_us_ = 0;
+};
+
+// Issue 15: each bus state by its own code, and only bus-off (and the link's other stopping faults) stops the
+// controller; error passive and warning, from the link or the driver, are reported only. A foreign fault (another
+// controller's session) does not stop either.
+TEST(RealtimeLoop, OnlyStoppingLinkFaultsStopTheController) {
+  Task task;
+  Step step;
+  step.theta = 0.0;
+  step.terminate = TerminateKind::kContact;
+  task.steps.push_back(step);
+  task.speed = 0.1;
+  ExecutorConfig config;
+  config.period_s = 0.002;
+  config.startup_timeout_s = 10.0;
+  const auto fault = [](std::uint16_t emcy, bool stopped, bool local, bool foreign) {
+    drivers::LinkFault f;
+    f.emcy_code = emcy;
+    f.code = 5;  // fault_t::CODE_CAN_ERROR
+    f.robot_stopped = stopped;
+    f.local = local;
+    f.foreign = foreign;
+    return f;
+  };
+  for (const bool bus_off : {false, true}) {
+    Executor executor(task, config);
+    ScriptedLink link;
+    link.faults = {fault(drivers::can::kEmcyCanWarning, false, true, false),
+                   fault(drivers::can::kEmcyCanPassive, false, true, false),
+                   fault(drivers::can::kEmcyCanPassive, false, false, false),
+                   fault(drivers::can::kEmcyRpdoTimeout, true, false, true)};
+    if (bus_off) {
+      drivers::LinkFault off = fault(drivers::can::kEmcyBusOff, true, true, false);
+      off.what = "CAN bus-off or the interface is down: nothing reaches the driver";
+      link.faults.push_back(off);
+    }
+    Outbox outbox;
+    LoopConfig loop_config;
+    loop_config.period_s = 0.002;
+    loop_config.realtime = false;
+    LoopSources sources{&link, nullptr, nullptr, nullptr};
+    ControlLoop loop(executor, sources, loop_config, outbox);
+    executor.Start(MonotonicNs());
+    std::atomic<bool> stop{false};
+    loop.Run(stop, 100);
+    if (bus_off) {
+      EXPECT_EQ(executor.mode(), Mode::kStopped);
+      EXPECT_NE(std::string(executor.stop_reason()).find("bus-off"), std::string::npos) << executor.stop_reason();
+      EXPECT_TRUE(link.last.quick_stop);
+    } else {
+      EXPECT_NE(executor.mode(), Mode::kStopped) << executor.stop_reason();
+      EXPECT_GT(link.last.velocity[0], 0.0);
+    }
+  }
 }
 
 }  // namespace

@@ -45,17 +45,28 @@ class FakeTransport final : public drivers::DriverTransport {
     faults.push_back(fault);
     return drivers::LinkResult::kOk;
   }
+  drivers::LinkResult SendSession(std::uint32_t nonce, std::uint32_t) override {
+    if (nonce != session) {  // a new session: the controller numbers from 1 in it
+      session = nonce;
+      next = 1;
+    }
+    return drivers::LinkResult::kOk;
+  }
   std::uint32_t sequence_modulus() const override { return 256; }
   drivers::LinkCounters counters() const override { return {}; }
-  void Command(std::uint32_t seq, double vx, double vy, bool reset = false) {
+  // The controller's next command in the driver's current session.
+  void Command(double vx, double vy, bool reset = false) {
     drivers::DriverEvent e;
     e.kind = drivers::DriverEventKind::kCommand;
-    e.seq = seq;
+    e.seq = next++;
+    e.session = session;
     e.command.velocity[0] = vx;
     e.command.velocity[1] = vy;
     e.command.reset = reset;
     events.push_back(e);
   }
+  std::uint32_t session = 0;
+  std::uint32_t next = 1;
   std::deque<drivers::DriverEvent> events;
   drivers::RobotStatus last_status;
   std::vector<drivers::DriverFault> faults;
@@ -74,10 +85,10 @@ TEST(SimRobot, LeavingTheBoundsStopsTheRobotWithTheBoundsFault) {
     drivers::Driver driver(drivers::DriverConfig{}, transport, robot);
     std::int64_t now = 1'000'000;
     driver.Start(now);
-    std::uint32_t seq = 0;
+    transport.Command(0.0, 0.0, true);  // the driver boots disabled: the controller's reset enables it
     int ms = 0;
     for (; ms < 4000 && driver.state() != drivers::RobotState::kStopped; ++ms) {
-      if (ms % 2 == 0) transport.Command(++seq, 0.5, 0.0);  // towards x = 10 at 0.5 m/s
+      if (ms % 2 == 0) transport.Command(0.5, 0.0);  // towards x = 10 at 0.5 m/s
       now += 1000;
       driver.Update(now);
     }
@@ -98,10 +109,10 @@ TEST(SimRobot, LeavingTheBoundsStopsTheRobotWithTheBoundsFault) {
     }
     EXPECT_EQ(robot.Read().velocity[0], 0.0);
     EXPECT_EQ(transport.last_status.state, drivers::RobotState::kStopped);
-    // After a reset the robot moves back inside; a new episode needs a new exit.
-    transport.Command(++seq, 0.0, 0.0, true);
+    // After a reset (in the session the stop began) the robot moves back inside; a new episode needs a new exit.
+    transport.Command(0.0, 0.0, true);
     for (int i = 0; i < 1000; ++i) {
-      if (i % 2 == 0) transport.Command(++seq, -0.5, 0.0);
+      if (i % 2 == 0) transport.Command(-0.5, 0.0);
       now += 1000;
       driver.Update(now);
     }

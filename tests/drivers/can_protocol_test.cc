@@ -9,10 +9,14 @@
 #include <cstring>
 #include <random>
 
+#include "drivers/driver_transport.h"
 #include "tests/drivers/dbc_reference.h"
 
 namespace visco::drivers::can {
 namespace {
+
+using visco::drivers::JudgeSequence;
+using visco::drivers::kCommandWindow;
 
 using visco::drivers::testing::Dbc;
 using visco::drivers::testing::ReferenceCrc8;
@@ -36,6 +40,18 @@ std::uint8_t ReferenceFrameCrc(const Frame& frame) {
                            static_cast<std::uint8_t>((frame.id >> 8) & 0x7)};
   std::memcpy(bytes + 2, frame.data, 7);
   return ReferenceCrc8(bytes, 9);
+}
+
+// The README's CRC of command and status frames: id, nonce, the counter's upper 24 bits, bytes 0..6.
+std::uint8_t ReferenceSessionCrc(const Frame& frame, std::uint32_t session, std::uint32_t counter) {
+  std::uint8_t bytes[16] = {
+      static_cast<std::uint8_t>(frame.id & 0xFF), static_cast<std::uint8_t>((frame.id >> 8) & 0x7),
+      static_cast<std::uint8_t>(session),         static_cast<std::uint8_t>(session >> 8),
+      static_cast<std::uint8_t>(session >> 16),   static_cast<std::uint8_t>(session >> 24),
+      static_cast<std::uint8_t>(counter >> 8),    static_cast<std::uint8_t>(counter >> 16),
+      static_cast<std::uint8_t>(counter >> 24)};
+  std::memcpy(bytes + 9, frame.data, 7);
+  return ReferenceCrc8(bytes, 16);
 }
 
 TEST(CanProtocol, Crc8CheckValue) {
@@ -62,8 +78,9 @@ TEST(CanProtocol, DbcDescribesEveryFrameOfNodeOne) {
   EXPECT_EQ(messages.at(kCommandBase + 1).dlc, 8);
   EXPECT_EQ(messages.at(kPositionBase + 1).dlc, 8);
   EXPECT_EQ(messages.at(kForceBase + 1).dlc, 8);
+  EXPECT_EQ(messages.at(kSessionBase + 1).dlc, 8);
   EXPECT_EQ(messages.at(kHeartbeatBase + 1).dlc, 1);
-  EXPECT_EQ(messages.size(), 7U);
+  EXPECT_EQ(messages.size(), 8U);
 }
 
 TEST(CanProtocol, CommandRoundTripAgreesWithDbc) {
@@ -71,27 +88,35 @@ TEST(CanProtocol, CommandRoundTripAgreesWithDbc) {
   std::uniform_real_distribution<double> speed(-kMaxVelocity, kMaxVelocity);
   for (int trial = 0; trial < 5000; ++trial) {
     CommandFrame command;
-    command.seq = static_cast<std::uint8_t>(rng());
+    command.seq = static_cast<std::uint32_t>(rng());
+    command.session = static_cast<std::uint32_t>(rng()) | 1U;
     command.estop = rng() % 2;
     command.reset = rng() % 2;
+    command.quick_stop = rng() % 2;
     command.velocity[0] = speed(rng);
     command.velocity[1] = speed(rng);
     Frame frame;
     ASSERT_EQ(EncodeCommand(1, command, frame), EncodeStatus::kOk);
     EXPECT_EQ(frame.id, 0x201U);
     EXPECT_EQ(frame.dlc, 8);
-    EXPECT_EQ(RawSig(frame, "CommandSeq"), command.seq);
+    EXPECT_EQ(RawSig(frame, "CommandSeq"), command.seq & 0xFF);
     EXPECT_EQ(RawSig(frame, "EStop"), command.estop ? 1 : 0);
     EXPECT_EQ(RawSig(frame, "Reset"), command.reset ? 1 : 0);
-    EXPECT_EQ(RawSig(frame, "Reserved"), 0);
+    EXPECT_EQ(RawSig(frame, "QuickStop"), command.quick_stop ? 1 : 0);
+    EXPECT_EQ(RawSig(frame, "SessionTag"), command.session & 0xFF);
     EXPECT_NEAR(Sig(frame, "VelocityX"), command.velocity[0], kVelocityScale / 2 + 1e-12);
     EXPECT_NEAR(Sig(frame, "VelocityY"), command.velocity[1], kVelocityScale / 2 + 1e-12);
-    EXPECT_EQ(RawSig(frame, "Crc"), ReferenceFrameCrc(frame));
+    EXPECT_EQ(RawSig(frame, "Crc"), ReferenceSessionCrc(frame, command.session, command.seq));
     CommandFrame decoded;
     ASSERT_EQ(DecodeCommand(1, frame, decoded), DecodeStatus::kOk);
-    EXPECT_EQ(decoded.seq, command.seq);
+    EXPECT_EQ(decoded.seq, command.seq & 0xFF);
+    EXPECT_EQ(decoded.session, command.session & 0xFF);
+    std::uint32_t seq = 0;
+    EXPECT_EQ(JudgeCommand(frame, command.session, command.seq - 1, kCommandWindow, seq), CommandVerdict::kAccept);
+    EXPECT_EQ(seq, command.seq);
     EXPECT_EQ(decoded.estop, command.estop);
     EXPECT_EQ(decoded.reset, command.reset);
+    EXPECT_EQ(decoded.quick_stop, command.quick_stop);
     EXPECT_DOUBLE_EQ(decoded.velocity[0], Sig(frame, "VelocityX"));
     EXPECT_DOUBLE_EQ(decoded.velocity[1], Sig(frame, "VelocityY"));
   }
@@ -116,7 +141,8 @@ TEST(CanProtocol, StatusRoundTripAgreesWithDbc) {
   std::uniform_real_distribution<double> speed(-3.2, 3.2), pos(-80.0, 80.0), force(-300.0, 300.0);
   for (int trial = 0; trial < 3000; ++trial) {
     StatusFrames status;
-    status.seq = static_cast<std::uint8_t>(rng());
+    status.seq = static_cast<std::uint32_t>(rng());
+    status.session = static_cast<std::uint32_t>(rng()) | 1U;
     status.command_seq = static_cast<std::uint8_t>(rng());
     status.velocity[0] = speed(rng);
     status.velocity[1] = speed(rng);
@@ -137,29 +163,36 @@ TEST(CanProtocol, StatusRoundTripAgreesWithDbc) {
     for (int i = 0; i < 3; ++i) {
       as_node1[i] = frames[i];
       as_node1[i].id -= 4;
-      EXPECT_EQ(frames[i].data[7], ReferenceFrameCrc(frames[i])) << i;
+      EXPECT_EQ(frames[i].data[7], ReferenceSessionCrc(frames[i], status.session, status.seq)) << i;
     }
-    EXPECT_EQ(RawSig(as_node1[0], "StatusSeq"), status.seq);
+    EXPECT_EQ(RawSig(as_node1[0], "StatusSeq"), status.seq & 0xFF);
     EXPECT_EQ(RawSig(as_node1[0], "CommandSeq"), status.command_seq);
     EXPECT_NEAR(Sig(as_node1[0], "VelocityX"), status.velocity[0], kVelocityScale / 2 + 1e-12);
     EXPECT_NEAR(Sig(as_node1[0], "VelocityY"), status.velocity[1], kVelocityScale / 2 + 1e-12);
     EXPECT_EQ(RawSig(as_node1[0], "State"), static_cast<int>(status.state));
     EXPECT_EQ(RawSig(as_node1[0], "Contact"), status.contact ? 1 : 0);
-    EXPECT_EQ(RawSig(as_node1[1], "StatusSeq"), status.seq);
+    EXPECT_EQ(RawSig(as_node1[1], "StatusSeq"), status.seq & 0xFF);
     EXPECT_NEAR(Sig(as_node1[1], "PositionX"), status.position[0], kPositionScale / 2 + 1e-9);
     EXPECT_NEAR(Sig(as_node1[1], "PositionY"), status.position[1], kPositionScale / 2 + 1e-9);
     EXPECT_NEAR(Sig(as_node1[2], "ForceX"), status.contact_force[0], kForceScale / 2 + 1e-9);
     EXPECT_NEAR(Sig(as_node1[2], "ForceY"), status.contact_force[1], kForceScale / 2 + 1e-9);
     const char* bit_names[] = {"FaultWatchdog", "FaultBadFrame", "FaultSequence", "FaultLimit",
-                               "FaultBounds",   "FaultBus",      "FaultEStop"};
-    for (int bit = 0; bit < 7; ++bit) {
+                               "FaultBounds",   "FaultBus",      "FaultEStop",    "FaultSession"};
+    for (int bit = 0; bit < 8; ++bit) {
       EXPECT_EQ(RawSig(as_node1[2], bit_names[bit]), (status.fault_bits >> bit) & 1) << bit_names[bit];
     }
 
     StatusFrames decoded;
-    ASSERT_EQ(DecodeStatusFrame(5, frames[0], decoded), DecodeStatus::kOk);
-    ASSERT_EQ(DecodePositionFrame(5, frames[1], decoded), DecodeStatus::kOk);
-    ASSERT_EQ(DecodeForceFrame(5, frames[2], decoded), DecodeStatus::kOk);
+    ASSERT_EQ(DecodeStatusFrame(5, frames[0], status.session, status.seq, decoded), DecodeStatus::kOk);
+    ASSERT_EQ(DecodePositionFrame(5, frames[1], status.session, status.seq, decoded), DecodeStatus::kOk);
+    ASSERT_EQ(DecodeForceFrame(5, frames[2], status.session, status.seq, decoded), DecodeStatus::kOk);
+    // Another session, or the same low byte in another wrap of the counter, fails the CRC.
+    EXPECT_EQ(DecodeStatusFrame(5, frames[0], status.session ^ 0x100, status.seq, decoded), DecodeStatus::kBadChecksum);
+    EXPECT_EQ(DecodeForceFrame(5, frames[2], status.session, status.seq + 256, decoded), DecodeStatus::kBadChecksum);
+    EXPECT_EQ(DecodePositionFrame(5, frames[1], status.session, status.seq + 1, decoded), DecodeStatus::kBadChecksum);
+    ASSERT_EQ(DecodeStatusFrame(5, frames[0], status.session, status.seq, decoded), DecodeStatus::kOk);
+    ASSERT_EQ(DecodePositionFrame(5, frames[1], status.session, status.seq, decoded), DecodeStatus::kOk);
+    ASSERT_EQ(DecodeForceFrame(5, frames[2], status.session, status.seq, decoded), DecodeStatus::kOk);
     EXPECT_EQ(decoded.seq, status.seq);
     EXPECT_EQ(decoded.command_seq, status.command_seq);
     EXPECT_EQ(decoded.state, status.state);
@@ -168,8 +201,8 @@ TEST(CanProtocol, StatusRoundTripAgreesWithDbc) {
     EXPECT_DOUBLE_EQ(decoded.position[0], Sig(as_node1[1], "PositionX"));
     EXPECT_DOUBLE_EQ(decoded.contact_force[1], Sig(as_node1[2], "ForceY"));
     // Frames of one kind are not accepted as another, nor for another node.
-    EXPECT_EQ(DecodePositionFrame(5, frames[0], decoded), DecodeStatus::kWrongId);
-    EXPECT_EQ(DecodeStatusFrame(4, frames[0], decoded), DecodeStatus::kWrongId);
+    EXPECT_EQ(DecodePositionFrame(5, frames[0], status.session, status.seq, decoded), DecodeStatus::kWrongId);
+    EXPECT_EQ(DecodeStatusFrame(4, frames[0], status.session, status.seq, decoded), DecodeStatus::kWrongId);
   }
 }
 
@@ -179,63 +212,98 @@ TEST(CanProtocol, StatusSaturatesInsteadOfWrapping) {
   status.position[1] = -1e6;
   status.velocity[0] = 100.0;
   status.contact_force[0] = std::nan("");
+  status.session = 77;
+  status.seq = 1000;
   Frame frames[3];
   ASSERT_EQ(EncodeStatusFrames(1, status, frames), EncodeStatus::kOk);
   StatusFrames decoded;
-  ASSERT_EQ(DecodeStatusFrame(1, frames[0], decoded), DecodeStatus::kOk);
-  ASSERT_EQ(DecodePositionFrame(1, frames[1], decoded), DecodeStatus::kOk);
-  ASSERT_EQ(DecodeForceFrame(1, frames[2], decoded), DecodeStatus::kOk);
+  ASSERT_EQ(DecodeStatusFrame(1, frames[0], 77, 1000, decoded), DecodeStatus::kOk);
+  ASSERT_EQ(DecodePositionFrame(1, frames[1], 77, 1000, decoded), DecodeStatus::kOk);
+  ASSERT_EQ(DecodeForceFrame(1, frames[2], 77, 1000, decoded), DecodeStatus::kOk);
   EXPECT_NEAR(decoded.position[0], 83.88607, 1e-9);
   EXPECT_NEAR(decoded.position[1], -83.88607, 1e-9);
   EXPECT_NEAR(decoded.velocity[0], kMaxVelocity, 1e-12);
   EXPECT_EQ(decoded.contact_force[0], 0.0);
 }
 
-// A reference acceptance rule for command frames, written from the README's table: id, length, CRC, reserved.
-bool ReferenceAcceptsCommand(const Frame& frame) {
+// A reference acceptance rule for command frames, written from the README's table and "Sessions" rules: id, length,
+// reserved bits, then the session tag and the CRC over the nonce and the counter reconstructed 1..window ahead.
+bool ReferenceLayoutOk(const Frame& frame) {
   if (frame.id != 0x201 || frame.dlc != 8) return false;
-  if (frame.data[7] != ReferenceFrameCrc(frame)) return false;
-  if (RawSig(frame, "Reserved") != 0 || (frame.data[1] & 0xFC) != 0) return false;
+  if ((frame.data[1] & 0xF8) != 0) return false;
   return RawSig(frame, "VelocityX") != -32768 && RawSig(frame, "VelocityY") != -32768;
+}
+bool ReferenceAccepts(const Frame& frame, std::uint32_t session, std::uint32_t last) {
+  if (!ReferenceLayoutOk(frame) || RawSig(frame, "SessionTag") != (session & 0xFF)) return false;
+  for (std::uint32_t k = 1; k <= kCommandWindow; ++k) {
+    const std::uint32_t counter = last + k;
+    if ((counter & 0xFF) == RawSig(frame, "CommandSeq") &&
+        ReferenceSessionCrc(frame, session, counter) == frame.data[7]) {
+      return true;
+    }
+  }
+  return false;
 }
 
 TEST(CanProtocol, RandomAndCorruptedFramesAgreeWithReference) {
   std::mt19937 rng(17);
   int accepted = 0;
+  const std::uint32_t session = 0xC0FFEE11;
   for (int trial = 0; trial < 20000; ++trial) {
+    const std::uint32_t last = static_cast<std::uint32_t>(rng() % 100000);
     Frame frame;
     if (trial % 2 == 0) {
-      // A valid command with one random corruption: a flipped bit, a changed length, a changed id.
+      // A valid command near the window with one random corruption: a flipped bit, a changed length, a changed id,
+      // another session, another wrap of the counter.
       CommandFrame command;
-      command.seq = static_cast<std::uint8_t>(rng());
+      command.seq = last + 1 + rng() % 10;
+      command.session = session;
       command.velocity[0] = (static_cast<int>(rng() % 60001) - 30000) * kVelocityScale;
-      ASSERT_EQ(EncodeCommand(1, command, frame), EncodeStatus::kOk);
-      switch (rng() % 4) {
+      switch (rng() % 8) {
         case 0:
+          ASSERT_EQ(EncodeCommand(1, command, frame), EncodeStatus::kOk);
           frame.data[rng() % 8] ^= static_cast<std::uint8_t>(1U << (rng() % 8));
           break;
         case 1:
+          ASSERT_EQ(EncodeCommand(1, command, frame), EncodeStatus::kOk);
           frame.dlc = static_cast<std::uint8_t>(rng() % 9);
           break;
         case 2:
+          ASSERT_EQ(EncodeCommand(1, command, frame), EncodeStatus::kOk);
           frame.id ^= 1U << (rng() % 11);
           break;
-        default:
-          break;  // unchanged
+        case 3:
+          command.session ^= 1U << (rng() % 32);
+          ASSERT_EQ(EncodeCommand(1, command, frame), EncodeStatus::kOk);
+          break;
+        case 4:
+          command.seq -= 256 * (1 + rng() % 3);
+          ASSERT_EQ(EncodeCommand(1, command, frame), EncodeStatus::kOk);
+          break;
+        default:  // 3 in 8: unchanged
+          ASSERT_EQ(EncodeCommand(1, command, frame), EncodeStatus::kOk);
+          break;
       }
     } else {
       frame.id = 0x201;
       frame.dlc = static_cast<std::uint8_t>(rng() % 9);
       for (auto& b : frame.data) b = static_cast<std::uint8_t>(rng());
-      if (rng() % 4 == 0) frame.data[7] = ReferenceFrameCrc(frame);  // valid CRC over random content
+      if (rng() % 2 == 0) frame.data[6] = session & 0xFF;
+      if (rng() % 2 == 0) frame.data[0] = static_cast<std::uint8_t>(last + 1 + rng() % 8);
+      if (rng() % 4 != 0) frame.data[7] = ReferenceSessionCrc(frame, session, CounterAhead(last, frame.data[0]));
     }
     CommandFrame decoded;
-    const bool fast = DecodeCommand(1, frame, decoded) == DecodeStatus::kOk;
-    ASSERT_EQ(fast, ReferenceAcceptsCommand(frame)) << "trial " << trial;
+    const bool layout = DecodeCommand(1, frame, decoded) == DecodeStatus::kOk;
+    ASSERT_EQ(layout, ReferenceLayoutOk(frame)) << "trial " << trial;
+    std::uint32_t seq = 0;
+    const bool fast = layout && JudgeCommand(frame, session, last, kCommandWindow, seq) == CommandVerdict::kAccept;
+    ASSERT_EQ(fast, ReferenceAccepts(frame, session, last)) << "trial " << trial;
     if (fast) {
       ++accepted;
       EXPECT_DOUBLE_EQ(decoded.velocity[0], Sig(frame, "VelocityX"));
-      EXPECT_EQ(decoded.seq, RawSig(frame, "CommandSeq"));
+      EXPECT_EQ(seq & 0xFF, RawSig(frame, "CommandSeq"));
+      EXPECT_GT(seq - last, 0U);
+      EXPECT_LE(seq - last, kCommandWindow);
     }
   }
   EXPECT_GT(accepted, 2000);  // both branches are exercised
@@ -244,16 +312,92 @@ TEST(CanProtocol, RandomAndCorruptedFramesAgreeWithReference) {
 TEST(CanProtocol, EverySingleBitFlipOfACommandIsDetected) {
   CommandFrame command;
   command.seq = 77;
+  command.session = 0x12345678;
   command.velocity[0] = 0.1234;
   command.velocity[1] = -0.5;
   Frame frame;
   ASSERT_EQ(EncodeCommand(1, command, frame), EncodeStatus::kOk);
+  std::uint32_t seq = 0;
+  ASSERT_EQ(JudgeCommand(frame, command.session, 76, kCommandWindow, seq), CommandVerdict::kAccept);
   for (int bit = 0; bit < 64; ++bit) {
     Frame corrupted = frame;
     corrupted.data[bit / 8] ^= static_cast<std::uint8_t>(1U << (bit % 8));
     CommandFrame decoded;
-    EXPECT_NE(DecodeCommand(1, corrupted, decoded), DecodeStatus::kOk) << "bit " << bit;
+    const bool accepted = DecodeCommand(1, corrupted, decoded) == DecodeStatus::kOk &&
+                          JudgeCommand(corrupted, command.session, 76, kCommandWindow, seq) == CommandVerdict::kAccept;
+    EXPECT_FALSE(accepted) << "bit " << bit;
   }
+  // Every single-bit change of the session nonce or of the counter's upper bits is detected too.
+  for (int bit = 0; bit < 32; ++bit) {
+    EXPECT_NE(JudgeCommand(frame, command.session ^ (1U << bit), 76, kCommandWindow, seq), CommandVerdict::kAccept)
+        << "session bit " << bit;
+  }
+  for (int bit = 8; bit < 32; ++bit) {
+    const std::uint32_t last = 76 ^ (1U << bit);
+    EXPECT_NE(JudgeCommand(frame, command.session, last, kCommandWindow, seq), CommandVerdict::kAccept)
+        << "counter bit " << bit;
+  }
+}
+
+TEST(CanProtocol, JudgeCommandClassifiesStaleAheadWrongSessionAndCorrupted) {
+  const std::uint32_t session = 0xA1B2C3D4;
+  auto frame_of = [&](std::uint32_t seq, std::uint32_t in_session) {
+    CommandFrame command;
+    command.seq = seq;
+    command.session = in_session;
+    Frame frame;
+    EXPECT_EQ(EncodeCommand(3, command, frame), EncodeStatus::kOk);
+    return frame;
+  };
+  const std::uint32_t last = 1000;
+  std::uint32_t seq = 0;
+  for (std::uint32_t k = 1; k <= kCommandWindow; ++k) {
+    EXPECT_EQ(JudgeCommand(frame_of(last + k, session), session, last, kCommandWindow, seq), CommandVerdict::kAccept);
+    EXPECT_EQ(seq, last + k);
+  }
+  EXPECT_EQ(JudgeCommand(frame_of(last + kCommandWindow + 1, session), session, last, kCommandWindow, seq),
+            CommandVerdict::kAhead);
+  EXPECT_EQ(JudgeCommand(frame_of(last, session), session, last, kCommandWindow, seq), CommandVerdict::kStale);
+  EXPECT_EQ(JudgeCommand(frame_of(last - 200, session), session, last, kCommandWindow, seq), CommandVerdict::kStale);
+  EXPECT_EQ(seq, last - 200);
+  // 256 - k earlier: the same low byte as last + k; stale (the CRC covers the upper bits), never accepted.
+  for (std::uint32_t k = 1; k <= kCommandWindow; ++k) {
+    EXPECT_EQ(JudgeCommand(frame_of(last + k - 256, session), session, last, kCommandWindow, seq),
+              CommandVerdict::kStale);
+    EXPECT_EQ(JudgeCommand(frame_of(last + k - 512, session), session, last, kCommandWindow, seq),
+              CommandVerdict::kBadChecksum);
+  }
+  const std::uint32_t other = session ^ 0x0000FF00;  // the same tag, another nonce
+  EXPECT_EQ(JudgeCommand(frame_of(last + 1, other), session, last, kCommandWindow, seq), CommandVerdict::kBadChecksum);
+  EXPECT_EQ(JudgeCommand(frame_of(last + 1, session + 1), session, last, kCommandWindow, seq),
+            CommandVerdict::kWrongSession);
+  // The fresh session of a driver (last 0) accepts 1..8.
+  EXPECT_EQ(JudgeCommand(frame_of(1, session), session, 0, kCommandWindow, seq), CommandVerdict::kAccept);
+  EXPECT_EQ(JudgeCommand(frame_of(9, session), session, 0, kCommandWindow, seq), CommandVerdict::kAhead);
+}
+
+TEST(CanProtocol, SessionFrame) {
+  SessionFrame announce;
+  announce.session = 0xDEADBEEF;
+  announce.status_epoch = 0x123456;
+  Frame frame;
+  ASSERT_EQ(EncodeSession(2, announce, frame), EncodeStatus::kOk);
+  EXPECT_EQ(frame.id, 0x482U);
+  EXPECT_EQ(frame.dlc, 8);
+  Frame as_node1 = frame;
+  as_node1.id = 0x481;
+  EXPECT_EQ(static_cast<std::uint32_t>(RawSig(as_node1, "SessionNonce")), 0xDEADBEEFU);
+  EXPECT_EQ(RawSig(as_node1, "StatusEpoch"), 0x123456);
+  EXPECT_EQ(frame.data[7], ReferenceFrameCrc(frame));
+  SessionFrame decoded;
+  ASSERT_EQ(DecodeSession(2, frame, decoded), DecodeStatus::kOk);
+  EXPECT_EQ(decoded.session, announce.session);
+  EXPECT_EQ(decoded.status_epoch, announce.status_epoch);
+  EXPECT_EQ(Classify(frame, 2), FrameKind::kSession);
+  frame.data[2] ^= 1;
+  EXPECT_EQ(DecodeSession(2, frame, decoded), DecodeStatus::kBadChecksum);
+  announce.session = 0;
+  EXPECT_EQ(EncodeSession(2, announce, frame), EncodeStatus::kOutOfRange);
 }
 
 TEST(CanProtocol, HeartbeatEmcyNmt) {
@@ -319,14 +463,15 @@ TEST(CanProtocol, ErrorFrames) {
   EXPECT_EQ(DecodeErrorFrame(frame, info), DecodeStatus::kWrongId);
 }
 
-TEST(CanProtocol, SequenceRule) {
-  EXPECT_TRUE(SequenceAdvances(0, 1));
-  EXPECT_TRUE(SequenceAdvances(255, 0));
-  EXPECT_TRUE(SequenceAdvances(10, 137));   // 127 ahead: gap tolerated
-  EXPECT_FALSE(SequenceAdvances(10, 138));  // 128 ahead: treated as older
-  EXPECT_FALSE(SequenceAdvances(10, 10));   // duplicate
-  EXPECT_FALSE(SequenceAdvances(10, 9));    // older
-  EXPECT_FALSE(SequenceAdvances(0, 255));
+TEST(CanProtocol, LcmSequenceRule) {
+  constexpr std::uint32_t kMod = 0x80000000U;
+  EXPECT_EQ(JudgeSequence(5, 1, 5, 0, kCommandWindow, kMod), CommandVerdict::kAccept);
+  EXPECT_EQ(JudgeSequence(5, 8, 5, 0, kCommandWindow, kMod), CommandVerdict::kAccept);
+  EXPECT_EQ(JudgeSequence(5, 9, 5, 0, kCommandWindow, kMod), CommandVerdict::kAhead);
+  EXPECT_EQ(JudgeSequence(5, 10, 5, 10, kCommandWindow, kMod), CommandVerdict::kStale);  // duplicate
+  EXPECT_EQ(JudgeSequence(5, 9, 5, 10, kCommandWindow, kMod), CommandVerdict::kStale);   // older
+  EXPECT_EQ(JudgeSequence(6, 11, 5, 10, kCommandWindow, kMod), CommandVerdict::kWrongSession);
+  EXPECT_EQ(JudgeSequence(5, 0, 5, kMod - 1, kCommandWindow, kMod), CommandVerdict::kAccept);  // wraps
 }
 
 TEST(CanProtocol, Classify) {

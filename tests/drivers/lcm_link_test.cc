@@ -4,10 +4,12 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <lcm/lcm-cpp.hpp>
 #include <string>
 #include <thread>
 
@@ -15,6 +17,8 @@
 #include "drivers/driver_transport.h"
 #include "drivers/robot_link.h"
 #include "drivers/simulated_robot.h"
+#include "lcmtypes/channels.h"
+#include "visco/robot_status_t.hpp"
 
 namespace visco::drivers {
 namespace {
@@ -24,18 +28,32 @@ std::string Url() { return "udpm://239.255.76.67:" + std::to_string(30000 + getp
 class LcmLink : public ::testing::Test {
  protected:
   void SetUp() override {
+    StartDriver();
+    link_ = MakeLcmRobotLink(LinkConfig());
+  }
+  static RobotLinkConfig LinkConfig() {
+    RobotLinkConfig link_config;
+    link_config.lcm_url = Url();
+    link_config.heartbeat_timeout_us = 300'000;
+    return link_config;
+  }
+  void StartDriver() {
     DriverTransportConfig transport_config;
     transport_config.lcm_url = Url();
     transport_ = MakeLcmDriverTransport(transport_config);
     DriverConfig config;
     config.watchdog_us = 100'000;
+    config.session_seed = ++seed_;
     robot_ = std::make_unique<SimulatedRobot>(SimulatedRobotConfig{});
     driver_ = std::make_unique<Driver>(config, *transport_, *robot_);
-    RobotLinkConfig link_config;
-    link_config.lcm_url = Url();
-    link_config.heartbeat_timeout_us = 300'000;
-    link_ = MakeLcmRobotLink(link_config);
+    stop_.store(false);
     thread_ = std::thread([this] { driver_->Run(stop_); });
+  }
+  void RestartDriver() {
+    StopDriver();
+    driver_.reset();
+    transport_.reset();
+    StartDriver();
   }
   void TearDown() override {
     StopDriver();
@@ -54,7 +72,8 @@ class LcmLink : public ::testing::Test {
       LinkFault fault;
       while (link_->TakeFault(fault) == LinkResult::kOk) faults_.push_back(fault);
       if (send) {
-        EXPECT_EQ(link_->SendCommand(command_, MonotonicMicros()), LinkResult::kOk);
+        const LinkResult sent = link_->SendCommand(command_, MonotonicMicros());
+        EXPECT_TRUE(sent == LinkResult::kOk || sent == LinkResult::kNoSession) << ToString(sent);
       }
       if (done()) return true;
       std::this_thread::sleep_for(std::chrono::milliseconds(2));
@@ -68,6 +87,9 @@ class LcmLink : public ::testing::Test {
   std::unique_ptr<RobotLink> link_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
+  // Seeds unique in the process: the tests share one LCM bus, so a driver must never repeat another test's nonces.
+  static inline std::atomic<std::uint64_t> next_seed_{static_cast<std::uint64_t>(getpid()) * 1000};
+  std::uint64_t seed_ = next_seed_.fetch_add(100);
   VelocityCommand command_;
   RobotStatus last_;
   std::vector<LinkFault> faults_;
@@ -76,6 +98,19 @@ class LcmLink : public ::testing::Test {
 TEST_F(LcmLink, CommandsWatchdogResetAndHeartbeat) {
   ASSERT_TRUE(RunUntil(
       3'000'000, [&] { return link_->peer_state(MonotonicMicros()) == PeerState::kAlive; }, false));
+  // The driver boots disabled: velocity commands do nothing until the controller's reset of the session.
+  EXPECT_EQ(last_.state, RobotState::kDisabled);
+  EXPECT_NE(link_->session(), 0U);
+  command_.velocity[0] = 0.2;
+  RunUntil(
+      100'000, [] { return false; }, true);
+  EXPECT_EQ(last_.state, RobotState::kDisabled);
+  EXPECT_EQ(last_.velocity[0], 0.0);
+  command_ = VelocityCommand{};
+  command_.reset = true;
+  ASSERT_TRUE(RunUntil(
+      2'000'000, [&] { return last_.state == RobotState::kReady; }, true));
+  command_ = VelocityCommand{};
   command_.velocity[0] = 0.2;
   ASSERT_TRUE(RunUntil(
       3'000'000, [&] { return std::abs(last_.velocity[0] - 0.2) < 1e-9; }, true));
@@ -87,79 +122,175 @@ TEST_F(LcmLink, CommandsWatchdogResetAndHeartbeat) {
   ASSERT_TRUE(RunUntil(
       2'000'000, [&] { return last_.state == RobotState::kStopped && last_.velocity[0] == 0.0; }, false));
   EXPECT_TRUE(last_.fault_bits & fault_bits::kWatchdog);
+  const auto driver_fault = [&]() -> const LinkFault* {
+    for (const LinkFault& f : faults_) {
+      if (!f.local && !f.cleared) return &f;  // (the reset's "enabled" is a cleared one)
+    }
+    return nullptr;
+  };
   ASSERT_TRUE(RunUntil(
-      500'000, [&] { return !faults_.empty(); }, false));
-  EXPECT_EQ(faults_.front().code, 4);  // fault_t::CODE_PEER_TIMEOUT
-  EXPECT_TRUE(faults_.front().robot_stopped);
+      500'000, [&] { return driver_fault() != nullptr; }, false));
+  const LinkFault& watchdog = *driver_fault();
+  EXPECT_EQ(watchdog.code, 4);  // fault_t::CODE_PEER_TIMEOUT
+  EXPECT_TRUE(watchdog.robot_stopped);
   // The same fields as the CAN path's EMCY frame: the CANopen error code and the driver's fault bits.
-  EXPECT_EQ(faults_.front().emcy_code, can::kEmcyRpdoTimeout);
-  EXPECT_EQ(faults_.front().fault_bits, fault_bits::kWatchdog);
-  EXPECT_FALSE(faults_.front().local);
+  EXPECT_EQ(watchdog.emcy_code, can::kEmcyRpdoTimeout);
+  EXPECT_EQ(watchdog.fault_bits, fault_bits::kWatchdog);
+  EXPECT_FALSE(watchdog.local);
+  // The stop began a new session: the link says that its commands are void.
+  ASSERT_TRUE(RunUntil(
+      500'000, [&] { return link_->counters().session_changes == 1; }, false));
+  EXPECT_TRUE(std::any_of(faults_.begin(), faults_.end(), [](const LinkFault& f) {
+    return f.local && f.robot_stopped && f.what != nullptr &&
+           std::string(f.what).find("new session") != std::string::npos;
+  }));
 
   command_ = VelocityCommand{};
   command_.reset = true;
   ASSERT_TRUE(RunUntil(
       2'000'000, [&] { return last_.state == RobotState::kReady && last_.fault_bits == 0; }, true));
+  EXPECT_EQ(link_->counters().session_changes, 1U);  // the watchdog stop began a new session
 
   StopDriver();
   ASSERT_TRUE(RunUntil(
       2'000'000, [&] { return link_->peer_state(MonotonicMicros()) == PeerState::kLost; }, false));
 }
 
-TEST_F(LcmLink, ARestartedControllerContinuesTheDriversNumbering) {
+// A controller killed and replaced: the new one cannot take over the old one's session (its numbering starts at 1, the
+// driver's is far ahead: stale); the driver's watchdog stops the robot, which starts a new session, and the new
+// controller's reset of that session enables it.
+TEST_F(LcmLink, ANewControllerWaitsForAFreshSession) {
+  command_.reset = true;
+  ASSERT_TRUE(RunUntil(
+      3'000'000, [&] { return last_.state == RobotState::kReady; }, true));
+  command_ = VelocityCommand{};
   command_.velocity[0] = 0.1;
   ASSERT_TRUE(RunUntil(
       3'000'000, [&] { return last_.state == RobotState::kMoving && link_->last_command_seq() > 50; }, true));
-  // The controller dies; a new one (numbering from scratch) takes over: its reset and commands are accepted.
+  const std::uint32_t old_session = link_->session();
   link_.reset();
-  RobotLinkConfig link_config;
-  link_config.lcm_url = Url();
-  link_config.heartbeat_timeout_us = 300'000;
-  link_ = MakeLcmRobotLink(link_config);
+  link_ = MakeLcmRobotLink(LinkConfig());
   last_ = RobotStatus{};
   command_ = VelocityCommand{};
   command_.reset = true;
+  bool stopped_between = false;
   ASSERT_TRUE(RunUntil(
       3'000'000,
       [&] {
-        return last_.state == RobotState::kReady && last_.command_seq > 50 &&
-               link_->last_command_seq() - last_.command_seq < 10;  // the driver accepts the new link's commands
+        stopped_between |= last_.state == RobotState::kStopped;
+        return last_.state == RobotState::kReady && last_.session != old_session && last_.command_seq >= 1;
       },
       true));
+  EXPECT_TRUE(stopped_between || driver_->stats().watchdog_stops > 0);
+  EXPECT_NE(link_->session(), old_session);
+  EXPECT_LT(link_->last_command_seq(), 1000U);  // numbered from 1 in the new session
   command_ = VelocityCommand{};
   command_.velocity[1] = 0.1;
   ASSERT_TRUE(RunUntil(
       2'000'000, [&] { return last_.state == RobotState::kMoving && last_.velocity[1] > 0.05; }, true));
-  EXPECT_GT(link_->last_command_seq(), 50U);  // it continued the old numbering
-  EXPECT_EQ(last_.fault_bits & fault_bits::kSequence, 0);
+  EXPECT_EQ(last_.fault_bits & (fault_bits::kSequence | fault_bits::kSession), 0);
 }
 
-TEST(CommandSequence, SyncsToAForeignNumberingUntilAcknowledged) {
-  CommandSequence seq(256);
-  for (std::uint32_t i = 0; i < 3; ++i) seq.Sent(seq.Next());  // 1, 2, 3: rejected by a driver at 200
-  seq.OnStatus(200);
-  EXPECT_EQ(seq.Next(), 201U);
-  seq.Sent(seq.Next());
-  seq.OnStatus(200);  // a late answer to a rejected command: no change
-  EXPECT_EQ(seq.Next(), 202U);
-  seq.Sent(seq.Next());
-  seq.OnStatus(201);  // ours: acknowledged, the numbering is ours from now on
-  EXPECT_TRUE(seq.acknowledged());
-  seq.OnStatus(17);
-  EXPECT_EQ(seq.Next(), 203U);
-  // A fresh driver (nothing accepted yet: 0) does not move the numbering; wrapping works.
-  CommandSequence fresh(256);
-  fresh.Sent(fresh.Next());
-  fresh.OnStatus(0);
-  EXPECT_EQ(fresh.Next(), 2U);
-  fresh.OnStatus(1);
-  EXPECT_TRUE(fresh.acknowledged());
-  CommandSequence wrap(256);
-  wrap.OnStatus(255);
-  EXPECT_EQ(wrap.Next(), 0U);
-  wrap.Sent(wrap.Next());
-  wrap.OnStatus(0);
-  EXPECT_TRUE(wrap.acknowledged());
+// The driver restarts while this controller commands it: the link reports it (a stopping fault that says why) and
+// numbers its commands in the new session only after a new announcement.
+TEST_F(LcmLink, ADriverRestartDuringARunIsAFaultThatSaysWhy) {
+  command_ = VelocityCommand{};
+  command_.reset = true;
+  ASSERT_TRUE(RunUntil(
+      3'000'000, [&] { return last_.state == RobotState::kReady; }, true));
+  command_ = VelocityCommand{};
+  command_.velocity[0] = 0.2;
+  ASSERT_TRUE(RunUntil(
+      2'000'000, [&] { return last_.state == RobotState::kMoving; }, true));
+  const std::uint32_t before = link_->session();
+  faults_.clear();
+  RestartDriver();
+  ASSERT_TRUE(RunUntil(
+      3'000'000,
+      [&] {
+        return std::any_of(faults_.begin(), faults_.end(),
+                           [](const LinkFault& f) { return f.local && f.robot_stopped && f.what != nullptr; });
+      },
+      true));
+  const LinkFault* fault = nullptr;
+  for (const LinkFault& f : faults_) {
+    if (f.local && f.robot_stopped && f.what != nullptr && fault == nullptr) fault = &f;
+  }
+  ASSERT_NE(fault, nullptr);
+  EXPECT_NE(std::string(fault->what).find("restarted"), std::string::npos) << fault->what;
+  EXPECT_EQ(link_->counters().boot_ups, 1U);
+  // The restarted driver is DISABLED and never took this controller's velocity commands.
+  ASSERT_TRUE(RunUntil(
+      2'000'000,
+      [&] { return link_->session() != 0 && link_->session() != before && last_.session == link_->session(); }, true));
+  EXPECT_EQ(last_.state, RobotState::kDisabled);
+  EXPECT_EQ(driver_->stats().commands_applied, 0U);
+}
+
+// Replayed statuses (an lcm-logplayer of an earlier run, or a duplicate) do not refresh the view of the driver: an
+// old session's are ignored, the current session's out of sequence are counted and reported.
+TEST_F(LcmLink, ReplayedStatusesDoNotRefreshTheView) {
+  ASSERT_TRUE(RunUntil(
+      3'000'000, [&] { return link_->peer_state(MonotonicMicros()) == PeerState::kAlive; }, false));
+  lcm::LCM bus(Url());
+  ASSERT_TRUE(bus.good());
+  // A status of the current session whose number is old, claiming MOVING at 1 m/s.
+  robot_status_t replay{};
+  replay.utime = WallMicros();
+  replay.node_id = 1;
+  replay.session = static_cast<std::int32_t>(link_->session());
+  replay.seq = static_cast<std::int32_t>(last_.seq > 5 ? last_.seq - 5 : 0);
+  replay.command_seq = 0;
+  replay.velocity[0] = 1.0;
+  replay.state = robot_status_t::STATE_MOVING;
+  replay.fault_bits = 0;
+  robot_status_t old_session = replay;
+  old_session.session = static_cast<std::int32_t>(link_->session() ^ 0x01010101U);
+  old_session.seq = static_cast<std::int32_t>(last_.seq + 1);
+  for (int i = 0; i < 5; ++i) {
+    bus.publish(channels::kStatus, &replay);
+    bus.publish(channels::kStatus, &old_session);
+  }
+  std::vector<RobotStatus> seen;
+  RunUntil(
+      300'000,
+      [&] {
+        seen.push_back(last_);
+        return false;
+      },
+      false);
+  for (const RobotStatus& s : seen) ASSERT_NE(s.velocity[0], 1.0) << "a replayed status refreshed the view";
+  EXPECT_GE(link_->counters().stale_statuses, 1U);
+  EXPECT_TRUE(std::any_of(faults_.begin(), faults_.end(), [](const LinkFault& f) {
+    return f.local && f.robot_stopped && f.what != nullptr &&
+           std::string(f.what).find("out of sequence") != std::string::npos;
+  }));
+}
+
+TEST(SessionView, AdoptsTheFirstSessionAndReportsLosingAnOwnedOne) {
+  SessionView view;
+  EXPECT_FALSE(view.have());
+  EXPECT_EQ(view.OnAnnounce(0), SessionView::Change::kNone);  // 0 is never a session
+  EXPECT_EQ(view.OnAnnounce(0xAA), SessionView::Change::kFirst);
+  EXPECT_EQ(view.Next(), 1U);
+  view.Sent(1);
+  view.Sent(2);
+  EXPECT_EQ(view.OnAnnounce(0xAA), SessionView::Change::kNone);
+  view.OnStatus(0);  // nothing accepted yet
+  EXPECT_FALSE(view.owned());
+  EXPECT_EQ(view.OnAnnounce(0xBB), SessionView::Change::kAdopted);  // never owned: no fault
+  EXPECT_EQ(view.Next(), 1U);
+  view.Sent(1);
+  view.OnStatus(1);
+  EXPECT_TRUE(view.owned());
+  EXPECT_EQ(view.OnAnnounce(0xCC), SessionView::Change::kLost);
+  EXPECT_FALSE(view.owned());
+  // Boot-up: a restart only after the driver was seen operational; it forgets the session.
+  EXPECT_FALSE(view.OnHeartbeat(true));
+  EXPECT_FALSE(view.have());
+  EXPECT_FALSE(view.OnHeartbeat(false));
+  EXPECT_TRUE(view.OnHeartbeat(true));
+  EXPECT_EQ(view.OnAnnounce(0xDD), SessionView::Change::kFirst);
 }
 
 }  // namespace

@@ -121,15 +121,18 @@ inline void Fill(motion_strategy_t& m) {
 inline void Fill(velocity_command_t& m) {
   m.utime = 1700000000000010;
   m.node_id = 5;
+  m.session = 0x1234ABCD;
   m.seq = 123;
   m.velocity[0] = 0.01;
   m.velocity[1] = -0.05;
   m.estop = false;
   m.reset = true;
+  m.quick_stop = true;
 }
 inline void Fill(robot_status_t& m) {
   m.utime = 1700000000000011;
   m.node_id = 5;
+  m.session = 0x1234ABCD;
   m.seq = 77;
   m.command_seq = 123;
   m.position[0] = 3.0;
@@ -147,6 +150,7 @@ inline void Fill(heartbeat_t& m) {
   m.node_id = 5;
   m.counter = 1000;
   m.state = heartbeat_t::STATE_OPERATIONAL;
+  m.session = 0x1234ABCD;
 }
 inline void Fill(fault_t& m) {
   m.utime = 1700000000000013;

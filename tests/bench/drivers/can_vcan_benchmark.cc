@@ -66,6 +66,8 @@ void BM_SendCommand(benchmark::State& state) {
   auto link = MakeSocketCanRobotLink(config);
   VelocityCommand command;
   command.velocity[0] = 0.1;
+  // Without a driver there is no session, and a link sends only e-stops then (the same frame, the same cost).
+  command.estop = true;
   std::uint64_t retries = 0;
   for (auto _ : state) {
     const auto start = std::chrono::steady_clock::now();
@@ -123,7 +125,7 @@ void BM_CommandToFeedbackRoundTrip(benchmark::State& state) {
   RobotStatus status;
   const auto until_answer = [&](std::int64_t timeout_us) {
     const std::int64_t end = MonotonicMicros() + timeout_us;
-    const std::uint8_t want = static_cast<std::uint8_t>(link->last_command_seq());
+    const std::uint32_t want = link->last_command_seq();
     while (MonotonicMicros() < end) {
       link->Poll(MonotonicMicros());
       if (link->TakeStatus(status) == LinkResult::kOk && status.command_seq == want) return true;
@@ -135,8 +137,10 @@ void BM_CommandToFeedbackRoundTrip(benchmark::State& state) {
   command.reset = true;
   bool ready = false;
   for (int i = 0; i < 1200 && !ready; ++i) {  // the driver process needs a while to start in the VM
-    link->SendCommand(command, MonotonicMicros());
-    ready = until_answer(100'000);
+    // Not sent (kNoSession) until the link has seen the driver's session frame, which until_answer() polls for.
+    ready = link->SendCommand(command, MonotonicMicros()) == LinkResult::kOk && until_answer(100'000) &&
+            status.state == RobotState::kReady;
+    if (!ready && link->session() == 0) until_answer(100'000);
   }
   if (!ready) {
     state.SkipWithError("the driver did not answer");

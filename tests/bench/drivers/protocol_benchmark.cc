@@ -43,9 +43,12 @@ void BM_DecodeCommand(benchmark::State& state) {
   Frame frame;
   EncodeCommand(1, command, frame);
   CommandFrame out;
+  std::uint32_t seq = 0;
   for (auto _ : state) {
     benchmark::DoNotOptimize(&frame);
     benchmark::DoNotOptimize(DecodeCommand(1, frame, out));
+    // The session rule the driver applies to every command: the CRC over the nonce and the full counter.
+    benchmark::DoNotOptimize(JudgeCommand(frame, command.session, command.seq - 1, 8, seq));
     benchmark::DoNotOptimize(&out);
   }
 }
@@ -72,9 +75,9 @@ void BM_DecodeStatusFrames(benchmark::State& state) {
   StatusFrames out;
   for (auto _ : state) {
     benchmark::DoNotOptimize(frames);
-    benchmark::DoNotOptimize(DecodeStatusFrame(1, frames[0], out));
-    benchmark::DoNotOptimize(DecodePositionFrame(1, frames[1], out));
-    benchmark::DoNotOptimize(DecodeForceFrame(1, frames[2], out));
+    benchmark::DoNotOptimize(DecodeStatusFrame(1, frames[0], status.session, status.seq, out));
+    benchmark::DoNotOptimize(DecodePositionFrame(1, frames[1], status.session, status.seq, out));
+    benchmark::DoNotOptimize(DecodeForceFrame(1, frames[2], status.session, status.seq, out));
   }
 }
 BENCHMARK(BM_DecodeStatusFrames);

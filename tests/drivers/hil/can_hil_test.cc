@@ -77,6 +77,10 @@ class DriverProcess {
     waitpid(pid_, &status, 0);
     pid_ = -1;
   }
+  // The operator's e-stop release at the driver (drivers/README.md): SIGUSR1.
+  void ReleaseEStop() {
+    if (pid_ > 0) kill(pid_, SIGUSR1);
+  }
 
  private:
   pid_t pid_ = -1;
@@ -179,6 +183,11 @@ class CanHil : public ::testing::Test {
       return !f.local && f.emcy_code == emcy && f.robot_stopped == stopped;
     });
   }
+  bool SawLocal(const char* words) const {
+    return std::any_of(seen_.faults.begin(), seen_.faults.end(), [&](const LinkFault& f) {
+      return f.local && f.robot_stopped && f.what != nullptr && std::string(f.what).find(words) != std::string::npos;
+    });
+  }
   // Waits (still commanding as `send` says) until the driver reports `state` with zero velocity; returns the time
   // from `since_wall` (wall clock) to that status's kernel receive timestamp, or -1.
   std::int64_t TimeToStop(RobotState state, bool send, std::int64_t since_wall) {
@@ -189,9 +198,10 @@ class CanHil : public ::testing::Test {
   std::string Faults() const {
     std::string text;
     for (const LinkFault& f : seen_.faults) {
-      char line[120];
-      std::snprintf(line, sizeof(line), "\n  emcy 0x%04X code %d bits 0x%02X stopped %d cleared %d local %d",
-                    f.emcy_code, f.code, f.fault_bits, f.robot_stopped, f.cleared, f.local);
+      char line[240];
+      std::snprintf(line, sizeof(line), "\n  emcy 0x%04X code %d bits 0x%02X stopped %d cleared %d local %d %s",
+                    f.emcy_code, f.code, f.fault_bits, f.robot_stopped, f.cleared, f.local,
+                    f.what != nullptr ? f.what : "");
       text += line;
     }
     return text;
@@ -223,11 +233,13 @@ class CanHil : public ::testing::Test {
 TEST_F(CanHil, CommandsMoveTheRobotAndEveryCommandIsAnswered) {
   Move(0.2, -0.1);
   const RobotStatus start = last_;
-  const std::uint64_t sent_before = link_->counters().commands_sent;
+  const LinkCounters before = link_->counters();
   RunFor(500'000);
   const LinkCounters c = link_->counters();
-  // Every command gets a status (TPDO1..3) with its sequence number; allow the last few in flight.
-  EXPECT_GE(c.statuses_received + 5, c.commands_sent - sent_before);
+  // Every command gets a status (TPDO1..3) with its number: the statuses of this window against its commands (the
+  // periodic statuses come on top); allow the last few in flight.
+  EXPECT_GE(c.statuses_received - before.statuses_received + 5, c.commands_sent - before.commands_sent);
+  EXPECT_GT(c.commands_sent - before.commands_sent, 100U);
   EXPECT_EQ(c.bad_frames, 0U);
   EXPECT_EQ(c.rx_overflow_drops, 0U);
   EXPECT_EQ(c.bus_off_events, 0U);
@@ -267,7 +279,8 @@ TEST_F(CanHil, MalformedAndOutOfSequenceFramesAreIgnoredAndReported) {
   Move(0.2, 0.0);
   // A command with a bad CRC and one with a wrong length, both asking for 0.5 m/s.
   can::CommandFrame evil;
-  evil.seq = static_cast<std::uint8_t>(link_->last_command_seq() + 1);
+  evil.seq = link_->last_command_seq() + 1;
+  evil.session = link_->session();
   evil.velocity[0] = 0.5;
   can::Frame frame;
   ASSERT_EQ(can::EncodeCommand(kNode, evil, frame), can::EncodeStatus::kOk);
@@ -280,8 +293,8 @@ TEST_F(CanHil, MalformedAndOutOfSequenceFramesAreIgnoredAndReported) {
   Inject(frame);
   RunFor(50'000);
   EXPECT_TRUE(SawFault(can::kEmcyPdoLength, false)) << Faults();
-  // An old sequence number with a valid CRC (a replayed frame).
-  evil.seq = static_cast<std::uint8_t>(link_->last_command_seq() - 5);
+  // An old number of the session with a valid CRC (a replayed frame).
+  evil.seq = link_->last_command_seq() - 5;
   ASSERT_EQ(can::EncodeCommand(kNode, evil, frame), can::EncodeStatus::kOk);
   Inject(frame);
   const auto sequence_reported = [&] {
@@ -305,9 +318,10 @@ TEST_F(CanHil, MalformedAndOutOfSequenceFramesAreIgnoredAndReported) {
   const std::int64_t since_wall = last_send_wall_;  // the last valid command
   next_ = std::chrono::steady_clock::now();
   std::int64_t took = -1;
+  frame.data[6] ^= 0x55;  // never of the session (the tag differs), whatever its CRC
   while (Now() - since < 2'000'000) {
     ++frame.data[0];
-    frame.data[7] = static_cast<std::uint8_t>(can::FrameCrc(frame.id, frame.data) ^ 0x01);  // always wrong
+    frame.data[7] = static_cast<std::uint8_t>(can::FrameCrc(frame.id, frame.data) ^ 0x01);
     Inject(frame);
     Cycle(false);
     if (last_.state == RobotState::kStopped && Stopped()) {
@@ -382,25 +396,36 @@ TEST_F(CanHil, KilledDriverIsDetectedByItsHeartbeatAndRestartRecovers) {
   std::printf("hil: killed driver detected after %.1f ms (heartbeat timeout %.0f ms)\n", took / 1e3,
               kHeartbeatTimeoutUs / 1e3);
   EXPECT_LE(took, kHeartbeatTimeoutUs + 100'000 + kSlackUs);
-  // A restarted driver boots into READY with zero velocity and is usable after a reset. Listen only until its first
-  // status: a READY driver accepts velocity commands, so commanding here would race the boot status (CI saw that).
+  // A restarted driver boots DISABLED in a fresh session, with zero velocity: this controller's velocity commands
+  // (it keeps sending them) do nothing; the link reports the boot-up as a stopping fault that says why; a reset of
+  // the new session enables the driver.
   last_ = RobotStatus{};
+  const std::uint32_t old_session = link_->session();
   driver_->Start();
-  ASSERT_TRUE(RunUntil(
-      kStartTimeoutUs, [&] { return link_->peer_state(Now()) == PeerState::kAlive; }, false));
-  ASSERT_TRUE(RunUntil(
-      1'000'000, [&] { return last_.utime > 0; }, false))
-      << "no status from the restarted driver";
-  EXPECT_EQ(last_.state, RobotState::kReady);
+  ASSERT_TRUE(RunUntil(kStartTimeoutUs, [&] { return link_->peer_state(Now()) == PeerState::kAlive; }));
+  ASSERT_TRUE(RunUntil(1'000'000, [&] { return last_.utime > 0; })) << "no status from the restarted driver";
+  RunFor(100'000);
+  EXPECT_EQ(last_.state, RobotState::kDisabled);
   EXPECT_TRUE(Stopped());
+  EXPECT_NE(link_->session(), old_session);
+  EXPECT_TRUE(SawLocal("restarted")) << Faults();
+  EXPECT_GE(link_->counters().boot_ups, 1U);
+  for (const RobotStatus& s : seen_.statuses) {
+    if (s.session == link_->session()) {  // the new driver never moved, though velocity commands kept coming
+      ASSERT_EQ(s.state, RobotState::kDisabled);
+      ASSERT_TRUE(s.velocity[0] == 0.0 && s.velocity[1] == 0.0);
+    }
+  }
+  std::printf("hil: restarted driver: disabled in a new session; the controller's link: \"%s\"\n",
+              "the driver restarted (boot-up heartbeat)");
   Reset();
   Move(0.1, 0.0);
 }
 
 // A real controller process (`visco run --can vcan0`, odometry-terminated straight move) drives the robot; this test
 // only listens. kill -9 of the controller: the driver's watchdog stops the robot and says so (EMCY 0x8250), timed on
-// the bus from the controller's last command frame. A new controller (a fresh link, numbering from scratch) then
-// continues the driver's command numbering and recovers with a reset.
+// the bus from the controller's last command frame; the stop starts a new session. A new controller (a fresh link)
+// commands in that session, from 1, and recovers with a reset.
 TEST_F(CanHil, KilledControllerProcessTripsTheWatchdogAndANewControllerRecovers) {
   const std::string dir = "/tmp/visco_hil_controller";
   ASSERT_EQ(std::system(("mkdir -p " + dir).c_str()), 0);
@@ -499,7 +524,7 @@ TEST_F(CanHil, KilledControllerProcessTripsTheWatchdogAndANewControllerRecovers)
   EXPECT_TRUE(last_.fault_bits & fault_bits::kWatchdog);
   EXPECT_TRUE(SawFault(can::kEmcyRpdoTimeout, true)) << Faults();
 
-  // A new controller: a fresh link numbers from scratch, follows the driver's numbering, resets and moves.
+  // A new controller: a fresh link learns the new session, numbers from 1 in it, resets and moves.
   link_.reset();
   link_ = MakeSocketCanRobotLink(LinkConfig());
   ASSERT_TRUE(RunUntil(
@@ -508,7 +533,10 @@ TEST_F(CanHil, KilledControllerProcessTripsTheWatchdogAndANewControllerRecovers)
   Move(0.1, 0.0);
 }
 
-TEST_F(CanHil, NmtStopIsAnEStopAndNmtStartResets) {
+// NMT stop is an e-stop; a forged NMT start broadcast (2 bytes, no check), NMT reset node and the controller's own
+// resets do not clear it: the robot stays stopped and the refusal is reported (EMCY 0xFF01). Only the operator's
+// release at the driver (SIGUSR1) does, leaving it DISABLED until a reset.
+TEST_F(CanHil, NmtStopIsAnEStopThatOnlyTheOperatorReleases) {
   Move(0.2, 0.2);
   can::Frame nmt;
   ASSERT_EQ(can::EncodeNmt(can::kNmtStop, kNode, nmt), can::EncodeStatus::kOk);
@@ -519,16 +547,178 @@ TEST_F(CanHil, NmtStopIsAnEStopAndNmtStartResets) {
   std::printf("hil: NMT stop (e-stop): robot stopped after %.1f ms\n", took / 1e3);
   EXPECT_LE(took, kQuickStopUs + kStatusPeriodUs + kSlackUs);
   EXPECT_TRUE(SawFault(can::kEmcyGeneric, true));
+  // The attack: a forged NMT start broadcast, while the controller keeps asking for a reset and a velocity.
   ASSERT_EQ(can::EncodeNmt(can::kNmtStart, 0, nmt), can::EncodeStatus::kOk);
   Inject(nmt);
   command_ = VelocityCommand{};
-  RunUntil(500'000, [&] { return last_.state == RobotState::kReady; });
-  EXPECT_EQ(last_.state, RobotState::kReady);
+  command_.reset = true;
+  RunFor(300'000);
+  ASSERT_EQ(can::EncodeNmt(can::kNmtResetNode, 0, nmt), can::EncodeStatus::kOk);
+  Inject(nmt);
+  command_ = VelocityCommand{};
+  command_.velocity[0] = 0.2;
+  RunFor(300'000);
+  for (const RobotStatus& s : seen_.statuses) {
+    if (s.utime > since + took) {
+      ASSERT_TRUE(s.velocity[0] == 0.0 && s.velocity[1] == 0.0) << "the robot moved";
+    }
+  }
+  EXPECT_EQ(last_.state, RobotState::kEStop);
+  EXPECT_TRUE(SawFault(can::kEmcyResetRefused, true)) << Faults();
+  std::printf("hil: forged NMT start, NMT reset node and resets during an e-stop: still ESTOP, robot still\n");
+  // The operator's release.
+  driver_->ReleaseEStop();
+  command_ = VelocityCommand{};
+  ASSERT_TRUE(RunUntil(
+      2'000'000, [&] { return last_.state == RobotState::kDisabled; }, false))
+      << Faults();
+  Reset();
   Move(0.1, 0.0);
-  // The controller's own e-stop flag.
+  // The controller's own e-stop flag: latched the same way.
   command_.estop = true;
   RunUntil(500'000, [&] { return last_.state == RobotState::kEStop && Stopped(); });
   EXPECT_EQ(last_.state, RobotState::kEStop);
+  command_ = VelocityCommand{};
+  command_.reset = true;
+  RunFor(200'000);
+  EXPECT_EQ(last_.state, RobotState::kEStop);
+  driver_->ReleaseEStop();
+  ASSERT_TRUE(RunUntil(
+      2'000'000, [&] { return last_.state == RobotState::kDisabled; }, false))
+      << Faults();
+  Reset();
+}
+
+// The attack on the real path: the controller frames of a candump segment recorded earlier in this boot
+// (a run of this controller: reset, motion, more than one wrap of the 8-bit counter) replayed with canplayer after
+// the session ended. The robot must not move; the driver reports the frames (EMCY 0x8200, fault bits).
+TEST_F(CanHil, ACanplayerReplayOfAnEarlierSessionMovesNothing) {
+  const std::string segment = "/tmp/visco_hil_segment.log";
+  std::remove(segment.c_str());
+  const std::string record = "candump -L vcan0,201:7FF >" + segment + " 2>/dev/null & echo $! >/tmp/visco_hil_dump.pid";
+  ASSERT_EQ(std::system(record.c_str()), 0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  Reset();
+  Move(0.3, 0.0);
+  RunFor(1'200'000);  // ~600 commands at 500 Hz
+  Move(0.0, 0.3);
+  RunFor(300'000);
+  ASSERT_EQ(std::system("kill -TERM $(cat /tmp/visco_hil_dump.pid); sleep 0.3"), 0);
+  const std::uint32_t recorded_session = link_->session();
+  // The controller goes silent: the watchdog stops the robot and the session ends.
+  ASSERT_GT(TimeToStop(RobotState::kStopped, false, last_send_wall_), 0);
+  ASSERT_TRUE(RunUntil(
+      1'000'000, [&] { return link_->session() != recorded_session; }, false));
+  int lines = 0;
+  if (std::FILE* f = std::fopen(segment.c_str(), "r")) {
+    char line[256];
+    while (std::fgets(line, sizeof(line), f) != nullptr) lines += line[0] == '(';
+    std::fclose(f);
+  }
+  ASSERT_GT(lines, 500) << "the candump segment is too short";
+  seen_ = Observed{};
+  const std::int64_t start = Now();
+  std::remove("/tmp/visco_hil_replayed");
+  const std::string replay = "(canplayer -I " + segment + "; touch /tmp/visco_hil_replayed) &";
+  ASSERT_EQ(std::system(replay.c_str()), 0);
+  // Listen (this controller sends nothing) while the segment plays in real time, and a little longer.
+  const auto replayed = [] { return access("/tmp/visco_hil_replayed", F_OK) == 0; };
+  ASSERT_TRUE(RunUntil(20'000'000, replayed, false)) << "canplayer did not finish";
+  RunFor(200'000, false);
+  for (const RobotStatus& s : seen_.statuses) {
+    ASSERT_EQ(s.velocity[0], 0.0) << "a replayed frame moved the robot";
+    ASSERT_EQ(s.velocity[1], 0.0) << "a replayed frame moved the robot";
+    ASSERT_NE(s.state, RobotState::kReady) << "a replayed reset enabled the driver";
+    ASSERT_NE(s.state, RobotState::kMoving);
+    ASSERT_EQ(s.command_seq, 0U) << "the driver accepted a replayed command";
+  }
+  EXPECT_GT(seen_.statuses.size(), 20U);
+  EXPECT_TRUE(SawFault(can::kEmcyProtocol, false)) << Faults();
+  bool flagged = false;
+  for (const RobotStatus& s : seen_.statuses)
+    flagged |= (s.fault_bits & (fault_bits::kSession | fault_bits::kBadFrame)) != 0;
+  EXPECT_TRUE(flagged);
+  std::printf(
+      "hil: canplayer replay of %d recorded command frames (an earlier session) over %.1f s: 0 accepted, "
+      "robot still, %zu statuses seen\n",
+      lines, (Now() - start) / 1e6, seen_.statuses.size());
+  Reset();
+  Move(0.1, 0.0);
+}
+
+// An in-window replay: a frame of this session recorded 256 - k commands ago carries the number last + k (k within
+// the window). The CRC covers the counter's upper bits: the driver rejects it (EMCY 0x8200, sequence or checksum
+// bit), the robot keeps the live controller's velocity, and the live controller's next commands are accepted.
+TEST_F(CanHil, AnInWindowReplayIsRejectedAndTheLiveControllerGoesOn) {
+  CanSocketOptions listen;
+  listen.interface = "vcan0";
+  listen.filters = {{can::kCommandBase + kNode, 0x7FF}};
+  listen.receive_buffer_bytes = 1 << 20;
+  CanSocket commands(listen);
+  Move(0.25, 0.0);
+  RunFor(1'200'000);  // > 256 commands (a VM run saw 294 in 0.7 s), recorded by `commands`
+  std::vector<can::Frame> recorded;
+  ReceivedFrame in;
+  while (commands.Read(in) == CanIo::kOk) recorded.push_back(in.frame);
+  ASSERT_GT(recorded.size(), 256U) << "every low byte of the number must be in the recording";
+  command_.velocity[0] = 0.1;  // the live controller slows down; the replayed frames ask for 0.25
+  RunUntil(1'000'000, [&] { return std::abs(last_.velocity[0] - 0.1) < 1e-3; });
+  seen_ = Observed{};
+  int injected = 0;
+  for (int round = 0; round < 20; ++round) {
+    const std::uint8_t want = static_cast<std::uint8_t>(link_->last_command_seq() + 2);  // last + 1 goes out next
+    for (const can::Frame& f : recorded) {
+      if (f.data[0] == want) {
+        Inject(f);
+        ++injected;
+        break;
+      }
+    }
+    RunFor(20'000);
+  }
+  EXPECT_GE(injected, 10);
+  RunFor(100'000);
+  for (const RobotStatus& s : seen_.statuses) ASSERT_LE(s.velocity[0], 0.1 + 1e-3) << "a replayed frame was applied";
+  EXPECT_EQ(last_.state, RobotState::kMoving);
+  EXPECT_NEAR(last_.velocity[0], 0.1, 1e-3);
+  EXPECT_TRUE(SawFault(can::kEmcyProtocol, false)) << Faults();
+  EXPECT_EQ(last_.fault_bits, 0) << "the live controller's commands clear the bits again";
+  std::printf(
+      "hil: in-window replay: %d recorded frames with number last + 2 injected: none applied, controller "
+      "unaffected\n",
+      injected);
+}
+
+// Replayed status frames (recorded earlier in this session) must not refresh the controller's view: the link drops
+// them, counts them and reports them.
+TEST_F(CanHil, ReplayedStatusFramesDoNotRefreshTheView) {
+  CanSocketOptions listen;
+  listen.interface = "vcan0";
+  listen.filters = {
+      {can::kStatusBase + kNode, 0x7FF}, {can::kPositionBase + kNode, 0x7FF}, {can::kForceBase + kNode, 0x7FF}};
+  listen.receive_buffer_bytes = 1 << 20;
+  CanSocket statuses(listen);
+  Move(0.3, 0.0);
+  RunFor(100'000);
+  std::vector<can::Frame> recorded;
+  ReceivedFrame in;
+  while (statuses.Read(in) == CanIo::kOk) recorded.push_back(in.frame);
+  ASSERT_GT(recorded.size(), 30U);
+  command_.velocity[0] = 0.05;
+  RunUntil(1'000'000, [&] { return std::abs(last_.velocity[0] - 0.05) < 1e-3; });
+  seen_ = Observed{};
+  const std::uint64_t stale_before = link_->counters().stale_statuses;
+  std::size_t first = 0;
+  while (first < recorded.size() && recorded[first].id != can::kStatusBase + kNode) ++first;
+  int injected = 0;
+  for (std::size_t i = first; i + 2 < recorded.size() && injected < 20; i += 3, ++injected) {
+    for (std::size_t j = 0; j < 3; ++j) Inject(recorded[i + j]);  // a triple at 0.3 m/s
+    RunFor(4'000);
+  }
+  EXPECT_GE(injected, 10);
+  for (const RobotStatus& s : seen_.statuses) ASSERT_LE(s.velocity[0], 0.05 + 1e-3) << "a replayed status was taken";
+  EXPECT_GT(link_->counters().stale_statuses, stale_before);
+  EXPECT_TRUE(SawLocal("out of sequence")) << Faults();
   Reset();
 }
 

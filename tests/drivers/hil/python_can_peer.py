@@ -1,7 +1,9 @@
 #!/usr/bin/python3 -S
 """An independent peer for `visco driver`, written with python-can from the README's protocol table alone (its own
-CRC and packing, no visco code): commands the driver over vcan0 and checks its answers, a malformed frame, the
-command watchdog and the reset. Runs inside the HIL VM. Exit 0 when every check passes.
+CRC and packing, no visco code): learns the driver's session from its session frame, commands it over vcan0 in that
+session and checks its answers (their CRCs with the session and the status counter), that it boots disabled, a
+malformed frame, the command watchdog and the new session it starts, the reset, and that an e-stop is not cleared by
+a reset. Runs inside the HIL VM. Exit 0 when every check passes.
 
 usage: python_can_peer.py --node N --watchdog-ms W
 """
@@ -37,30 +39,38 @@ def crc8_j1850(data):
     return crc ^ 0xFF
 
 
-def sealed(can_id, payload7):
-    return bytes(payload7) + bytes([crc8_j1850(struct.pack("<H", can_id) + bytes(payload7))])
+def session_crc(can_id, session, counter, payload7):
+    """README "CRC": the 11-bit id (2 bytes LE), the session nonce (4 bytes LE), the counter's bits 8..31 (3 bytes LE),
+    bytes 0..6."""
+    return crc8_j1850(struct.pack("<HI", can_id, session) + (counter >> 8).to_bytes(3, "little") + bytes(payload7))
 
 
 class Peer:
     def __init__(self, node):
         self.node = node
-        ids = [0x080 + node, 0x180 + node, 0x280 + node, 0x380 + node, 0x700 + node]
+        ids = [0x080 + node, 0x180 + node, 0x280 + node, 0x380 + node, 0x480 + node, 0x700 + node]
         self.bus = can.Bus(interface="socketcan", channel="vcan0",
                            can_filters=[{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in ids])
-        self.seq = 0
+        self.session = None  # the driver's nonce, from its session frame
+        self.epoch = 0       # status counter bits 8..31 from the session frame
+        self.status_counter = None  # full counter of the last status accepted
+        self.sessions_seen = 0
+        self.seq = 0         # our command counter in the session
         self.status = None  # (cmd_seq, vx, vy, state, contact)
         self.emcy = []      # (error_code, fault_code, fault_bits, stopped, cleared)
         self.heartbeats = 0
+        self.bad_status_crc = 0
 
     def command(self, vx, vy, estop=False, reset=False, corrupt=False):
-        self.seq = (self.seq + 1) & 0xFF
+        self.seq += 1
         can_id = 0x200 + self.node
         flags = (1 if estop else 0) | (2 if reset else 0)
-        payload = struct.pack("<BBhhB", self.seq, flags, round(vx / 1e-4), round(vy / 1e-4), 0)
-        data = bytearray(sealed(can_id, payload))
+        payload = struct.pack("<BBhhB", self.seq & 0xFF, flags, round(vx / 1e-4), round(vy / 1e-4),
+                              self.session & 0xFF)
+        data = bytearray(payload + bytes([session_crc(can_id, self.session, self.seq, payload)]))
         if corrupt:
             data[7] ^= 0xA5
-            self.seq = (self.seq - 1) & 0xFF  # the driver never accepted it
+            self.seq -= 1  # the driver never accepted it
         self.bus.send(can.Message(arbitration_id=can_id, data=bytes(data), is_extended_id=False))
 
     def drain(self, seconds):
@@ -79,12 +89,32 @@ class Peer:
         d = bytes(msg.data)
         if fc == 0x700:
             self.heartbeats += 1
-        elif fc == 0x180:
+        elif fc == 0x480:
             if len(d) != 8 or crc8_j1850(struct.pack("<H", msg.arbitration_id) + d[:7]) != d[7]:
-                check(False, "status frame CRC")
+                check(False, "session frame CRC")
                 return
-            _, cmd_seq, vx, vy, state_byte = struct.unpack("<BBhhB", d[:7])
-            self.status = (cmd_seq, vx * 1e-4, vy * 1e-4, state_byte & 0x0F, bool(state_byte & 0x10))
+            nonce = struct.unpack("<I", d[:4])[0]
+            if nonce != self.session:
+                self.session = nonce
+                self.epoch = int.from_bytes(d[4:7], "little")
+                self.status_counter = None
+                self.seq = 0  # a new session: numbering from 1
+                self.sessions_seen += 1
+        elif fc == 0x180:
+            if self.session is None:
+                return
+            low = d[0]
+            if self.status_counter is None:
+                candidates = [(self.epoch << 8) | low, ((self.epoch + 1) << 8) | low]
+            else:
+                candidates = [self.status_counter + ((low - self.status_counter) & 0xFF)]
+            for counter in candidates:
+                if len(d) == 8 and session_crc(msg.arbitration_id, self.session, counter, d[:7]) == d[7]:
+                    self.status_counter = counter
+                    _, cmd_seq, vx, vy, state_byte = struct.unpack("<BBhhB", d[:7])
+                    self.status = (cmd_seq, vx * 1e-4, vy * 1e-4, state_byte & 0x0F, bool(state_byte & 0x10))
+                    return
+            self.bad_status_crc += 1
         elif fc == 0x080:
             code, _reg, fault_code, bits, flags, _counter = struct.unpack("<HBBHBB", d)
             self.emcy.append((code, fault_code, bits, bool(flags & 1), bool(flags & 2)))
@@ -109,14 +139,19 @@ def main():
     watchdog = args.watchdog_ms / 1000.0
 
     check(peer.wait(lambda: peer.heartbeats > 0, 120.0), "driver heartbeat 0x%03X seen" % (0x700 + args.node))
+    check(peer.wait(lambda: peer.session is not None and peer.status is not None, 3.0),
+          "session frame 0x%03X seen, a status with a valid CRC for it" % (0x480 + args.node))
+    check(peer.status is not None and peer.status[3] == 0, "the driver boots DISABLED")
+    peer.command(0.1, 0.0)
+    peer.drain(0.1)
+    check(peer.status[3] == 0 and peer.status[1] == 0.0, "a velocity command does not move a disabled driver")
     peer.command(0, 0, reset=True)
-    check(peer.wait(lambda: peer.status is not None and peer.status[0] == peer.seq and peer.status[3] == 1, 3.0),
-          "reset answered: READY with the reset's sequence number")
-
+    check(peer.wait(lambda: peer.status is not None and peer.status[0] == peer.seq & 0xFF and peer.status[3] == 1,
+                    3.0), "reset answered: READY with the reset's sequence number")
     answered = 0
     for _ in range(40):
         peer.command(0.1, 0.05)
-        if peer.wait(lambda: peer.status is not None and peer.status[0] == peer.seq, 1.0):
+        if peer.wait(lambda: peer.status is not None and peer.status[0] == peer.seq & 0xFF, 1.0):
             answered += 1
     check(answered == 40, "every command answered with its sequence number (%d/40)" % answered)
     check(peer.status is not None and peer.status[3] == 2, "driver state MOVING")
@@ -139,13 +174,22 @@ def main():
     check(watchdog * 0.9 <= took, "not before the watchdog period (%.0f ms >= %.0f ms)" % (took * 1e3, watchdog * 900))
     check(any(e[0] == 0x8250 and e[3] for e in peer.emcy), "watchdog reported with EMCY 0x8250, robot stopped")
 
+    check(peer.wait(lambda: peer.sessions_seen >= 2 and peer.seq == 0, 1.0),
+          "the watchdog stop started a new session (session frame)")
+
     peer.emcy.clear()
     peer.command(0, 0, reset=True)
-    check(peer.wait(lambda: peer.status[3] == 1, 3.0), "reset after the watchdog: READY again")
+    check(peer.wait(lambda: peer.status[3] == 1, 3.0), "reset in the new session: READY again")
     check(any(e[0] == 0 and e[4] for e in peer.emcy), "EMCY 0x0000 announces the cleared faults")
     check(peer.wait(lambda: peer.status[3] == 2, 3.0, (0.0, -0.1)), "moving again after the reset")
     peer.command(0, 0, estop=True)
     check(peer.wait(lambda: peer.status[3] == 4, 3.0), "e-stop flag: ESTOP")
+    peer.drain(0.1)  # the e-stop started a new session
+    peer.emcy.clear()
+    check(not peer.wait(lambda: peer.status[3] != 4, 0.5, (0.0, 0.0, False, True)),
+          "resets do not clear the e-stop")
+    check(any(e[0] == 0xFF01 for e in peer.emcy), "the refused reset is reported with EMCY 0xFF01")
+    check(peer.bad_status_crc == 0, "every status CRC of the driver matched its session (%d bad)" % peer.bad_status_crc)
     peer.bus.shutdown()
     print("python-can peer: %d failure(s)" % len(FAILURES), flush=True)
     return 1 if FAILURES else 0

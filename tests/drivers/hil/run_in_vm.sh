@@ -3,8 +3,10 @@
 #  1. candump records the whole bus;
 #  2. the controller's SocketCAN link against the `visco driver` process, with injected faults (gtest);
 #  3. python-can as an independent peer of a second driver (node 3);
-#  4. the candump log decoded with the DBC semantics;
-#  5. (with --bench) command throughput against cangen and the command-to-feedback round trip.
+#  4. the candump log decoded with the DBC semantics and a model of the driver's acceptance rule;
+#  5. the controller frames of that log (this boot's earlier sessions) replayed with canplayer into a fresh driver:
+#     nothing may be applied;
+#  6. (with --bench) command throughput against cangen and the command-to-feedback round trip.
 # usage: run_in_vm.sh BUILD_DIR [--bench]   (working directory: the repository top)
 set -u
 build="$1"
@@ -39,8 +41,49 @@ kill -TERM $dump 2>/dev/null
 wait $dump 2>/dev/null
 cp /tmp/candump.log "$out/candump.log"
 step "candump log decoded with drivers/visco.dbc"
-$py -S tests/drivers/hil/decode_candump.py drivers/visco.dbc "$out/candump.log" --watchdog-ms 1=300 3=500 \
-  --expect-faults || status=1
+$py -S tests/drivers/hil/decode_candump.py --self-test drivers/visco.dbc || status=1
+$py -S tests/drivers/hil/decode_candump.py drivers/visco.dbc "$out/candump.log" --watchdog-ms 1=300 3=500 9=1000 \
+  --slack-ms 250 --expect-faults || status=1
+
+step "canplayer: this boot's recorded controller frames (commands and NMT of node 1) replayed into a fresh driver"
+grep -E '^\([0-9.]+\) vcan0 (201|000)#' "$out/candump.log" | head -n 6000 >/tmp/replay.log
+frames=$(wc -l </tmp/replay.log)
+# (The driver logs and prints its JSON summary, the last line, on stdout.)
+taskset -c 1 "$VISCO_BIN" driver --can vcan0 --node 1 --watchdog-ms 300 >/tmp/replay_driver.out 2>&1 &
+rdriver=$!
+for _ in $(seq 1 120); do grep -q "session 0x" /tmp/replay_driver.out 2>/dev/null && break; sleep 0.5; done
+candump -L "vcan0,181:7FF" >/tmp/replay_status.log 2>&1 &
+rdump=$!
+sleep 0.3
+# In the recorded timing (gaps longer than 1 s skipped): a burst would only overflow the driver's receive queue.
+taskset -c 0 canplayer -s 1 -I /tmp/replay.log
+sleep 0.5
+kill -TERM $rdump 2>/dev/null
+wait $rdump 2>/dev/null
+kill -TERM $rdriver 2>/dev/null
+wait $rdriver 2>/dev/null
+cp /tmp/replay_driver.out "$out/replay_driver.out"
+$py -S - "$frames" /tmp/replay_driver.out /tmp/replay_status.log <<'PYEOF' || status=1
+import json, re, sys
+frames, statuses = int(sys.argv[1]), sys.argv[3]
+summary = json.loads([l for l in open(sys.argv[2], errors="replace") if l.startswith("{")][-1])
+moving = 0
+count = 0
+for line in open(statuses, errors="replace"):
+    m = re.match(r"^\(\S+\) \S+ 181#([0-9A-Fa-f]{16})", line)
+    if m:
+        d = bytes.fromhex(m.group(1))
+        count += 1
+        moving += d[2:6] != bytes(4) or (d[6] & 0x0F) in (1, 2)
+print("replay: %d recorded frames into a fresh driver: applied %d, resets %d, wrong session %d, bad %d, "
+      "out of sequence %d, e-stops %d; %d statuses, %d of them moving or enabled; final state %s" %
+      (frames, summary["commands_applied"], summary["resets"], summary["wrong_session"], summary["bad_commands"],
+       summary["out_of_sequence"], summary["estops"], count, moving, summary["state"]))
+ok = frames > 500 and summary["commands_applied"] == 0 and summary["resets"] == 0 and moving == 0 and count > 0 \
+    and summary["wrong_session"] + summary["bad_commands"] > frames // 2
+print("replay: " + ("ok" if ok else "FAIL"))
+sys.exit(0 if ok else 1)
+PYEOF
 if [ "$bench" = "--bench" ]; then
   step "benchmarks on vcan0: command throughput vs cangen, round trip vs vcan loopback"
   "$build/bin/drivers_can_benchmark" --benchmark_min_time=0.2 --benchmark_counters_tabular=true || status=1
