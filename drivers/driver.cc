@@ -46,7 +46,8 @@ void Driver::NewSession(std::int64_t now_us) {
   last_valid_us_ = -1;  // the watchdog waits for the session's first command
   session_expired_ = false;
   ++stats_.sessions;
-  if (transport_.SendSession(session_, status_seq_) != LinkResult::kOk) ++stats_.send_failures;
+  session_announced_ = transport_.SendSession(session_, status_seq_) == LinkResult::kOk;
+  if (!session_announced_) ++stats_.send_failures;
   spdlog::info("driver: session 0x{:08X} ({})", session_, ToString(state_));
   SendStatus(now_us);
 }
@@ -164,7 +165,8 @@ void Driver::Update(std::int64_t now_us) {
   if (now_us >= next_status_us_) SendStatus(now_us);
   if (now_us >= next_heartbeat_us_) {
     transport_.SendHeartbeat(NmtState::kOperational);
-    transport_.SendSession(session_, status_seq_);  // for controllers and tools that join later
+    // For controllers and tools that join later.
+    session_announced_ = transport_.SendSession(session_, status_seq_) == LinkResult::kOk || session_announced_;
     next_heartbeat_us_ = now_us + config_.heartbeat_period_us;
   }
 }
@@ -360,6 +362,15 @@ void Driver::Announce(std::uint16_t emcy, std::int32_t code, bool stopped, bool 
 }
 
 void Driver::SendStatus(std::int64_t now_us) {
+  if (!session_announced_) {
+    // The announcement was lost (the bus or the interface failed): it goes first, or the status waits.
+    session_announced_ = transport_.SendSession(session_, status_seq_) == LinkResult::kOk;
+    if (!session_announced_) {
+      ++stats_.send_failures;
+      next_status_us_ = now_us + config_.status_period_us;
+      return;
+    }
+  }
   const RobotFeedback feedback = robot_.Read();
   RobotStatus status;
   status.utime = WallMicros();

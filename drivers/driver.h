@@ -114,6 +114,9 @@ class Driver {
   std::uint32_t session_ = 0;
   std::uint32_t last_seq_ = 0;    // last accepted command number in the session (0: none)
   bool session_expired_ = false;  // a new session starts at the end of this Update()
+  // The current session's announcement went out. A status is sent only after it (a status of a session nobody was told
+  // of cannot be verified): when the bus or the interface failed the announcement, it is retried before the next one.
+  bool session_announced_ = false;
   bool refusal_announced_ = false;
   std::atomic<bool> operator_release_{false};
   std::int64_t last_valid_us_ = -1;  // -1: watchdog not armed

@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <deque>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -33,18 +34,24 @@ class FakeTransport final : public DriverTransport {
     return true;
   }
   LinkResult SendStatus(const RobotStatus& status) override {
+    if (down) return LinkResult::kBusOff;
     statuses.push_back(status);
+    unannounced_statuses += announced.count(status.session) == 0;
     return LinkResult::kOk;
   }
   LinkResult SendHeartbeat(NmtState state) override {
+    if (down) return LinkResult::kBusOff;
     heartbeats.push_back(state);
     return LinkResult::kOk;
   }
   LinkResult SendFault(const DriverFault& fault) override {
+    if (down) return LinkResult::kBusOff;
     faults.push_back(fault);
     return LinkResult::kOk;
   }
   LinkResult SendSession(std::uint32_t nonce, std::uint32_t) override {
+    if (down) return LinkResult::kBusOff;
+    announced.insert(nonce);
     if (sessions.empty() || sessions.back() != nonce) {  // (also repeated with every heartbeat)
       sessions.push_back(nonce);
       session = nonce;
@@ -123,6 +130,9 @@ class FakeTransport final : public DriverTransport {
   std::uint32_t next = 1;
   std::deque<DriverEvent> events;
   std::vector<RobotStatus> statuses;
+  bool down = false;                  // every send fails as on a bus that is off or an interface that is down
+  std::set<std::uint32_t> announced;  // sessions whose announcement went out
+  int unannounced_statuses = 0;       // statuses of a session not announced before them
   std::vector<NmtState> heartbeats;
   std::vector<DriverFault> faults;
   std::vector<std::uint32_t> sessions;
@@ -191,6 +201,27 @@ TEST(Driver, BootsDisabledInAFreshSessionAndAResetOfThatSessionEnables) {
   EXPECT_EQ(rig.driver.state(), RobotState::kMoving);
   rig.Run(200);  // 0.2 m/s at 2 m/s^2: reached after 100 ms; the watchdog stops it at 100 ms without commands
   EXPECT_EQ(rig.driver.state(), RobotState::kStopped);
+}
+
+// Found in the HIL VM: a stop while the interface was down started a new session whose announcement was lost, and
+// the statuses that followed could not be verified by anyone until the next heartbeat. The announcement is retried
+// before the next status instead.
+TEST(Driver, AStatusNeverPrecedesItsSessionsAnnouncementEvenWhenTheBusFailedIt) {
+  Rig rig;
+  rig.Enable();
+  rig.transport.Command(0.1, 0.0);
+  rig.Run(1);
+  rig.transport.down = true;  // the interface goes down: the watchdog stops the robot in a new session, unheard
+  const std::uint32_t before = rig.driver.session();
+  rig.Run(150);
+  EXPECT_NE(rig.driver.session(), before);
+  EXPECT_EQ(rig.transport.announced.count(rig.driver.session()), 0U);
+  rig.transport.down = false;
+  rig.Run(5);  // well before the next heartbeat (100 ms)
+  EXPECT_EQ(rig.transport.announced.count(rig.driver.session()), 1U);
+  ASSERT_FALSE(rig.transport.statuses.empty());
+  EXPECT_EQ(rig.transport.statuses.back().session, rig.driver.session());
+  EXPECT_EQ(rig.transport.unannounced_statuses, 0);
 }
 
 TEST(Driver, SessionNoncesAreFreshSeededAndNeverZero) {
