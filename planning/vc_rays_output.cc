@@ -42,7 +42,10 @@ std::string VcRaysToJson(const Scene& scene, const VcRays& rays) {
                              {"vc_ray", rays.vc_rays[c.vc_ray].id},
                              {"cm_vertex", c.cm_vertex},
                              {"offset", PointJson(c.offset)},
-                             {"segments", segments}});
+                             {"segments", segments},
+                             // Per segment, its two ends: true where the end is open (the bounds or the camera, not
+                             // a C-obstacle): complying to it fails.
+                             {"open_ends", c.open_ends}});
   }
   j["cvc_crossings"] = nlohmann::json::array();
   for (const CvcCrossing& x : rays.crossings) {
