@@ -1001,6 +1001,23 @@ std::vector<ExactRing> Sweep::Assemble() const {
   return rings;
 }
 
+// Where p lies relative to a counter-clockwise ring, exactly, by its winding number. The sweep's rings may touch
+// themselves at a vertex (weakly simple, where CGAL's Polygon_2::bounded_side requires a simple polygon).
+CGAL::Bounded_side RingSide(const std::vector<P2>& ring, const P2& p) {
+  int winding = 0;
+  for (size_t i = 0; i < ring.size(); ++i) {
+    const P2& a = ring[i];
+    const P2& b = ring[(i + 1) % ring.size()];
+    const CGAL::Orientation o = CGAL::orientation(a, b, p);
+    if (o == CGAL::COLLINEAR && CGAL::collinear_are_ordered_along_line(a, p, b)) return CGAL::ON_BOUNDARY;
+    const bool a_below = CGAL::compare_y(a, p) != CGAL::LARGER;
+    const bool b_below = CGAL::compare_y(b, p) != CGAL::LARGER;
+    if (a_below && !b_below && o == CGAL::LEFT_TURN) ++winding;   // upward, p on its left
+    if (!a_below && b_below && o == CGAL::RIGHT_TURN) --winding;  // downward, p on its right
+  }
+  return winding != 0 ? CGAL::ON_BOUNDED_SIDE : CGAL::ON_UNBOUNDED_SIDE;
+}
+
 Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
   Region region;
   FT total = 0;
@@ -1022,11 +1039,7 @@ Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
   auto lowest = [](const ExactRing* r) { return *std::min_element(r->vertices.begin(), r->vertices.end(), LessYX()); };
   std::sort(outers.begin(), outers.end(),
             [&](const ExactRing* a, const ExactRing* b) { return LessYX()(lowest(a), lowest(b)); });
-  std::vector<ExactPolygon> outer_exact;
-  for (const ExactRing* o : outers) {
-    region.polygons.push_back({convert(*o), {}});
-    outer_exact.emplace_back(o->vertices.begin(), o->vertices.end());
-  }
+  for (const ExactRing* o : outers) region.polygons.push_back({convert(*o), {}});
   for (const ExactRing* h : holes) {
     // The smallest outer ring that contains the hole. Rings do not cross, so any point of the hole's boundary that
     // is not on an outer ring decides, exactly: the midpoints of its edges are tried in turn.
@@ -1034,8 +1047,8 @@ Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
     for (size_t e = 0; e < h->vertices.size() && best < 0; ++e) {
       const P2 mid = CGAL::midpoint(h->vertices[e], h->vertices[(e + 1) % h->vertices.size()]);
       bool on_some_boundary = false;
-      for (size_t i = 0; i < outer_exact.size(); ++i) {
-        const auto side = outer_exact[i].bounded_side(mid);
+      for (size_t i = 0; i < outers.size(); ++i) {
+        const auto side = RingSide(outers[i]->vertices, mid);
         if (side == CGAL::ON_BOUNDARY) on_some_boundary = true;
         if (side != CGAL::ON_BOUNDED_SIDE) continue;
         if (best < 0 || CGAL::abs(outers[i]->area2) < CGAL::abs(outers[best]->area2)) best = static_cast<int>(i);
