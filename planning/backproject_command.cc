@@ -79,10 +79,16 @@ void DrawPanel(SvgCanvas& c, const Scene& scene, const CSpace& cspace, const Bac
   for (const auto& g : pr.goal) c.Polygon(Polygon{g.vertices}, "fill=\"black\" stroke=\"black\"");
   for (const auto& ray : pr.rays) {
     const bool is_active = std::find(active.begin(), active.end(), ray.id) != active.end();
-    for (const auto& s : ray.segments) {
+    for (size_t k = 0; k < ray.segments.size(); ++k) {
+      const auto& s = ray.segments[k];
       c.Line(s[0], s[1],
              is_active ? "stroke=\"#c00\" stroke-width=\"1.5\" stroke-dasharray=\"6,3\""
                        : "stroke=\"#e9a\" stroke-width=\"0.7\"");
+      // An open end of an active ray (the bounds or the camera: complying to it fails) as a hollow circle.
+      for (int e = 0; e < 2 && is_active && k < ray.open_ends.size(); ++e) {
+        if (ray.open_ends[k][e])
+          c.Circle(s[e], 5, "class=\"open-end\" fill=\"white\" stroke=\"#c00\" stroke-width=\"2\"");
+      }
     }
   }
   auto ring_edges = [&](const RegionRing& r) {

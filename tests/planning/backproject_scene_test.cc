@@ -174,6 +174,9 @@ TEST(BackprojectScene, RaysClippedByTheBoundsAreNoEnd) {
     with.region = BackprojectionWithActiveRays(pr, forced);
     with.active_rays = forced;
     ExpectSound(pl, pr, with, 40);
+    // The picture marks the open ends of the active rays.
+    const std::string svg = BackprojectionToSvg(pl.scene, pl.cspace, pr, classic, with);
+    EXPECT_NE(svg.find("class=\"open-end\""), std::string::npos);
   }
   // The constant extreme directions, on a finer grid.
   const MotionModel model(ToMotionWorld(pl.cspace, pr, vc.active_rays));
