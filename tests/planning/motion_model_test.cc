@@ -184,6 +184,27 @@ TEST(MotionModel, ActiveRayGuidesIntoTheGoal) {
   EXPECT_EQ(RunFixed(with, {9.5, 9}, kDown, 5 * kDeg, 0.0), Outcome::kStopped);
 }
 
+TEST(MotionModel, ComplyingToAnOpenRayEndFails) {
+  // SEMANTICS.md: only a C-obstacle ends a compliant motion. A ray from (1, 8.5) down-right to (6, 3.5), which ends in
+  // free space above the floor: where that end is on a C-obstacle (closed) the motion leaves the ray there and falls
+  // freely; where it is open (the bounds clip the ray there, or it is the camera end) the servo carries the robot on
+  // past it, and the motion fails with kOpenRayEnd.
+  const Poly floor = Rect(0, 0, 10, 2);
+  MotionWorld w = World({floor}, {Rect(5, 2, 8, 2.5)}, 20);
+  w.active_rays.push_back({Vector2d(1, 8.5), Vector2d(6, 3.5)});
+  const MotionModel closed(w);
+  EXPECT_EQ(RunFixed(closed, {3, 9}, kDown, 5 * kDeg, 0.0), Outcome::kReachedGoal);
+  w.active_ray_open_ends = {{false, true}};
+  const MotionModel open(w);
+  for (double off : {-5.0, 0.0, 5.0}) {
+    EXPECT_EQ(RunFixed(open, {3, 9}, kDown, 5 * kDeg, off * kDeg), Outcome::kOpenRayEnd) << off;
+  }
+  EXPECT_STREQ(OutcomeName(Outcome::kOpenRayEnd), "open ray end");
+  // The other end open changes nothing: compliance runs down the ray, away from it.
+  w.active_ray_open_ends = {{true, false}};
+  EXPECT_EQ(RunFixed(MotionModel(w), {3, 9}, kDown, 5 * kDeg, 0.0), Outcome::kReachedGoal);
+}
+
 TEST(MotionModel, RayIsClimbedFromAnEdgeOnlyWhenItsProjectionPointsAway) {
   // A 30° slope sliding right (φ = 10°) with a ray standing on it at (5, y(5)) going up-right at 45°.
   const auto y = [](double x) { return 6 - x * std::tan(30 * kDeg); };
