@@ -1,6 +1,6 @@
 // `visco-rt`: the real-time programs alone -- `driver` (the robot driver) and `run` (the strategy executor) -- the
 // very subcommands of `visco`, in an executable that links only drivers, control, lcmtypes and common: no planner,
-// no vision, no OpenCV, ViSP or CGAL (shared/STYLE.md: the real-time executable does not link the planner). It is a
+// no vision, no OpenCV, ViSP or CGAL (docs/development.md: the real-time executable does not link the planner). It is a
 // fraction of `visco`'s size and starts at once where `visco` takes seconds (the HIL VM's emulated CPU: 10-30 s).
 
 #include <CLI/CLI.hpp>
