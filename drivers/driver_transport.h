@@ -38,6 +38,31 @@ struct DriverEvent {
   std::uint32_t count = 0;                            // kFramesDropped
 };
 
+/// The driver's event for a command frame of `node` as it arrives on CAN: kCommand with the frame (the driver checks
+/// its CRC with the session), or kBadCommand with the decode status when it does not decode (length, reserved bits).
+/// Real-time safe.
+inline DriverEvent CommandFrameEvent(int node, const can::Frame& frame, std::int64_t receive_us) {
+  DriverEvent e;
+  e.receive_us = receive_us;
+  can::CommandFrame wire;
+  e.decode = can::DecodeCommand(node, frame, wire);
+  if (e.decode != can::DecodeStatus::kOk) {
+    e.kind = DriverEventKind::kBadCommand;
+    return e;
+  }
+  e.kind = DriverEventKind::kCommand;
+  e.seq = wire.seq;
+  e.session = wire.session;
+  e.has_frame = true;
+  e.frame = frame;
+  e.command.velocity[0] = wire.velocity[0];
+  e.command.velocity[1] = wire.velocity[1];
+  e.command.estop = wire.estop;
+  e.command.reset = wire.reset;
+  e.command.quick_stop = wire.quick_stop;
+  return e;
+}
+
 /// A fault the driver announces (CAN: EMCY; LCM: fault_t).
 struct DriverFault {
   std::uint16_t emcy_code = 0;   // can::kEmcy*

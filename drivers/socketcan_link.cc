@@ -591,26 +591,12 @@ class SocketCanDriverTransport final : public DriverTransport {
       case can::FrameKind::kCommand: {
         DriverEvent traffic;
         if (BusEvent(bus_.OnTraffic(), now_us, traffic)) pending_.Push(traffic);
-        can::CommandFrame wire;
-        out = DriverEvent{};
-        out.receive_us = now_us;
-        out.decode = can::DecodeCommand(node_, frame, wire);
-        if (out.decode != can::DecodeStatus::kOk) {
+        out = CommandFrameEvent(node_, frame, now_us);
+        if (out.kind == DriverEventKind::kBadCommand) {
           ++counters_.bad_frames;
-          out.kind = DriverEventKind::kBadCommand;
-          return true;
+        } else {
+          ++counters_.commands_sent;  // here: commands received
         }
-        out.kind = DriverEventKind::kCommand;
-        out.seq = wire.seq;
-        out.session = wire.session;
-        out.has_frame = true;
-        out.frame = frame;
-        out.command.velocity[0] = wire.velocity[0];
-        out.command.velocity[1] = wire.velocity[1];
-        out.command.estop = wire.estop;
-        out.command.reset = wire.reset;
-        out.command.quick_stop = wire.quick_stop;
-        ++counters_.commands_sent;  // here: commands received
         return true;
       }
       case can::FrameKind::kNmt: {

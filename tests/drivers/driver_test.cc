@@ -93,26 +93,7 @@ class FakeTransport final : public DriverTransport {
     return frame;
   }
   // A CAN frame as SocketCanDriverTransport hands it over.
-  void Frame(const can::Frame& frame) {
-    can::CommandFrame wire;
-    DriverEvent e;
-    e.decode = can::DecodeCommand(1, frame, wire);
-    if (e.decode != can::DecodeStatus::kOk) {
-      e.kind = DriverEventKind::kBadCommand;
-    } else {
-      e.kind = DriverEventKind::kCommand;
-      e.seq = wire.seq;
-      e.session = wire.session;
-      e.has_frame = true;
-      e.frame = frame;
-      e.command.velocity[0] = wire.velocity[0];
-      e.command.velocity[1] = wire.velocity[1];
-      e.command.estop = wire.estop;
-      e.command.reset = wire.reset;
-      e.command.quick_stop = wire.quick_stop;
-    }
-    events.push_back(e);
-  }
+  void Frame(const can::Frame& frame) { events.push_back(CommandFrameEvent(1, frame, 0)); }
   void Event(DriverEventKind kind, can::DecodeStatus decode = can::DecodeStatus::kOk) {
     DriverEvent e;
     e.kind = kind;

@@ -61,22 +61,7 @@ class Transport final : public DriverTransport {
   std::uint32_t sequence_modulus() const override { return 256; }
   LinkCounters counters() const override { return {}; }
 
-  void Frame(const can::Frame& frame) {
-    can::CommandFrame wire;
-    DriverEvent e;
-    e.decode = can::DecodeCommand(1, frame, wire);
-    e.kind = e.decode == can::DecodeStatus::kOk ? DriverEventKind::kCommand : DriverEventKind::kBadCommand;
-    e.seq = wire.seq;
-    e.session = wire.session;
-    e.has_frame = true;
-    e.frame = frame;
-    e.command.velocity[0] = wire.velocity[0];
-    e.command.velocity[1] = wire.velocity[1];
-    e.command.estop = wire.estop;
-    e.command.reset = wire.reset;
-    e.command.quick_stop = wire.quick_stop;
-    events.push_back(e);
-  }
+  void Frame(const can::Frame& frame) { events.push_back(CommandFrameEvent(1, frame, 0)); }
 
   std::deque<DriverEvent> events;
   RobotStatus last_status;
