@@ -1193,6 +1193,18 @@ bool ContainsSet(const PolygonSet& set, const std::vector<ExactRing>& rings) {
   return diff.is_empty();
 }
 
+// Sweeps `set`; adopts its region as the current one if it is strictly larger and contains the current one (B_θ ⊆
+// B_vcθ, and every earlier claim stays valid). True if adopted.
+bool AdoptIfLarger(const BackprojectionProblem& problem, const std::vector<int>& set, SweepResult& current,
+                   PolygonSet& current_set, int& sweeps) {
+  SweepResult trial = RunSweep(problem, set);
+  ++sweeps;
+  if (!LargerArea(trial, current) || !ContainsSet(current_set, trial.rings)) return false;
+  current = std::move(trial);
+  current_set = ToPolygonSet(current.rings);
+  return true;
+}
+
 // Greedy choice: single candidates in order, then pairs of rejected ones; a set is kept only if its region contains
 // the current region and is strictly larger.
 std::vector<int> GreedySelection(const BackprojectionProblem& problem, const std::vector<int>& candidates,
@@ -1202,14 +1214,8 @@ std::vector<int> GreedySelection(const BackprojectionProblem& problem, const std
   auto try_add = [&](const std::vector<int>& add) {
     std::vector<int> trial_set = active;
     trial_set.insert(trial_set.end(), add.begin(), add.end());
-    SweepResult trial = RunSweep(problem, trial_set);
-    ++sweeps;
-    if (!LargerArea(trial, current)) return false;
-    // The new region must contain the old one (B_θ ⊆ B_vcθ, and every earlier claim stays valid).
-    if (!ContainsSet(current_set, trial.rings)) return false;
-    active = trial_set;
-    current = std::move(trial);
-    current_set = ToPolygonSet(current.rings);
+    if (!AdoptIfLarger(problem, trial_set, current, current_set, sweeps)) return false;
+    active = std::move(trial_set);
     return true;
   };
   std::vector<int> rejected;
@@ -1261,12 +1267,7 @@ std::vector<int> TrackSelection(const BackprojectionProblem& problem, const std:
     if (std::find(active.begin(), active.end(), c) != active.end()) continue;
     std::vector<int> with = active;
     with.push_back(c);
-    SweepResult t = RunSweep(problem, with);
-    ++sweeps;
-    if (!LargerArea(t, current) || !ContainsSet(current_set, t.rings)) continue;
-    active = std::move(with);
-    current = std::move(t);
-    current_set = ToPolygonSet(current.rings);
+    if (AdoptIfLarger(problem, with, current, current_set, sweeps)) active = std::move(with);
   }
   // Fewest rays: every ray the region does not need is dropped (each one is a servo the robot must run and a line the
   // camera must see); a ray goes if the region without it still contains the current one.
