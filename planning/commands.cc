@@ -9,6 +9,7 @@
 #include "common/error.h"
 #include "common/write_output.h"
 #include "planning/backproject_command.h"
+#include "planning/critical_command.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
 #include "planning/vc_rays.h"
@@ -50,6 +51,7 @@ void RegisterCommands(CLI::App& app) {
                      "draw obstacles, C-obstacles, camera, VC rays and labelled CVC rays into FILE (SVG)");
   vcrays->callback([args] { RunVcRays(*args); });
   RegisterBackprojectCommand(app);
+  RegisterCriticalCommand(app);
 }
 
 }  // namespace visco::planning

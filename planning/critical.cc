@@ -1,0 +1,433 @@
+#include "planning/critical.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <tuple>
+
+namespace visco::planning {
+namespace {
+
+using Eigen::Vector2d;
+
+enum class SegKind : std::uint8_t { kObstacle, kGoal, kBounds, kRay, kStart };
+
+struct Seg {
+  Vector2d a, b;
+  std::string ref;
+  SegKind kind;
+};
+
+struct Pt {
+  Vector2d p;
+  std::string ref;
+  bool start = false;  // a vertex of R or a crossing with one of R's edges
+};
+
+double Cross(const Vector2d& u, const Vector2d& v) { return u.x() * v.y() - u.y() * v.x(); }
+
+// A ring's refs, filled in where the polygon has none.
+std::string VertexRef(const NamedPolygon& poly, size_t k, const std::string& prefix) {
+  if (k < poly.vertex_refs.size() && !poly.vertex_refs[k].empty()) return poly.vertex_refs[k];
+  return prefix + ".v[" + std::to_string(k) + "]";
+}
+std::string EdgeRef(const NamedPolygon& poly, size_t k, const std::string& prefix) {
+  if (k < poly.edge_refs.size() && !poly.edge_refs[k].empty()) return poly.edge_refs[k];
+  return prefix + ".e[" + std::to_string(k) + "]";
+}
+
+// The obstacle region CB as rings with their holes (inside CB: inside a solid ring and none of its holes).
+struct ObstacleRegion {
+  struct Piece {
+    std::vector<Vector2d> outer;
+    std::vector<std::vector<Vector2d>> holes;
+    Eigen::AlignedBox2d box;
+  };
+  std::vector<Piece> pieces;
+  std::vector<Seg> edges;
+  double tolerance = 1e-12;
+
+  static bool InsideRing(const std::vector<Vector2d>& ring, const Vector2d& p) {
+    bool in = false;
+    for (size_t i = 0, j = ring.size() - 1; i < ring.size(); j = i++) {
+      const Vector2d &a = ring[i], &b = ring[j];
+      if ((a.y() > p.y()) != (b.y() > p.y()) &&
+          p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
+        in = !in;
+      }
+    }
+    return in;
+  }
+
+  // Strictly inside CB, by more than the tolerance (points on the boundary are not).
+  bool StrictlyInside(const Vector2d& p) const {
+    for (const auto& e : edges) {
+      const Vector2d d = e.b - e.a;
+      const double t = std::clamp((p - e.a).dot(d) / d.squaredNorm(), 0.0, 1.0);
+      if ((e.a + t * d - p).norm() <= tolerance) return false;
+    }
+    for (const auto& piece : pieces) {
+      if (!piece.box.contains(p)) continue;
+      if (!InsideRing(piece.outer, p)) continue;
+      bool in_hole = false;
+      for (const auto& h : piece.holes) in_hole = in_hole || InsideRing(h, p);
+      if (!in_hole) return true;
+    }
+    return false;
+  }
+
+  // Whether the open segment (p, q) avoids CB's interior: it is split where it meets CB's edges and the middle of
+  // every piece is tested (a segment along an edge sees along it). Conservative: doubtful cases see.
+  bool Sees(const Vector2d& p, const Vector2d& q) const {
+    std::vector<double> cuts = {0.0, 1.0};
+    const Vector2d d = q - p;
+    for (const auto& e : edges) {
+      const Vector2d f = e.b - e.a;
+      const double den = Cross(d, f);
+      if (std::abs(den) < 1e-300) continue;
+      const double t = Cross(e.a - p, f) / den;
+      const double u = Cross(e.a - p, d) / den;
+      if (t > 0 && t < 1 && u >= -1e-12 && u <= 1 + 1e-12) cuts.push_back(t);
+    }
+    std::sort(cuts.begin(), cuts.end());
+    for (size_t i = 0; i + 1 < cuts.size(); ++i) {
+      if (cuts[i + 1] - cuts[i] < 1e-12) continue;
+      if (StrictlyInside(p + 0.5 * (cuts[i] + cuts[i + 1]) * d)) return false;
+    }
+    return true;
+  }
+};
+
+// The crossing of two segments, if they meet in one point (collinear overlaps add nothing new: their ends are
+// points already).
+bool Crossing(const Seg& s, const Seg& t, Vector2d* out) {
+  const Vector2d d = s.b - s.a, f = t.b - t.a;
+  const double den = Cross(d, f);
+  const double scale = d.norm() * f.norm();
+  if (std::abs(den) <= 1e-14 * scale) return false;
+  const double u = Cross(t.a - s.a, f) / den;
+  const double v = Cross(t.a - s.a, d) / den;
+  if (u < -1e-12 || u > 1 + 1e-12 || v < -1e-12 || v > 1 + 1e-12) return false;
+  *out = s.a + u * d;
+  return true;
+}
+
+class Generator {
+ public:
+  Generator(const BackprojectionProblem& pr, const NamedPolygon* start) : pr_(pr) {
+    eps_ = std::max(pr.velocity_cone, 1e-9);
+    phi_ = pr.friction_cone;
+    Collect(start);
+  }
+
+  std::vector<CriticalOrientation> Run(CriticalCounts* counts, bool r_only = false) {
+    r_only_ = r_only;
+    if (!r_only) {
+      SlidingEvents();
+      RayEvents();
+    }
+    VisibilityEvents();
+    FreeVertexEvents();
+    for (auto& c : out_) c.theta = WrapAngle(c.theta);
+    std::sort(out_.begin(), out_.end(), [](const CriticalOrientation& x, const CriticalOrientation& y) {
+      return std::tie(x.theta, x.kind, x.refs) < std::tie(y.theta, y.kind, y.refs);
+    });
+    out_.erase(std::unique(out_.begin(), out_.end(),
+                           [](const CriticalOrientation& x, const CriticalOrientation& y) {
+                             return x.theta == y.theta && x.kind == y.kind && x.refs == y.refs;
+                           }),
+               out_.end());
+    if (counts) {
+      *counts = CriticalCounts{};
+      for (const auto& c : out_) ++counts->by_kind[static_cast<int>(c.kind)];
+      counts->points = static_cast<std::int64_t>(points_.size());
+      counts->segments = static_cast<std::int64_t>(segs_.size());
+      counts->visible_pairs = visible_pairs_;
+    }
+    return std::move(out_);
+  }
+
+ private:
+  void Add(double theta, CriticalKind kind, std::vector<std::string> refs, std::vector<Vector2d> sources = {}) {
+    if (!std::isfinite(theta)) return;
+    if (r_only_ && kind != CriticalKind::kR) return;
+    out_.push_back({theta, kind, std::move(refs), std::move(sources)});
+  }
+
+  void Collect(const NamedPolygon* start) {
+    // C-obstacles: solid rings with the holes that follow them.
+    for (size_t i = 0; i < pr_.obstacles.size(); ++i) {
+      const NamedPolygon& poly = pr_.obstacles[i];
+      const std::string prefix = "obstacle#" + std::to_string(i);
+      if (!poly.hole || cb_.pieces.empty()) cb_.pieces.push_back({});
+      auto& piece = cb_.pieces.back();
+      if (poly.hole) {
+        piece.holes.push_back(poly.vertices);
+      } else {
+        piece.outer = poly.vertices;
+        for (const auto& v : poly.vertices) piece.box.extend(v);
+      }
+      AddRing(poly, prefix, SegKind::kObstacle, false);
+    }
+    for (const auto& s : segs_) cb_.edges.push_back(s);
+    for (size_t i = 0; i < pr_.goal.size(); ++i) AddRing(pr_.goal[i], "goal#" + std::to_string(i), SegKind::kGoal, false);
+    const Vector2d lo = pr_.bounds_min, hi = pr_.bounds_max;
+    const Vector2d corners[4] = {lo, {hi.x(), lo.y()}, hi, {lo.x(), hi.y()}};
+    const char* sides[4] = {"ymin", "xmax", "ymax", "xmin"};
+    const char* corner_names[4] = {"bounds.corner[xmin,ymin]", "bounds.corner[xmax,ymin]", "bounds.corner[xmax,ymax]",
+                                   "bounds.corner[xmin,ymax]"};
+    for (int k = 0; k < 4; ++k) {
+      points_.push_back({corners[k], corner_names[k]});
+      segs_.push_back({corners[k], corners[(k + 1) % 4], sides[k], SegKind::kBounds});
+    }
+    for (const auto& ray : pr_.rays) {
+      for (size_t k = 0; k < ray.segments.size(); ++k) {
+        const std::string ref = ray.segments.size() == 1 ? ray.id : ray.id + "#" + std::to_string(k);
+        segs_.push_back({ray.segments[k][0], ray.segments[k][1], ray.id, SegKind::kRay});
+        points_.push_back({ray.segments[k][0], ref + ".end[0]"});
+        points_.push_back({ray.segments[k][1], ref + ".end[1]"});
+      }
+    }
+    if (start) AddRing(*start, "start", SegKind::kStart, true);
+    const double size = (hi - lo).norm();
+    cb_.tolerance = 1e-12 * size;
+    // Every crossing of two edges (bounding boxes first).
+    std::vector<Eigen::AlignedBox2d> boxes;
+    for (const auto& s : segs_) {
+      Eigen::AlignedBox2d b(s.a.cwiseMin(s.b), s.a.cwiseMax(s.b));
+      b.extend(b.min() - Vector2d::Constant(1e-9 * size));
+      b.extend(b.max() + Vector2d::Constant(1e-9 * size));
+      boxes.push_back(b);
+    }
+    std::vector<size_t> order(segs_.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&](size_t x, size_t y) { return boxes[x].min().x() < boxes[y].min().x(); });
+    for (size_t oi = 0; oi < order.size(); ++oi) {
+      const size_t i = order[oi];
+      for (size_t oj = oi + 1; oj < order.size(); ++oj) {
+        const size_t j = order[oj];
+        if (boxes[j].min().x() > boxes[i].max().x()) break;
+        if (!boxes[i].intersects(boxes[j])) continue;
+        const Seg &s = segs_[i], &t = segs_[j];
+        Vector2d x;
+        if (!Crossing(s, t, &x)) continue;
+        // Shared ends are points already.
+        const double tol = 1e-12 * size;
+        if ((x - s.a).norm() <= tol || (x - s.b).norm() <= tol) {
+          if ((x - t.a).norm() <= tol || (x - t.b).norm() <= tol) continue;
+        }
+        const bool with_start = s.kind == SegKind::kStart || t.kind == SegKind::kStart;
+        points_.push_back({x, "x(" + s.ref + "," + t.ref + ")", with_start});
+      }
+    }
+    // Points outside the bounds never matter (nothing of the region is there).
+    std::erase_if(points_, [&](const Pt& p) {
+      const double tol = 1e-9 * size;
+      return p.p.x() < lo.x() - tol || p.p.y() < lo.y() - tol || p.p.x() > hi.x() + tol || p.p.y() > hi.y() + tol;
+    });
+    // One point per position (a ray's end on an edge is also that edge's crossing with the ray).
+    std::stable_sort(points_.begin(), points_.end(), [](const Pt& x, const Pt& y) { return x.p.x() < y.p.x(); });
+    std::vector<Pt> unique;
+    std::vector<bool> gone(points_.size(), false);
+    const double tol = 1e-12 * size;
+    for (size_t k = 0; k < points_.size(); ++k) {
+      if (gone[k]) continue;
+      Pt p = points_[k];
+      for (size_t l = k + 1; l < points_.size() && points_[l].p.x() - p.p.x() <= tol; ++l) {
+        if (!gone[l] && (points_[l].p - p.p).norm() <= tol) {
+          gone[l] = true;
+          p.start = p.start || points_[l].start;
+        }
+      }
+      unique.push_back(std::move(p));
+    }
+    points_ = std::move(unique);
+  }
+
+  void AddRing(const NamedPolygon& poly, const std::string& prefix, SegKind kind, bool start) {
+    const size_t n = poly.vertices.size();
+    for (size_t k = 0; k < n; ++k) {
+      points_.push_back({poly.vertices[k], VertexRef(poly, k, prefix), start});
+      segs_.push_back({poly.vertices[k], poly.vertices[(k + 1) % n], EdgeRef(poly, k, prefix), kind});
+      if (kind == SegKind::kObstacle) {
+        ring_vertices_.push_back({poly.vertices[(k + n - 1) % n], poly.vertices[k], poly.vertices[(k + 1) % n]});
+        ring_vertex_refs_.push_back(VertexRef(poly, k, prefix));
+      }
+    }
+  }
+
+  // Sticking/sliding switches and the vertex rule's bisectors (SEMANTICS.md "Uncertainty and contact").
+  void SlidingEvents() {
+    for (const auto& s : segs_) {
+      if (s.kind != SegKind::kObstacle) continue;
+      const Vector2d d = s.b - s.a;
+      const double dir = std::atan2(d.y(), d.x());
+      for (double normal : {dir + M_PI / 2, dir - M_PI / 2}) {
+        // θ ± ε_v = ±n ± φ: an edge of the velocity cone parallel or antiparallel to an edge of the friction cone.
+        for (double sf : {-1.0, 1.0})
+          for (double se : {-1.0, 1.0}) Add(normal + sf * phi_ + se * eps_, CriticalKind::kSliding, {s.ref});
+        // The cone reaches the edge's direction (pushing into it or not): θ ± ε_v = the edge's direction.
+        for (double se : {-1.0, 1.0}) Add(normal + M_PI / 2 + se * eps_, CriticalKind::kSliding, {s.ref});
+        // The commanded direction along the edge (the sliding direction of its central velocity flips).
+        Add(normal + M_PI / 2, CriticalKind::kSliding, {s.ref});
+      }
+    }
+    for (size_t i = 0; i < ring_vertices_.size(); ++i) {
+      const auto& [prev, v, next] = ring_vertices_[i];
+      const Vector2d u1 = (prev - v).normalized(), u2 = (next - v).normalized();
+      // Equal tangential components along both edges: v ⊥ (u1 − u2).
+      const Vector2d bis = u1 + u2;
+      if (bis.norm() < 1e-12) continue;
+      const double b = std::atan2(bis.y(), bis.x());
+      for (double base : {b, b + M_PI})
+        for (double se : {-1.0, 1.0}) Add(base + se * eps_, CriticalKind::kSliding, {ring_vertex_refs_[i]});
+    }
+  }
+
+  // A free edge parallel to a CVC ray, and the ray's reliability boundary.
+  void RayEvents() {
+    for (const auto& s : segs_) {
+      if (s.kind != SegKind::kRay) continue;
+      const Vector2d d = s.b - s.a;
+      const double rho = std::atan2(d.y(), d.x());
+      for (double base : {rho, rho + M_PI})
+        for (double se : {-1.0, 1.0}) {
+          Add(base + se * eps_, CriticalKind::kVc, {s.ref});
+          Add(base + M_PI / 2 + se * eps_, CriticalKind::kVc, {s.ref});
+        }
+    }
+  }
+
+  // A free edge from one point through another point it sees.
+  void VisibilityEvents() {
+    const size_t n = points_.size();
+    for (size_t i = 0; i < n; ++i) {
+      for (size_t j = i + 1; j < n; ++j) {
+        const Vector2d d = points_[j].p - points_[i].p;
+        if (d.norm() <= cb_.tolerance) continue;
+        if (!cb_.Sees(points_[i].p, points_[j].p)) continue;
+        ++visible_pairs_;
+        const double beta = std::atan2(d.y(), d.x());
+        const CriticalKind kind = points_[i].start || points_[j].start ? CriticalKind::kR : CriticalKind::kVgraph;
+        if (r_only_ && kind != CriticalKind::kR) continue;
+        // Along β the free edge runs from b (its direction θ + π ± ε_v is β + π); along β + π from a.
+        for (double se : {-1.0, 1.0}) {
+          Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p});
+          Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p});
+        }
+      }
+    }
+  }
+
+  // A free vertex f: the +ε_v free edge from a (direction θ + π + ε_v) meets the −ε_v one from b. Seen from f, a is at
+  // θ + ε_v and b at θ − ε_v, so f lies on a fixed circle through a and b on which ab subtends 2ε_v; its crossings
+  // with every edge give the orientations.
+  void FreeVertexEvents() {
+    const size_t n = points_.size();
+    const double two_eps = 2 * eps_;
+    if (two_eps < 1e-6) return;  // parallel free edges: no free vertex inside the bounds
+    for (size_t i = 0; i < n; ++i) {
+      for (size_t j = 0; j < n; ++j) {
+        if (i == j) continue;
+        const Vector2d a = points_[i].p, b = points_[j].p;
+        const Vector2d ab = b - a;
+        const double len = ab.norm();
+        if (len <= cb_.tolerance) continue;
+        const Vector2d m = 0.5 * (a + b);
+        const Vector2d nrm(-ab.y() / len, ab.x() / len);
+        const double r = len / (2 * std::sin(two_eps));
+        const double h = len / (2 * std::tan(two_eps));
+        for (double side : {-1.0, 1.0}) {
+          const Vector2d c = m + side * h * nrm;
+          for (const auto& s : segs_) {
+            if (r_only_ && s.kind != SegKind::kStart) continue;
+            CircleMeetsSegment(i, j, c, r, s);
+          }
+        }
+      }
+    }
+  }
+
+  void CircleMeetsSegment(size_t i, size_t j, const Vector2d& c, double r, const Seg& s) {
+    const Vector2d d = s.b - s.a, w = s.a - c;
+    const double A = d.squaredNorm(), B = 2 * w.dot(d), C = w.squaredNorm() - r * r;
+    const double disc = B * B - 4 * A * C;
+    if (disc < 0) return;
+    const double sq = std::sqrt(disc);
+    for (double t : {(-B - sq) / (2 * A), (-B + sq) / (2 * A)}) {
+      if (t < 0 || t > 1) continue;
+      const Vector2d f = s.a + t * d;
+      const Vector2d a = points_[i].p, b = points_[j].p;
+      if ((f - a).norm() <= cb_.tolerance || (f - b).norm() <= cb_.tolerance) continue;
+      const double theta = std::atan2((f - a).y(), (f - a).x()) - M_PI - eps_;
+      const double check = std::atan2((f - b).y(), (f - b).x()) - M_PI + eps_;
+      if (std::abs(WrapAngle(theta - check)) > 1e-7) continue;  // the other arc: the roles are swapped
+      if (!cb_.Sees(a, f) || !cb_.Sees(b, f)) continue;
+      CriticalKind kind = CriticalKind::kVertex;
+      if (s.kind == SegKind::kRay) kind = CriticalKind::kFreeEdge;
+      if (s.kind == SegKind::kStart) kind = CriticalKind::kR;
+      // A ray that cannot be relied on at θ is never active: its crossings change nothing.
+      if (s.kind == SegKind::kRay && !IsReliableRay(s.a, s.b, theta, pr_.velocity_cone)) continue;
+      Add(theta, kind, {points_[i].ref, points_[j].ref, s.ref}, {a, b});
+    }
+  }
+
+  const BackprojectionProblem& pr_;
+  bool r_only_ = false;
+  double eps_ = 0, phi_ = 0;
+  std::vector<Pt> points_;
+  std::vector<Seg> segs_;
+  std::vector<std::array<Vector2d, 3>> ring_vertices_;
+  std::vector<std::string> ring_vertex_refs_;
+  ObstacleRegion cb_;
+  std::int64_t visible_pairs_ = 0;
+  std::vector<CriticalOrientation> out_;
+};
+
+}  // namespace
+
+const char* CriticalKindName(CriticalKind kind) {
+  switch (kind) {
+    case CriticalKind::kVgraph:
+      return "vgraph";
+    case CriticalKind::kSliding:
+      return "sliding";
+    case CriticalKind::kVertex:
+      return "vertex";
+    case CriticalKind::kR:
+      return "R";
+    case CriticalKind::kFreeEdge:
+      return "free-edge";
+    case CriticalKind::kVc:
+      return "vc";
+    case CriticalKind::kSelection:
+      return "selection";
+  }
+  return "?";
+}
+
+std::int64_t CriticalCounts::total() const {
+  std::int64_t t = 0;
+  for (auto c : by_kind) t += c;
+  return t;
+}
+
+double WrapAngle(double theta) {
+  double t = std::fmod(theta + M_PI, 2 * M_PI);
+  if (t < 0) t += 2 * M_PI;
+  t -= M_PI;
+  if (t >= M_PI) t -= 2 * M_PI;
+  return t;
+}
+
+std::vector<CriticalOrientation> CriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon* start,
+                                                    CriticalCounts* counts) {
+  return Generator(problem, start).Run(counts);
+}
+
+std::vector<CriticalOrientation> RCriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon& start) {
+  return Generator(problem, &start).Run(nullptr, true);
+}
+
+}  // namespace visco::planning

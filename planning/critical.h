@@ -1,0 +1,71 @@
+#pragma once
+// Critical orientations of the directional backprojections (Donald; Fox & Hutchinson §VI-A, §VII-A/B): the
+// commanded directions θ at which the combinatorial structure of B_θ(G) or B_vcθ(G) may change. Between two
+// consecutive critical orientations the structure (the cyclic sequence of edge provenances of every ring) is the
+// same (docs/planning_nondirectional.md says why the list below is complete).
+//
+// The six kinds of the papers, and what generates them here (all in double precision; every candidate is a closed
+// form of the static geometry):
+//   * vgraph:    a free edge (a ray of the inverted velocity cone, direction θ + π ± ε_v) from one point of the static
+//                arrangement passes through another point it sees (Donald's v-graph critical);
+//   * sliding:   an edge of the velocity cone is parallel or antiparallel to an edge of a friction cone (an edge
+//                switches between sticking and sliding), the cone reaches an edge's direction or normal, or it
+//                reaches the bisector where the vertex rule switches from one edge to the other;
+//   * vertex:    a free vertex (where a +ε_v free edge meets a −ε_v one; it moves on a fixed circle through their two
+//                sources) crosses a C-obstacle, goal or bounds edge;
+//   * R:         a free edge passes through a vertex of the start region R, or a free vertex crosses an edge of R, or
+//                a region vertex on an edge crosses R's boundary there (Donald's R-critical);
+//   * free-edge: a free vertex crosses a CVC ray (Fox & Hutchinson Prop. 2);
+//   * vc:        a free edge is parallel to a CVC ray (Prop. 3), or the ray's reliability changes (its line enters or
+//                leaves 90° ± ε_v of θ).
+// The points of the static arrangement are the vertices of CB, the goal, the bounds, the ends of the CVC rays' free
+// segments, the start region's vertices, and every crossing of two of their edges.
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "planning/backprojection.h"
+
+namespace visco::planning {
+
+enum class CriticalKind : std::uint8_t { kVgraph, kSliding, kVertex, kR, kFreeEdge, kVc, kSelection };
+/// "vgraph", "sliding", "vertex", "R", "free-edge", "vc", "selection" (CONTRACT.md).
+const char* CriticalKindName(CriticalKind kind);
+
+/// One critical orientation: θ in [−π, π) and the features that cause it (vertex, edge and ray refs as in the
+/// region JSON).
+struct CriticalOrientation {
+  double theta = 0.0;
+  CriticalKind kind = CriticalKind::kVgraph;
+  std::vector<std::string> refs;
+  /// The static points whose free edges the event involves (one for a free edge through a point, two for a free
+  /// vertex); the event can change the structure only where they are vertices of the region. Empty for the kinds that
+  /// act on the whole region (sliding, vc, selection).
+  std::vector<Eigen::Vector2d> sources;
+};
+
+/// Counts of the candidates by kind, before any filtering (indexed by CriticalKind).
+struct CriticalCounts {
+  std::int64_t by_kind[7] = {0, 0, 0, 0, 0, 0, 0};
+  std::int64_t points = 0;          ///< points of the static arrangement
+  std::int64_t segments = 0;        ///< edges of the static arrangement
+  std::int64_t visible_pairs = 0;   ///< pairs of points that see each other
+  std::int64_t total() const;
+};
+
+/// Every candidate critical orientation of the problem's B_θ(G) and B_vcθ(G) over all θ (problem.theta is ignored),
+/// sorted by θ in [−π, π), exact duplicates (same θ, kind and refs) removed. `start` (may be null) adds the
+/// R-critical orientations of that region. A superset: the nondirectional backprojection (nondirectional.h) keeps
+/// those where the structure really changes. Not real-time safe.
+std::vector<CriticalOrientation> CriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon* start,
+                                                    CriticalCounts* counts = nullptr);
+
+/// Only the R-critical candidates of region `start` (the same as CriticalCandidates's of kind R).
+std::vector<CriticalOrientation> RCriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon& start);
+
+/// θ wrapped to [−π, π).
+double WrapAngle(double theta);
+
+}  // namespace visco::planning

@@ -1,0 +1,294 @@
+// `visco critical SCENE [--kernel] [--slices] [--svg FILE] [--threads N] [--method kinetic|baseline] [--out FILE]`
+// (CONTRACT.md): the critical orientations of the scene's backprojections, and with --slices the nondirectional
+// backprojection (one slice per orientation and per open interval) and where the start region fits.
+
+#include "planning/critical_command.h"
+
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "common/error.h"
+#include "common/write_output.h"
+#include "planning/backproject_command.h"
+#include "planning/cspace.h"
+#include "planning/nondirectional.h"
+#include "planning/scene.h"
+#include "planning/svg.h"
+#include "planning/vc_rays.h"
+
+namespace visco::planning {
+namespace {
+
+double Deg(double rad) { return rad * 180.0 / M_PI; }
+
+struct Args {
+  std::string scene;
+  bool kernel = false;
+  bool slices = false;
+  std::string svg, out;
+  int threads = 1;
+  int samples = 240;
+  std::string method = "kinetic";
+};
+
+// A progress bar on a terminal, nothing otherwise.
+class ProgressBar {
+ public:
+  explicit ProgressBar(std::string label) : label_(std::move(label)), tty_(isatty(fileno(stderr)) != 0) {}
+  void operator()(double fraction) {
+    if (!tty_) return;
+    const int width = 40, filled = static_cast<int>(std::clamp(fraction, 0.0, 1.0) * width);
+    if (filled == last_) return;
+    last_ = filled;
+    std::fprintf(stderr, "\r%s [%s%s] %3d%%", label_.c_str(), std::string(filled, '#').c_str(),
+                 std::string(width - filled, ' ').c_str(), static_cast<int>(fraction * 100));
+    std::fflush(stderr);
+  }
+  ~ProgressBar() {
+    if (tty_ && last_ >= 0) std::fprintf(stderr, "\r%*s\r", 60 + static_cast<int>(label_.size()), "");
+  }
+
+ private:
+  std::string label_;
+  bool tty_;
+  int last_ = -1;
+};
+
+nlohmann::json OrientationsJson(const std::vector<CriticalOrientation>& orientations) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& o : orientations) {
+    out.push_back({{"theta_deg", Deg(o.theta)}, {"kind", CriticalKindName(o.kind)}, {"refs", o.refs}});
+  }
+  return out;
+}
+
+nlohmann::json IntervalsJson(const std::vector<ThetaInterval>& intervals) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const auto& i : intervals) {
+    out.push_back({{"lo_deg", Deg(i.lo)},
+                   {"hi_deg", Deg(i.hi)},
+                   {"best_theta_deg", Deg(i.best_theta)},
+                   {"margin", i.margin}});
+  }
+  return out;
+}
+
+const char* KindColour(CriticalKind kind) {
+  switch (kind) {
+    case CriticalKind::kVgraph:
+      return "#1f77b4";
+    case CriticalKind::kSliding:
+      return "#ff7f0e";
+    case CriticalKind::kVertex:
+      return "#2ca02c";
+    case CriticalKind::kR:
+      return "#bbbbbb";
+    case CriticalKind::kFreeEdge:
+      return "#9467bd";
+    case CriticalKind::kVc:
+      return "#d62728";
+    case CriticalKind::kSelection:
+      return "#8c564b";
+  }
+  return "black";
+}
+
+}  // namespace
+
+std::vector<AreaSample> SampleAreas(const NondirectionalBackprojection& nd, const BackprojectionProblem& problem,
+                                    int samples) {
+  std::vector<AreaSample> out;
+  for (int i = 0; i < samples; ++i) {
+    const double theta = -M_PI + (i + 0.5) * 2 * M_PI / samples;
+    const Slice& s = SliceAt(nd, theta);
+    BackprojectionProblem p = problem;
+    p.theta = theta;
+    out.push_back({theta, ClassicBackprojection(p).area, BackprojectionWithActiveRays(p, s.vc.active_rays).area});
+  }
+  for (const Slice& s : nd.slices) out.push_back({s.theta, s.vc.classic.area, s.vc.region.area});
+  std::sort(out.begin(), out.end(), [](const AreaSample& a, const AreaSample& b) { return a.theta < b.theta; });
+  return out;
+}
+
+std::string AreaProfileSvg(const std::string& title, const std::vector<AreaSample>& samples,
+                           const std::vector<CriticalOrientation>& orientations) {
+  const double w = 900, h = 360, left = 70, right = 20, top = 40, bottom = 50;
+  double max_area = 0;
+  for (const auto& s : samples) max_area = std::max({max_area, s.classic, s.vc});
+  if (max_area <= 0) max_area = 1;
+  auto X = [&](double theta) { return left + (Deg(theta) + 180.0) / 360.0 * (w - left - right); };
+  auto Y = [&](double area) { return h - bottom - area / (1.05 * max_area) * (h - top - bottom); };
+  std::string svg = fmt::format(
+      "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{}\" height=\"{}\" viewBox=\"0 0 {} {}\">\n"
+      "<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n",
+      w, h + 30, w, h + 30);
+  svg += fmt::format("<text x=\"{}\" y=\"22\" font-size=\"15\" font-family=\"sans-serif\">{}</text>\n", left,
+                     SvgEscape(title));
+  // Axes and ticks every 45°.
+  svg += fmt::format("<line x1=\"{}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"black\"/>\n", left, h - bottom, w - right,
+                     h - bottom);
+  svg += fmt::format("<line x1=\"{}\" y1=\"{}\" x2=\"{}\" y2=\"{}\" stroke=\"black\"/>\n", left, top, left, h - bottom);
+  for (int d = -180; d <= 180; d += 45) {
+    const double x = X(d * M_PI / 180.0);
+    svg += fmt::format(
+        "<line x1=\"{0}\" y1=\"{1}\" x2=\"{0}\" y2=\"{2}\" stroke=\"black\"/><text x=\"{0}\" y=\"{3}\" "
+        "font-size=\"12\" text-anchor=\"middle\" font-family=\"sans-serif\">{4}°</text>\n",
+        x, h - bottom, h - bottom + 5, h - bottom + 20, d);
+  }
+  for (int k = 0; k <= 4; ++k) {
+    const double a = max_area * k / 4;
+    svg += fmt::format(
+        "<text x=\"{}\" y=\"{}\" font-size=\"12\" text-anchor=\"end\" font-family=\"sans-serif\">{:.3g}</text>\n",
+        left - 6, Y(a) + 4, a);
+  }
+  svg += fmt::format(
+      "<text x=\"{}\" y=\"{}\" font-size=\"12\" text-anchor=\"middle\" font-family=\"sans-serif\">commanded "
+      "direction θ (degrees)</text>\n",
+      (left + w - right) / 2, h - 10);
+  // Critical orientations, coloured by kind.
+  for (const auto& o : orientations) {
+    svg += fmt::format(
+        "<line class=\"critical {}\" x1=\"{:.2f}\" y1=\"{}\" x2=\"{:.2f}\" y2=\"{}\" stroke=\"{}\" "
+        "stroke-width=\"1\" opacity=\"0.7\"><title>{:.4f}° {}</title></line>\n",
+        CriticalKindName(o.kind), X(o.theta), top, X(o.theta), h - bottom, KindColour(o.kind), Deg(o.theta),
+        CriticalKindName(o.kind));
+  }
+  auto polyline = [&](bool vc, const char* colour, const char* cls) {
+    std::string pts;
+    for (const auto& s : samples) pts += fmt::format("{:.2f},{:.2f} ", X(s.theta), Y(vc ? s.vc : s.classic));
+    return fmt::format("<polyline class=\"{}\" points=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"2\"/>\n", cls,
+                       pts, colour);
+  };
+  svg += polyline(true, "#c00", "area-vc");
+  svg += polyline(false, "#036", "area-classic");
+  // Legend.
+  double lx = left;
+  const double ly = h + 12;
+  svg += fmt::format(
+      "<line x1=\"{0}\" y1=\"{1}\" x2=\"{2}\" y2=\"{1}\" stroke=\"#036\" stroke-width=\"2\"/><text x=\"{3}\" y=\"{4}\" "
+      "font-size=\"12\" font-family=\"sans-serif\">area of B_θ(G)</text>\n",
+      lx, ly, lx + 20, lx + 24, ly + 4);
+  lx += 120;
+  svg += fmt::format(
+      "<line x1=\"{0}\" y1=\"{1}\" x2=\"{2}\" y2=\"{1}\" stroke=\"#c00\" stroke-width=\"2\"/><text x=\"{3}\" y=\"{4}\" "
+      "font-size=\"12\" font-family=\"sans-serif\">area of B_vcθ(G)</text>\n",
+      lx, ly, lx + 20, lx + 24, ly + 4);
+  lx += 130;
+  for (int k = 0; k < 7; ++k) {
+    const auto kind = static_cast<CriticalKind>(k);
+    svg += fmt::format(
+        "<line x1=\"{0}\" y1=\"{1}\" x2=\"{0}\" y2=\"{2}\" stroke=\"{3}\" stroke-width=\"2\"/><text x=\"{4}\" "
+        "y=\"{5}\" font-size=\"12\" font-family=\"sans-serif\">{6}</text>\n",
+        lx, ly - 6, ly + 6, KindColour(kind), lx + 4, ly + 4, CriticalKindName(kind));
+    lx += 72;
+  }
+  svg += "</svg>\n";
+  return svg;
+}
+
+namespace {
+
+void Run(const Args& a) {
+  if (a.threads < 1) throw InputError("command line", "--threads", "must be at least 1");
+  if (a.samples < 2) throw InputError("command line", "--samples", "must be at least 2");
+  const Scene scene = LoadScene(a.scene);
+  const CSpace cspace(scene);
+  const VcRays rays = ComputeVcRays(scene, cspace);
+  const BackprojectionProblem pr = ProblemFromScene(scene, cspace, &rays, 0.0, a.kernel);
+  if (pr.goal.empty()) {
+    throw JobFailed(a.scene +
+                    ": goal: the goal kernel is empty (the goal is narrower than twice the position uncertainty)");
+  }
+  NamedPolygon start;
+  if (scene.start) start.vertices = scene.start->polygon.vertices;
+  NondirectionalOptions options;
+  options.threads = a.threads;
+  options.method = a.method == "baseline" ? SliceMethod::kBaseline : SliceMethod::kKinetic;
+  NondirectionalBackprojection nd;
+  {
+    ProgressBar bar("critical orientations");
+    options.progress = [&bar](double f) { bar(f); };
+    nd = ComputeNondirectional(pr, scene.start ? &start : nullptr, options);
+  }
+  nlohmann::json doc;
+  doc["orientations"] = OrientationsJson(nd.orientations);
+  const auto& st = nd.stats;
+  nlohmann::json by_kind;
+  for (int k = 0; k < 7; ++k) by_kind[CriticalKindName(static_cast<CriticalKind>(k))] = st.counts.by_kind[k];
+  doc["stats"] = {{"method", a.method},
+                  {"candidates", st.candidates},
+                  {"candidates_by_kind", by_kind},
+                  {"checked", st.checked},
+                  {"backprojections", st.backprojections},
+                  {"changes", st.changes},
+                  {"selection", st.selection},
+                  {"r_critical", st.r_critical},
+                  {"unexplained", st.unexplained}};
+  if (scene.start) {
+    doc["start_intervals"] = {{"classic", IntervalsJson(IntervalsContaining(nd, pr, start, false))},
+                              {"vc", IntervalsJson(IntervalsContaining(nd, pr, start, true))}};
+  }
+  if (a.slices) {
+    nlohmann::json slices = nlohmann::json::array();
+    for (const Slice& s : nd.slices) {
+      nlohmann::json classic = nlohmann::json::parse(RegionToJson(s.vc.classic));
+      nlohmann::json vc = nlohmann::json::parse(RegionToJson(s.vc.region));
+      vc["active_rays"] = s.vc.active_rays;
+      slices.push_back({{"theta_deg", Deg(s.theta)},
+                        {"critical", s.critical},
+                        {"lo_deg", Deg(s.lo)},
+                        {"hi_deg", Deg(s.hi)},
+                        {"classic", classic},
+                        {"vc", vc}});
+    }
+    doc["slices"] = slices;
+  }
+  WriteTextOutput(doc.dump(), a.out);
+  if (!a.svg.empty()) {
+    const auto samples = SampleAreas(nd, pr, a.samples);
+    WriteTextOutput(AreaProfileSvg(fmt::format("{}: backprojection area against the commanded direction ({} critical "
+                                               "orientations)",
+                                               scene.name.empty() ? a.scene : scene.name, nd.orientations.size()),
+                                   samples, nd.orientations),
+                    a.svg);
+  }
+}
+
+}  // namespace
+
+void RegisterCriticalCommand(CLI::App& app) {
+  auto args = std::make_shared<Args>();
+  CLI::App* cmd = app.add_subcommand(
+      "critical",
+      "Critical orientations of the scene's backprojections over every commanded direction (Donald; Fox & Hutchinson "
+      "sections VI-VII): the six kinds vgraph, sliding, vertex, R, free-edge, vc, and selection where the choice of "
+      "active rays switches. Between two consecutive orientations the structure of `visco backproject` (the cyclic "
+      "(kind, ref) sequence of every ring, classic and vc) does not change. Prints JSON {\"orientations\": "
+      "[{\"theta_deg\", \"kind\", \"refs\"}], \"stats\", \"start_intervals\": {\"classic\", \"vc\"} (the "
+      "theta-intervals where the start region lies inside the backprojection)}; with --slices also \"slices\" "
+      "(the nondirectional backprojection: one per orientation and one per open interval).");
+  cmd->add_option("SCENE", args->scene, "scene file (JSON, see CONTRACT.md)")->required();
+  cmd->add_flag("--kernel", args->kernel, "backproject the goal kernel (the goal eroded by the position uncertainty)");
+  cmd->add_flag("--slices", args->slices, "print the slices of the nondirectional backprojection too");
+  cmd->add_option("--svg", args->svg,
+                  "draw the areas of B_theta(G) and B_vctheta(G) against theta with the critical orientations into FILE");
+  cmd->add_option("--samples", args->samples, "orientations sampled for the --svg curves")->capture_default_str();
+  cmd->add_option("--threads", args->threads, "worker threads for the slices")->capture_default_str();
+  cmd->add_option("--method", args->method,
+                  "kinetic (sweep again only at candidates whose free edges are the regions') or baseline (Donald's "
+                  "critical-slice method: a sweep at every candidate)")
+      ->check(CLI::IsMember({"kinetic", "baseline"}))
+      ->capture_default_str();
+  cmd->add_option("--out", args->out, "write the JSON to FILE instead of stdout");
+  cmd->callback([args] { Run(*args); });
+}
+
+}  // namespace visco::planning

@@ -1,0 +1,35 @@
+#pragma once
+// `visco critical SCENE [--kernel] [--slices] [--svg FILE] [--threads N] [--method kinetic|baseline] [--out FILE]`
+// (CONTRACT.md), and its picture: the areas of B_θ(G) and B_vcθ(G) against θ with the critical orientations.
+
+#include <string>
+#include <vector>
+
+#include "planning/nondirectional.h"
+
+namespace CLI {
+class App;
+}
+
+namespace visco::planning {
+
+/// Registers `visco critical` on `app`.
+void RegisterCriticalCommand(CLI::App& app);
+
+/// The areas at one commanded direction.
+struct AreaSample {
+  double theta = 0.0;
+  double classic = 0.0;
+  double vc = 0.0;
+};
+
+/// Areas of B_θ(G) and B_vcθ(G) (with the active rays of the slice standing for θ) at `samples` evenly spaced θ and
+/// at every slice's own θ, sorted by θ.
+std::vector<AreaSample> SampleAreas(const NondirectionalBackprojection& nd, const BackprojectionProblem& problem,
+                                    int samples);
+
+/// The area-against-θ picture: both curves, a vertical line per orientation coloured by kind, a legend.
+std::string AreaProfileSvg(const std::string& title, const std::vector<AreaSample>& samples,
+                           const std::vector<CriticalOrientation>& orientations);
+
+}  // namespace visco::planning

@@ -1,0 +1,556 @@
+#include "planning/nondirectional.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <thread>
+
+namespace visco::planning {
+namespace {
+
+using Eigen::Vector2d;
+
+constexpr double kSameTheta = 1e-10;  // candidates closer than this are one event
+
+std::vector<std::string> RingSequence(const RegionRing& ring, const char* tag) {
+  std::vector<std::string> items;
+  for (const auto& e : ring.edges) items.push_back(std::string(EdgeKindName(e.kind)) + ":" + e.ref);
+  // The lexicographically least rotation names the cyclic sequence.
+  std::vector<std::string> best = items;
+  for (size_t r = 1; r < items.size(); ++r) {
+    std::vector<std::string> rot(items.begin() + r, items.end());
+    rot.insert(rot.end(), items.begin(), items.begin() + r);
+    if (rot < best) best = std::move(rot);
+  }
+  std::vector<std::string> out = {tag};
+  out.insert(out.end(), best.begin(), best.end());
+  return out;
+}
+
+std::string Join(const std::vector<std::string>& v) {
+  std::string s;
+  for (const auto& x : v) {
+    if (!s.empty()) s += ' ';
+    s += x;
+  }
+  return s;
+}
+
+double Cross(const Vector2d& u, const Vector2d& v) { return u.x() * v.y() - u.y() * v.x(); }
+
+double SegmentDistance(const Vector2d& p, const Vector2d& a, const Vector2d& b) {
+  const Vector2d d = b - a;
+  const double len2 = d.squaredNorm();
+  const double t = len2 > 0 ? std::clamp((p - a).dot(d) / len2, 0.0, 1.0) : 0.0;
+  return (a + t * d - p).norm();
+}
+
+double SegmentsDistance(const Vector2d& a, const Vector2d& b, const Vector2d& c, const Vector2d& d) {
+  const double den = Cross(b - a, d - c);
+  if (std::abs(den) > 0) {
+    const double t = Cross(c - a, d - c) / den, u = Cross(c - a, b - a) / den;
+    if (t >= 0 && t <= 1 && u >= 0 && u <= 1) return 0.0;
+  }
+  return std::min({SegmentDistance(a, c, d), SegmentDistance(b, c, d), SegmentDistance(c, a, b),
+                   SegmentDistance(d, a, b)});
+}
+
+template <typename F>
+void ForEachRing(const Region& region, F&& f) {
+  for (const auto& poly : region.polygons) {
+    f(poly.outer);
+    for (const auto& h : poly.holes) f(h);
+  }
+}
+
+// Runs task(i) for i in [0, n) on `threads` threads; the calling thread reports progress.
+template <typename Task>
+void ParallelFor(size_t n, int threads, const std::function<void(double)>& progress, double base, double span,
+                 Task&& task) {
+  std::atomic<size_t> next{0}, done{0};
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  auto worker = [&] {
+    for (;;) {
+      const size_t i = next.fetch_add(1);
+      if (i >= n) return;
+      try {
+        task(i);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+        next = n;
+      }
+      done.fetch_add(1);
+    }
+  };
+  // With more than one thread the calling thread only reports progress.
+  const int extra = threads > 1 ? std::min<int>(threads, static_cast<int>(n)) : 0;
+  std::vector<std::thread> pool;
+  for (int t = 0; t < extra; ++t) pool.emplace_back(worker);
+  if (extra == 0) {
+    for (;;) {
+      const size_t i = next.fetch_add(1);
+      if (i >= n) break;
+      task(i);
+      done.fetch_add(1);
+      if (progress && (i % 8 == 0)) progress(base + span * static_cast<double>(i + 1) / static_cast<double>(n));
+    }
+  } else {
+    while (done.load() < n && !error) {
+      if (progress) progress(base + span * static_cast<double>(done.load()) / static_cast<double>(n));
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      if (next.load() >= n) break;
+    }
+    for (auto& t : pool) t.join();
+  }
+  if (error) std::rethrow_exception(error);
+  if (progress) progress(base + span);
+}
+
+class Builder {
+ public:
+  Builder(const BackprojectionProblem& problem, const NamedPolygon* start, const NondirectionalOptions& options)
+      : pr_(problem), start_(start), options_(options) {
+    size_ = (problem.bounds_max - problem.bounds_min).norm();
+  }
+
+  NondirectionalBackprojection Run() {
+    NondirectionalBackprojection nd;
+    auto candidates = CriticalCandidates(pr_, start_, &nd.stats.counts);
+    nd.stats.candidates = static_cast<std::int64_t>(candidates.size());
+    std::vector<CriticalOrientation> r_candidates;
+    for (auto& c : candidates) {
+      if (c.kind == CriticalKind::kR) {
+        r_candidates.push_back(std::move(c));
+      } else {
+        structural_.push_back(std::move(c));
+      }
+    }
+    // Events: groups of structural candidates at (nearly) one θ.
+    for (size_t i = 0; i < structural_.size();) {
+      size_t j = i + 1;
+      while (j < structural_.size() && structural_[j].theta - structural_[j - 1].theta <= kSameTheta) ++j;
+      events_.push_back({i, j});
+      i = j;
+    }
+    std::vector<Slice> intervals = IntervalSlices();
+    // Orientations where the interval structure changes.
+    std::vector<double> changes;
+    std::vector<int> change_candidate;
+    const size_t m = events_.size();
+    for (size_t k = 0; k < m && m > 1; ++k) {
+      const Slice& before = intervals[(k + m - 1) % m];
+      const Slice& after = intervals[k];
+      if (before.structure == after.structure) continue;
+      changes.push_back(EventTheta(k));
+      change_candidate.push_back(PickCandidate(k, before, after));
+    }
+    Verify(changes, change_candidate);
+    // Final slices.
+    std::vector<std::pair<double, int>> order;
+    for (size_t i = 0; i < changes.size(); ++i) order.push_back({changes[i], change_candidate[i]});
+    std::sort(order.begin(), order.end());
+    order.erase(std::unique(order.begin(), order.end(),
+                            [](const auto& x, const auto& y) { return y.first - x.first <= kSameTheta; }),
+                order.end());
+    const size_t n = order.size();
+    nd.slices.resize(n == 0 ? 1 : 2 * n);
+    ParallelFor(nd.slices.size(), options_.threads, options_.progress, 0.85, 0.15, [&](size_t s) {
+      if (n == 0) {
+        nd.slices[0] = Evaluate(0.0);
+        nd.slices[0].lo = -M_PI;
+        nd.slices[0].hi = M_PI;
+        return;
+      }
+      const size_t k = s / 2;
+      const double lo = order[k].first;
+      const double hi = k + 1 < n ? order[k + 1].first : order[0].first + 2 * M_PI;
+      if (s % 2 == 0) {
+        nd.slices[s] = Evaluate(lo);
+        nd.slices[s].lo = nd.slices[s].hi = lo;
+        nd.slices[s].critical = true;
+      } else {
+        nd.slices[s] = Evaluate(WrapAngle(0.5 * (lo + hi)));
+        nd.slices[s].lo = lo;
+        nd.slices[s].hi = hi;
+      }
+    });
+    for (const auto& [theta, c] : order) {
+      CriticalOrientation o;
+      o.theta = theta;
+      if (c >= 0) {
+        o.kind = structural_[c].kind;
+        o.refs = structural_[c].refs;
+      } else {
+        o.kind = CriticalKind::kSelection;
+        o.refs = selection_refs_[theta];
+      }
+      nd.orientations.push_back(o);
+      ++nd.stats.changes;
+      if (c < 0) ++nd.stats.selection;
+    }
+    // R-critical orientations of the start region where their sources are vertices of the regions there.
+    nd.stats.backprojections = backprojections_.load();
+    nd.stats.checked = checked_;
+    nd.stats.unexplained = unexplained_;
+    for (auto& c : r_candidates) {
+      const Slice& s = SliceAt(nd, c.theta);
+      if (!Relevant(c, VerticesOf(s))) continue;
+      c.sources.clear();
+      nd.orientations.push_back(std::move(c));
+      ++nd.stats.r_critical;
+    }
+    std::stable_sort(nd.orientations.begin(), nd.orientations.end(),
+                     [](const CriticalOrientation& x, const CriticalOrientation& y) { return x.theta < y.theta; });
+    for (auto& o : nd.orientations) o.sources.clear();
+    return nd;
+  }
+
+ private:
+  struct Event {
+    size_t begin, end;  // candidates [begin, end)
+  };
+
+  double EventTheta(size_t k) const { return structural_[events_[k].begin].theta; }
+
+  Slice Evaluate(double theta) {
+    BackprojectionProblem p = pr_;
+    p.theta = theta;
+    Slice s;
+    s.theta = theta;
+    s.lo = s.hi = theta;
+    s.vc = VcEnlargedBackprojection(p, options_.selection);
+    s.structure.classic = RegionStructure(s.vc.classic);
+    s.structure.vc = RegionStructure(s.vc.region);
+    s.structure.active_rays = s.vc.active_rays;
+    ++backprojections_;
+    return s;
+  }
+
+  // The ends of the free edges of the slice's regions: a free edge starts at a static point, and only events at
+  // those points can change the structure.
+  std::vector<Vector2d> VerticesOf(const Slice& s) const {
+    std::vector<Vector2d> v;
+    auto add = [&](const RegionRing& r) {
+      const size_t n = r.vertices.size();
+      for (size_t i = 0; i < n; ++i) {
+        if (r.edges[i].kind == EdgeKind::kFree || r.edges[(i + n - 1) % n].kind == EdgeKind::kFree) {
+          v.push_back(r.vertices[i]);
+        }
+      }
+    };
+    ForEachRing(s.vc.classic, add);
+    ForEachRing(s.vc.region, add);
+    return v;
+  }
+
+  // An event matters only where every free edge it involves is one of the regions' (a free vertex needs both).
+  bool Relevant(const CriticalOrientation& c, const std::vector<Vector2d>& vertices) const {
+    if (c.sources.empty()) return true;
+    const double tol = 1e-9 * size_;
+    for (const auto& src : c.sources) {
+      bool found = false;
+      for (const auto& v : vertices) found = found || (v - src).norm() <= tol;
+      if (!found) return false;
+    }
+    return true;
+  }
+
+  bool EventRelevant(size_t k, const std::vector<Vector2d>& vertices) const {
+    for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
+      if (Relevant(structural_[i], vertices)) return true;
+    }
+    return false;
+  }
+
+  // The representative θ of the interval after event k (up to event k + 1, wrapping).
+  double IntervalTheta(size_t k) const {
+    const size_t m = events_.size();
+    const double lo = EventTheta(k);
+    const double hi = k + 1 < m ? EventTheta(k + 1) : EventTheta(0) + 2 * M_PI;
+    return WrapAngle(0.5 * (lo + hi));
+  }
+
+  // One slice per interval between consecutive events: every one swept (baseline) or only after relevant events
+  // (kinetic; the others inherit the previous interval's slice).
+  std::vector<Slice> IntervalSlices() {
+    const size_t m = events_.size();
+    if (m <= 1) return m == 0 ? std::vector<Slice>{} : std::vector<Slice>{Evaluate(IntervalTheta(0))};
+    std::vector<Slice> out(m);
+    if (options_.method == SliceMethod::kBaseline) {
+      checked_ = static_cast<std::int64_t>(m);
+      ParallelFor(m, options_.threads, options_.progress, 0.0, 0.7, [&](size_t k) { out[k] = Evaluate(IntervalTheta(k)); });
+      return out;
+    }
+    // Chunks of events walked independently (one per thread), each starting from a swept interval.
+    const size_t chunks = std::clamp<size_t>(static_cast<size_t>(std::max(1, options_.threads)), 1, m);
+    std::vector<std::int64_t> checked(chunks, 0);
+    std::vector<bool> swept(m, false);
+    ParallelFor(chunks, options_.threads, options_.progress, 0.0, 0.7, [&](size_t c) {
+      const size_t begin = m * c / chunks, end = m * (c + 1) / chunks;
+      out[begin] = Evaluate(IntervalTheta(begin));
+      swept[begin] = true;
+      std::vector<Vector2d> vertices = VerticesOf(out[begin]);
+      size_t current = begin;
+      for (size_t k = begin + 1; k < end; ++k) {
+        if (EventRelevant(k, vertices)) {
+          ++checked[c];
+          out[k] = Evaluate(IntervalTheta(k));
+          swept[k] = true;
+          current = k;
+          vertices = VerticesOf(out[k]);
+        } else {
+          out[k].structure = out[current].structure;
+          out[k].theta = out[current].theta;
+        }
+      }
+    });
+    for (auto c : checked) checked_ += c;
+    return out;
+  }
+
+  // The candidate of event k to report: the first whose sources are vertices on either side.
+  int PickCandidate(size_t k, const Slice& before, const Slice& after) const {
+    auto vb = VerticesOf(before), va = VerticesOf(after);
+    // Prefer the specific kinds (a free edge parallel to a ray is also parallel to the segment of its two ends).
+    static const CriticalKind priority[] = {CriticalKind::kVc,      CriticalKind::kFreeEdge, CriticalKind::kVertex,
+                                            CriticalKind::kSliding, CriticalKind::kVgraph};
+    for (CriticalKind kind : priority) {
+      for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
+        const auto& c = structural_[i];
+        if (c.kind == kind && (Relevant(c, vb) || Relevant(c, va))) return static_cast<int>(i);
+      }
+    }
+    return static_cast<int>(events_[k].begin);
+  }
+
+  // The candidate within `tolerance` of θ, or −1.
+  int NearestCandidate(double theta, double tolerance) const {
+    int best = -1;
+    double best_d = tolerance;
+    for (size_t i = 0; i < structural_.size(); ++i) {
+      const double d = std::abs(WrapAngle(structural_[i].theta - theta));
+      if (d <= best_d) {
+        best_d = d;
+        best = static_cast<int>(i);
+      }
+    }
+    return best;
+  }
+
+  // Checks every interval between consecutive changes at three orientations and locates any change found there.
+  void Verify(std::vector<double>& changes, std::vector<int>& change_candidate) {
+    for (int round = 0; round < 4; ++round) {
+      std::vector<std::pair<double, int>> order;
+      for (size_t i = 0; i < changes.size(); ++i) order.push_back({changes[i], change_candidate[i]});
+      std::sort(order.begin(), order.end());
+      const size_t n = std::max<size_t>(order.size(), 1);
+      struct Probe {
+        double lo, hi;
+        Slice s[3];
+      };
+      std::vector<Probe> probes(n);
+      const double fractions[3] = {0.3, 0.5, 0.7};
+      ParallelFor(3 * n, options_.threads, options_.progress, 0.7 + 0.04 * round, 0.04, [&](size_t t) {
+        const size_t k = t / 3;
+        const double lo = order.empty() ? -M_PI : order[k].first;
+        const double hi = order.empty() ? M_PI : (k + 1 < order.size() ? order[k + 1].first : order[0].first + 2 * M_PI);
+        probes[k].lo = lo;
+        probes[k].hi = hi;
+        probes[k].s[t % 3] = Evaluate(WrapAngle(lo + fractions[t % 3] * (hi - lo)));
+      });
+      bool found = false;
+      for (auto& p : probes) {
+        for (int a = 0; a < 2; ++a) {
+          if (p.s[a].structure == p.s[a + 1].structure) continue;
+          // Bisect between the two probes for where the structure changes.
+          double x = p.lo + fractions[a] * (p.hi - p.lo), y = p.lo + fractions[a + 1] * (p.hi - p.lo);
+          SliceStructure sx = p.s[a].structure;
+          for (int it = 0; it < 60 && y - x > 1e-12; ++it) {
+            const double mid = 0.5 * (x + y);
+            Slice s = Evaluate(WrapAngle(mid));
+            if (s.structure == sx) {
+              x = mid;
+            } else {
+              y = mid;
+            }
+          }
+          const Slice sy = Evaluate(WrapAngle(y));
+          const double theta = WrapAngle(0.5 * (x + y));
+          const int c = NearestCandidate(theta, 1e-7);
+          const bool selection = sx.active_rays != sy.structure.active_rays;
+          if (selection) {
+            changes.push_back(theta);
+            change_candidate.push_back(-1);
+            std::vector<std::string> refs;
+            std::set_symmetric_difference(sx.active_rays.begin(), sx.active_rays.end(),
+                                          sy.structure.active_rays.begin(), sy.structure.active_rays.end(),
+                                          std::back_inserter(refs));
+            selection_refs_[theta] = refs;
+          } else {
+            changes.push_back(c >= 0 ? structural_[c].theta : theta);
+            change_candidate.push_back(c >= 0 ? c : (structural_.empty() ? -1 : 0));
+            if (c < 0) ++unexplained_;
+          }
+          found = true;
+          break;  // the rest of this interval is probed again next round
+        }
+      }
+      if (!found) return;
+    }
+  }
+
+  const BackprojectionProblem& pr_;
+  const NamedPolygon* start_;
+  NondirectionalOptions options_;
+  double size_ = 1.0;
+  std::vector<CriticalOrientation> structural_;
+  std::vector<Event> events_;
+  std::atomic<std::int64_t> backprojections_{0};
+  std::int64_t checked_ = 0;
+  std::int64_t unexplained_ = 0;
+  std::map<double, std::vector<std::string>> selection_refs_;
+};
+
+}  // namespace
+
+std::vector<std::string> RegionStructure(const Region& region) {
+  std::vector<std::string> polys;
+  for (const auto& poly : region.polygons) {
+    std::string s = Join(RingSequence(poly.outer, "outer"));
+    std::vector<std::string> holes;
+    for (const auto& h : poly.holes) holes.push_back(Join(RingSequence(h, "hole")));
+    std::sort(holes.begin(), holes.end());
+    for (const auto& h : holes) s += " | " + h;
+    polys.push_back(std::move(s));
+  }
+  std::sort(polys.begin(), polys.end());
+  return polys;
+}
+
+NondirectionalBackprojection ComputeNondirectional(const BackprojectionProblem& problem, const NamedPolygon* start,
+                                                   const NondirectionalOptions& options) {
+  return Builder(problem, start, options).Run();
+}
+
+const Slice& SliceAt(const NondirectionalBackprojection& nd, double theta) {
+  if (nd.slices.size() == 1) return nd.slices[0];
+  theta = WrapAngle(theta);
+  for (size_t s = 0; s < nd.slices.size(); s += 2) {
+    if (std::abs(WrapAngle(theta - nd.slices[s].theta)) <= 1e-12) return nd.slices[s];
+  }
+  for (size_t s = 1; s < nd.slices.size(); s += 2) {
+    const Slice& sl = nd.slices[s];
+    for (double t : {theta, theta + 2 * M_PI}) {
+      if (t > sl.lo && t < sl.hi) return sl;
+    }
+  }
+  return nd.slices.back();
+}
+
+bool RegionContainsPolygon(const Region& region, const std::vector<Vector2d>& polygon, double tolerance,
+                           double* clearance) {
+  std::vector<std::array<Vector2d, 2>> edges;
+  ForEachRing(region, [&](const RegionRing& r) {
+    for (size_t i = 0; i < r.vertices.size(); ++i) edges.push_back({r.vertices[i], r.vertices[(i + 1) % r.vertices.size()]});
+  });
+  auto inside = [&](const Vector2d& p) { return region.Contains(p) || region.BoundaryDistance(p) <= tolerance; };
+  const size_t n = polygon.size();
+  double clear = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < n; ++i) {
+    const Vector2d a = polygon[i], b = polygon[(i + 1) % n];
+    if (!inside(a)) return false;
+    // Split the edge where it meets the region's boundary; every piece must be inside.
+    std::vector<double> cuts = {0.0, 1.0};
+    const Vector2d d = b - a;
+    for (const auto& e : edges) {
+      const Vector2d f = e[1] - e[0];
+      const double den = Cross(d, f);
+      clear = std::min(clear, SegmentsDistance(a, b, e[0], e[1]));
+      if (std::abs(den) < 1e-300) continue;
+      const double t = Cross(e[0] - a, f) / den, u = Cross(e[0] - a, d) / den;
+      if (t > 0 && t < 1 && u >= 0 && u <= 1) cuts.push_back(t);
+    }
+    std::sort(cuts.begin(), cuts.end());
+    for (size_t k = 0; k + 1 < cuts.size(); ++k) {
+      if (!inside(a + 0.5 * (cuts[k] + cuts[k + 1]) * d)) return false;
+    }
+  }
+  if (clearance) *clearance = clear;
+  return true;
+}
+
+std::vector<ThetaInterval> IntervalsContaining(const NondirectionalBackprojection& nd,
+                                               const BackprojectionProblem& problem, const NamedPolygon& region,
+                                               bool vc) {
+  const double size = (problem.bounds_max - problem.bounds_min).norm();
+  // Breakpoints: the slices' orientations and R's own R-critical orientations where their sources are vertices of
+  // the region there.
+  std::vector<double> cuts;
+  for (size_t s = 0; s < nd.slices.size(); s += 2) {
+    if (nd.slices[s].critical) cuts.push_back(nd.slices[s].theta);
+  }
+  for (const auto& c : RCriticalCandidates(problem, region)) {
+    const Slice& s = SliceAt(nd, c.theta);
+    bool relevant = c.sources.empty();
+    const Region& r = vc ? s.vc.region : s.vc.classic;
+    ForEachRing(r, [&](const RegionRing& ring) {
+      for (const auto& v : ring.vertices)
+        for (const auto& src : c.sources) relevant = relevant || (v - src).norm() <= 1e-9 * size;
+    });
+    if (relevant) cuts.push_back(c.theta);
+  }
+  std::sort(cuts.begin(), cuts.end());
+  cuts.erase(std::unique(cuts.begin(), cuts.end(), [](double x, double y) { return y - x <= kSameTheta; }),
+             cuts.end());
+  if (cuts.empty()) cuts.push_back(-M_PI);
+  std::vector<ThetaInterval> out;
+  const size_t n = cuts.size();
+  std::vector<bool> in(n, false);
+  std::vector<double> margin(n, 0.0), mids(n, 0.0);
+  for (size_t k = 0; k < n; ++k) {
+    const double lo = cuts[k], hi = k + 1 < n ? cuts[k + 1] : cuts[0] + 2 * M_PI;
+    const double mid = WrapAngle(0.5 * (lo + hi));
+    mids[k] = mid;
+    BackprojectionProblem p = problem;
+    p.theta = mid;
+    const Slice& s = SliceAt(nd, mid);
+    const Region reg = vc ? BackprojectionWithActiveRays(p, s.vc.active_rays) : ClassicBackprojection(p);
+    double clear = 0;
+    in[k] = RegionContainsPolygon(reg, region.vertices, 1e-9 * size, &clear);
+    margin[k] = clear;
+  }
+  // Merge runs of containing intervals (wrapping).
+  size_t first = 0;
+  while (first < n && in[first]) ++first;
+  if (first == n) {
+    ThetaInterval all{-M_PI, M_PI, 0.0, 0.0};
+    for (size_t k = 0; k < n; ++k) {
+      if (margin[k] > all.margin) all.margin = margin[k], all.best_theta = mids[k];
+    }
+    return {all};
+  }
+  bool open = false;
+  for (size_t step = 1; step <= n; ++step) {
+    const size_t k = (first + step) % n;
+    if (!in[k]) {
+      open = false;
+      continue;
+    }
+    if (!open) out.push_back({cuts[k], cuts[k], -1.0, mids[k]});
+    open = true;
+    ThetaInterval& cur = out.back();
+    double hi = k + 1 < n ? cuts[k + 1] : cuts[0] + 2 * M_PI;
+    while (hi < cur.lo) hi += 2 * M_PI;
+    cur.hi = hi;
+    if (margin[k] > cur.margin) cur.margin = margin[k], cur.best_theta = mids[k];
+  }
+  return out;
+}
+
+}  // namespace visco::planning

@@ -1,0 +1,108 @@
+#pragma once
+// The nondirectional backprojection (Donald; Fox & Hutchinson §VI–VII): B(G) and B_vc(G) over every commanded
+// direction θ, as slices: one at each critical orientation and one for each open interval between two, each with its
+// regions, active rays and structure. Between two consecutive orientations the structure does not change, so a
+// slice's region stands for its whole interval combinatorially (its geometry moves with θ).
+//
+// Two ways to find which candidate orientations (critical.h) really change the structure:
+//   * baseline (Donald's critical-slice method): a backprojection at every candidate and inside every interval
+//     between two consecutive candidates;
+//   * kinetic (default): walk the candidates in θ order with the current slice's structure, and sweep again only at
+//     a candidate whose sources are vertices of the current regions (an event elsewhere cannot change them) or that
+//     acts on the whole region (sliding, vc). Every interval is then checked at two more orientations, and a change
+//     found there is located by bisection: a change of the chosen active rays alone is a `selection` orientation
+//     (the choice compares areas, which no geometric event bounds); any other is counted as `unexplained` (the tests
+//     require none).
+// docs/planning_nondirectional.md explains the design and gives the figures.
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "planning/backprojection.h"
+#include "planning/critical.h"
+
+namespace visco::planning {
+
+/// The combinatorial structure of a region: for every ring, holes included, the cyclic sequence of (kind, ref) of
+/// its edges, canonically rotated, holes sorted inside their polygon, polygons sorted.
+std::vector<std::string> RegionStructure(const Region& region);
+
+struct SliceStructure {
+  std::vector<std::string> classic;
+  std::vector<std::string> vc;
+  std::vector<std::string> active_rays;
+  friend bool operator==(const SliceStructure&, const SliceStructure&) = default;
+};
+
+/// The backprojections at one θ and their structure.
+struct Slice {
+  double theta = 0.0;  ///< where it was computed (radians)
+  /// The orientations it stands for: lo == hi == theta for a critical slice, else the open interval (lo, hi) (hi may
+  /// exceed π: the interval wraps).
+  double lo = 0.0, hi = 0.0;
+  bool critical = false;
+  VcBackprojection vc;  ///< vc.classic is B_θ(G)
+  SliceStructure structure;
+};
+
+struct NondirectionalStats {
+  CriticalCounts counts;               ///< candidates by kind
+  std::int64_t candidates = 0;         ///< candidate orientations (R-critical ones of the start region included)
+  std::int64_t checked = 0;            ///< candidates at which the structure was swept again
+  std::int64_t backprojections = 0;    ///< VC-enlarged backprojections computed (each several sweeps)
+  std::int64_t changes = 0;            ///< orientations where the structure changes (reported, R-critical aside)
+  std::int64_t selection = 0;          ///< of which the chosen active rays alone change
+  std::int64_t unexplained = 0;        ///< changes found by the interval checks at no candidate (a bug if not 0)
+  std::int64_t r_critical = 0;         ///< R-critical orientations reported (they bound where R fits)
+};
+
+struct NondirectionalBackprojection {
+  /// Sorted by θ in [−π, π): every orientation where the structure changes, and the R-critical ones of the start
+  /// region (which bound the intervals where it fits; the structure need not change there).
+  std::vector<CriticalOrientation> orientations;
+  /// A critical slice at each orientation, then the open slice up to the next one (wrapping): 2 × orientations, or
+  /// one open slice for the whole circle when there is no orientation.
+  std::vector<Slice> slices;
+  NondirectionalStats stats;
+};
+
+enum class SliceMethod : std::uint8_t { kKinetic, kBaseline };
+
+struct NondirectionalOptions {
+  SliceMethod method = SliceMethod::kKinetic;
+  VcSelectionOptions selection;
+  int threads = 1;  ///< worker threads for the slices (each runs whole backprojections)
+  /// Called now and then with the fraction done (0..1), from the calling thread.
+  std::function<void(double)> progress;
+};
+
+/// Computes the nondirectional backprojection of `problem` (problem.theta ignored). `start` (may be null) adds its
+/// R-critical orientations. @throws std::invalid_argument like ClassicBackprojection.
+NondirectionalBackprojection ComputeNondirectional(const BackprojectionProblem& problem, const NamedPolygon* start,
+                                                   const NondirectionalOptions& options = {});
+
+/// The slice that stands for θ (a critical slice when θ is within 1e-12 of its orientation).
+const Slice& SliceAt(const NondirectionalBackprojection& nd, double theta);
+
+/// A θ-interval [lo, hi] (radians; hi may exceed π when it wraps) on which R lies inside the region.
+struct ThetaInterval {
+  double lo = 0.0, hi = 0.0;
+  double margin = 0.0;  ///< the largest, over the interval's sampled orientations, of R's distance to the boundary
+  double best_theta = 0.0;  ///< where that margin was found
+};
+
+/// Every θ-interval for which the closed polygon R lies inside B_vcθ(G) (`vc`) or B_θ(G): the slices' boundaries and
+/// R's own R-critical orientations cut the circle into intervals on which containment does not change; each is
+/// decided at its midpoint with the slice's active rays. Endpoints are exact up to the orientations' rounding.
+std::vector<ThetaInterval> IntervalsContaining(const NondirectionalBackprojection& nd,
+                                               const BackprojectionProblem& problem, const NamedPolygon& region,
+                                               bool vc);
+
+/// Whether the closed polygon R lies inside the region (every vertex inside or on the boundary within `tolerance`,
+/// no edge crossing the boundary properly) and its clearance (the least distance of R's boundary to the region's).
+bool RegionContainsPolygon(const Region& region, const std::vector<Eigen::Vector2d>& polygon, double tolerance,
+                           double* clearance = nullptr);
+
+}  // namespace visco::planning
