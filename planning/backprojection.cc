@@ -340,6 +340,35 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       sources_.push_back(s);
       vertex_names_.emplace(to_exact(corners[k]), AddName(corner_names[k]));
     }
+    // Forbidden regions: their insides count as outside the bounds (edges clockwise: the allowed side on the left).
+    for (size_t i = 0; i < pr.forbidden.size(); ++i) {
+      const NamedPolygon& poly = pr.forbidden[i];
+      std::vector<Vector2d> v = poly.vertices;
+      const size_t n = v.size();
+      if (n < 3) {
+        throw std::invalid_argument("backprojection: forbidden[" + std::to_string(i) + "] has fewer than 3 vertices");
+      }
+      const bool ccw = SignedAreaD(v) > 0.0;
+      for (size_t k = 0; k < n; ++k) {
+        const Vector2d& wa = ccw ? v[(k + 1) % n] : v[k];
+        const Vector2d& wb = ccw ? v[k] : v[(k + 1) % n];
+        if (wa == wb) continue;
+        Source s;
+        s.a = to_exact(wa);
+        s.b = to_exact(wb);
+        s.kind = EdgeKind::kBounds;
+        s.name = AddName(k < poly.edge_refs.size() && !poly.edge_refs[k].empty()
+                             ? poly.edge_refs[k]
+                             : "forbidden[" + std::to_string(i) + "].e[" + std::to_string(k) + "]");
+        const Vector2d d = (wb - wa).normalized();
+        s.sweep_normal = rot_.Apply(Vector2d(-d.y(), d.x()));  // into the allowed side
+        sources_.push_back(s);
+        vertex_names_.emplace(to_exact(v[k]), AddName(k < poly.vertex_refs.size() && !poly.vertex_refs[k].empty()
+                                                          ? poly.vertex_refs[k]
+                                                          : "forbidden[" + std::to_string(i) + "].v[" +
+                                                                std::to_string(k) + "]"));
+      }
+    }
     double top = -1e300;
     for (const auto& c : corners) top = std::max(top, rot_.Apply(c).y());
     top_ = FT(top + 1.0 + std::abs(top));
@@ -616,27 +645,39 @@ bool Sweep::OutcomeAt(const V2& w, const std::vector<LRay>& rays, Label below) c
   }
   if (IsGood(sector)) return true;
   if (sector == Label::kBad || sector == Label::kOutside) return false;
-  // Pushing into CB: contact rules (SEMANTICS.md vertex rule).
-  const LRay* best = nullptr;
-  double best_comp = 0.0;
+  // Pushing into CB: contact rules (SEMANTICS.md vertex rule). The edge with the larger tangential component wins;
+  // where two tie (w on the bisector of their directions, one of the critical directions sampled below) either may be
+  // taken, so both must lead somewhere good (decided with a tolerance: rounding must not pick one side at random).
+  constexpr double kTie = 1e-12;
+  std::vector<std::pair<double, const LRay*>> pushed;
   for (const LRay& r : rays) {
     if (r.kind != EdgeKind::kObstacle) continue;
     if (!(wd.dot(r.n_free) < -1e-14)) continue;
     if (MotionModel::Sticks(wd, r.n_free, phi_)) continue;
     const double comp = wd.dot(r.dir);
     if (comp <= 1e-14) continue;
-    if (comp > best_comp) {
-      best_comp = comp;
-      best = &r;
+    pushed.push_back({comp, &r});
+  }
+  if (pushed.empty()) return false;  // stops
+  double best_comp = 0.0;
+  for (const auto& [comp, r] : pushed) best_comp = std::max(best_comp, comp);
+  for (const auto& [comp, best] : pushed) {
+    if (comp < best_comp - kTie) continue;
+    if (best->upper || best->sticking) return false;
+    bool good = false;
+    for (Label l : {best->ccw, best->cw}) {
+      if (l == Label::kGoal) {
+        good = true;
+        break;
+      }
+      if (IsFree(l)) {
+        good = IsGood(l);
+        break;
+      }
     }
+    if (!good) return false;
   }
-  if (!best) return false;  // stops
-  if (best->upper || best->sticking) return false;
-  for (Label l : {best->ccw, best->cw}) {
-    if (l == Label::kGoal) return true;
-    if (IsFree(l)) return IsGood(l);
-  }
-  return false;
+  return true;
 }
 
 // p is good iff OutcomeAt holds for every direction of the cone. OutcomeAt is constant between consecutive
@@ -669,8 +710,9 @@ Label Sweep::StatusAtPoint(const std::vector<LRay>& rays, Label below) const {
     const Vector2d in = -r.n_free;
     add({cphi * in.x() - sphi * in.y(), sphi * in.x() + cphi * in.y()});  // friction-cone boundaries
     add({cphi * in.x() + sphi * in.y(), -sphi * in.x() + cphi * in.y()});
-    add({-in.y(), in.x()});  // along the edge's line (pushing starts or stops)
-    add({in.y(), -in.x()});
+    // Along the edge's line (pushing starts or stops), exactly: a rounded tangent could fall a hair inside CB, where
+    // it neither pushes (the tolerance below) nor moves freely, and would be taken for a stop.
+    if (in_cone(-r.edir)) crit.push_back(-r.edir);
     for (const LRay& q : rays) {
       if (&q == &r || q.kind != EdgeKind::kObstacle) continue;
       const Vector2d diff = r.dir - q.dir;  // w · r.dir = w · q.dir on the perpendicular of the difference

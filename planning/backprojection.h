@@ -50,6 +50,9 @@ struct BackprojectionProblem {
   double velocity_cone = 0.0;     ///< ε_v, half-angle, in [0, π/2); 0 is planned as 1e-9 rad (more cautious)
   double friction_cone = 0.0;     ///< φ, in [0, π/2)
   std::vector<CvcRayInput> rays;  ///< candidate CVC rays (ignored by the classic backprojection)
+  /// Regions where arriving fails, treated like the outside of the bounds (their edges appear as `bounds` edges):
+  /// e.g. the parts of a visual guarded step's ray outside the next preimage, where the step would end too early.
+  std::vector<NamedPolygon> forbidden;
 };
 
 enum class EdgeKind : std::uint8_t { kObstacle, kGoal, kFree, kVc, kBounds };

@@ -10,6 +10,7 @@
 #include "common/write_output.h"
 #include "planning/backproject_command.h"
 #include "planning/critical_command.h"
+#include "planning/plan_command.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
 #include "planning/vc_rays.h"
@@ -52,6 +53,7 @@ void RegisterCommands(CLI::App& app) {
   vcrays->callback([args] { RunVcRays(*args); });
   RegisterBackprojectCommand(app);
   RegisterCriticalCommand(app);
+  RegisterPlanCommand(app);
 }
 
 }  // namespace visco::planning

@@ -181,6 +181,9 @@ class Generator {
       points_.push_back({corners[k], corner_names[k]});
       segs_.push_back({corners[k], corners[(k + 1) % 4], sides[k], SegKind::kBounds});
     }
+    for (size_t i = 0; i < pr_.forbidden.size(); ++i) {
+      AddRing(pr_.forbidden[i], "forbidden#" + std::to_string(i), SegKind::kBounds, false);
+    }
     for (const auto& ray : pr_.rays) {
       for (size_t k = 0; k < ray.segments.size(); ++k) {
         const std::string ref = ray.segments.size() == 1 ? ray.id : ray.id + "#" + std::to_string(k);

@@ -198,6 +198,7 @@ class Builder {
     nd.stats.backprojections = backprojections_.load();
     nd.stats.checked = checked_;
     nd.stats.unexplained = unexplained_;
+    nd.stats.unexplained_at = unexplained_at_;
     for (auto& c : r_candidates) {
       const Slice& s = SliceAt(nd, c.theta);
       if (!Relevant(c, VerticesOf(s))) continue;
@@ -395,7 +396,10 @@ class Builder {
           } else {
             changes.push_back(c >= 0 ? structural_[c].theta : theta);
             change_candidate.push_back(c >= 0 ? c : (structural_.empty() ? -1 : 0));
-            if (c < 0) ++unexplained_;
+            if (c < 0) {
+              ++unexplained_;
+              unexplained_at_.push_back(theta);
+            }
           }
           found = true;
           break;  // the rest of this interval is probed again next round
@@ -414,6 +418,7 @@ class Builder {
   std::atomic<std::int64_t> backprojections_{0};
   std::int64_t checked_ = 0;
   std::int64_t unexplained_ = 0;
+  std::vector<double> unexplained_at_;
   std::map<double, std::vector<std::string>> selection_refs_;
 };
 

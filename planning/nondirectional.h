@@ -56,6 +56,7 @@ struct NondirectionalStats {
   std::int64_t selection = 0;          ///< of which the chosen active rays alone change
   std::int64_t unexplained = 0;        ///< changes found by the interval checks at no candidate (a bug if not 0)
   std::int64_t r_critical = 0;         ///< R-critical orientations reported (they bound where R fits)
+  std::vector<double> unexplained_at;  ///< where those were found (radians)
 };
 
 struct NondirectionalBackprojection {

@@ -30,59 +30,6 @@ struct Counts {
   int scenes = 0, with_active = 0, open_active = 0, forced = 0, samples = 0, failures = 0;
 };
 
-// A random scene: 3 x 3 cells of 4 m, star-shaped (non-convex) obstacles, some overlapping; the camera on the edge
-// of the bounds for two seeds in three, anywhere otherwise; a small goal in free space; θ and ε_v random.
-bool MakeScene(std::uint64_t seed, Scene& s, double& theta) {
-  testing::RandomSceneOptions o;
-  o.cells_x = 3;
-  o.cells_y = 3;
-  o.fill = 0.45;
-  o.lattice = seed % 3 == 0 ? 0.0 : 0.5;
-  o.overlap = seed % 4 == 0 ? 0.4 : 0.0;
-  s = testing::RandomScene(seed, o);
-  std::mt19937_64 rng(seed * 7919 + 1);
-  std::uniform_real_distribution<double> unit(0, 1);
-  const CSpace probe(s);
-  if (seed % 3 != 0) {
-    // On one side of the bounds, facing inwards.
-    const int side = static_cast<int>(seed % 4);
-    const double t = unit(rng);
-    const Vector2d lo = s.bounds.min, hi = s.bounds.max;
-    const Vector2d c = side == 0   ? Vector2d(lo.x() + t * (hi.x() - lo.x()), lo.y())
-                       : side == 1 ? Vector2d(hi.x(), lo.y() + t * (hi.y() - lo.y()))
-                       : side == 2 ? Vector2d(lo.x() + t * (hi.x() - lo.x()), hi.y())
-                                   : Vector2d(lo.x(), lo.y() + t * (hi.y() - lo.y()));
-    bool inside = false;
-    for (const Obstacle& ob : s.obstacles) inside |= Locate(ob.shape.polygon, c) == Location::kInside;
-    if (!inside) {
-      const double first = 90.0 * side + 5.0;  // a 170° view into the box
-      s.camera->center = c;
-      s.camera->fov_first_rad = first * M_PI / 180;
-      s.camera->fov_second_rad = (first + 170.0) * M_PI / 180;
-      s.camera->fov_first = {std::cos(s.camera->fov_first_rad), std::sin(s.camera->fov_first_rad)};
-      s.camera->fov_second = {std::cos(s.camera->fov_second_rad), std::sin(s.camera->fov_second_rad)};
-    }
-  }
-  // A goal rectangle whose corners are free (the region may still graze CB; the sweep clips it).
-  for (int attempt = 0; attempt < 200; ++attempt) {
-    const double w = 0.4 + unit(rng), h = 0.3 + 0.6 * unit(rng);
-    const double x = s.bounds.min.x() + unit(rng) * (s.bounds.max.x() - s.bounds.min.x() - w);
-    const double y = s.bounds.min.y() + unit(rng) * (s.bounds.max.y() - s.bounds.min.y() - h);
-    Polygon g{{{x, y}, {x + w, y}, {x + w, y + h}, {x, y + h}}};
-    bool free = true;
-    for (const Point& v : g.vertices) free &= probe.Locate(v) == Location::kOutside;
-    free &= probe.Locate(Point(x + w / 2, y + h / 2)) == Location::kOutside;
-    if (!free) continue;
-    s.goal.polygon = g;
-    s.goal.source_index = {0, 1, 2, 3};
-    s.uncertainty.velocity_cone_rad = (2.0 + 18.0 * unit(rng)) * M_PI / 180;
-    s.friction_cone_rad = (5.0 + 30.0 * unit(rng)) * M_PI / 180;
-    theta = (-180.0 + 360.0 * unit(rng)) * M_PI / 180;
-    return true;
-  }
-  return false;
-}
-
 // Simulates from points of `region` (its bounding box, and just beside the active rays, where trajectories engage
 // them) with `active` as walls; counts and reports every failure.
 void CheckRegion(std::uint64_t seed, const CSpace& cspace, const BackprojectionProblem& pr, const Region& region,
@@ -125,7 +72,7 @@ void CheckRegion(std::uint64_t seed, const CSpace& cspace, const BackprojectionP
 void CheckScene(std::uint64_t seed, Counts& counts) {
   Scene s;
   double theta = 0;
-  if (!MakeScene(seed, s, theta)) return;
+  if (!testing::RandomWholeScene(seed, s, theta)) return;
   const CSpace cspace(s);
   const VcRays rays = ComputeVcRays(s, cspace);
   const BackprojectionProblem pr = ProblemFromScene(s, cspace, &rays, theta, /*kernel=*/false);

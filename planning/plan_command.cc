@@ -1,0 +1,147 @@
+// `visco plan SCENE [--max-steps K] [--kernel-only] [--no-camera] [--out FILE] [--svg FILE] [--lcm-url URL]
+// [--threads N] [--check N]` (CONTRACT.md): a motion strategy by backchaining preimages.
+
+#include "planning/plan_command.h"
+
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <lcm/lcm-cpp.hpp>
+#include <memory>
+#include <string>
+
+#include "common/error.h"
+#include "common/write_output.h"
+#include "lcmtypes/channels.h"
+#include "planning/cspace.h"
+#include "planning/scene.h"
+#include "planning/strategy.h"
+#include "planning/vc_rays.h"
+#include "visco/motion_strategy_t.hpp"
+
+namespace visco::planning {
+namespace {
+
+struct Args {
+  std::string scene;
+  int max_steps = 3;
+  bool kernel_only = false;
+  bool no_camera = false;
+  std::string out, svg, lcm_url;
+  int threads = 1;
+  int check = 0;
+  double speed = 0.25;
+};
+
+}  // namespace
+
+motion_strategy_t StrategyToLcm(const Scene& scene, const Strategy& strategy, double speed) {
+  motion_strategy_t m;
+  m.utime = std::chrono::duration_cast<std::chrono::microseconds>(
+                std::chrono::system_clock::now().time_since_epoch())
+                .count();
+  m.scene = scene.name;
+  m.feasible = strategy.feasible;
+  m.speed = speed;
+  for (const auto& s : strategy.steps) {
+    motion_step_t step;
+    step.theta = s.theta;
+    step.active_rays = s.active_rays;
+    step.num_active_rays = static_cast<int32_t>(s.active_rays.size());
+    step.terminate_kind = s.terminate == Termination::kGoal            ? motion_step_t::TERMINATE_GOAL
+                          : s.terminate == Termination::kVisualGuarded ? motion_step_t::TERMINATE_VC
+                                                                       : motion_step_t::TERMINATE_CONTACT;
+    step.terminate_ref = s.terminate_ref;
+    step.timeout_s = 0.0;
+    m.steps.push_back(step);
+  }
+  m.num_steps = static_cast<int32_t>(m.steps.size());
+  return m;
+}
+
+namespace {
+
+void Run(const Args& a) {
+  if (a.threads < 1) throw InputError("command line", "--threads", "must be at least 1");
+  if (a.check < 0) throw InputError("command line", "--check", "must not be negative");
+  if (!(a.speed > 0)) throw InputError("command line", "--speed", "must be positive");
+  const Scene scene = LoadScene(a.scene);
+  if (!scene.start) throw InputError(a.scene, "start", "planning needs a start region");
+  PlanOptions options;
+  options.max_steps = a.max_steps;
+  options.kernel_only = a.kernel_only;
+  options.use_camera = !a.no_camera;
+  options.threads = a.threads;
+  const bool tty = isatty(fileno(stderr)) != 0;
+  int last = -1;
+  options.progress = [&](double f) {
+    const int pct = static_cast<int>(f * 100);
+    if (!tty || pct == last) return;
+    last = pct;
+    std::fprintf(stderr, "\rplanning %3d%%", pct);
+    std::fflush(stderr);
+  };
+  const Strategy strategy = PlanStrategy(scene, options);
+  if (tty) std::fprintf(stderr, "\r%20s\r", "");
+  std::string json = StrategyToJson(scene, strategy);
+  if (a.check > 0 && strategy.feasible) {
+    const CSpace cspace(scene);
+    VcRays rays;
+    if (scene.camera) rays = ComputeVcRays(scene, cspace);
+    const StrategyCheck check = CheckStrategy(scene, cspace, rays, strategy, a.check, 1);
+    std::fprintf(stderr, "checked by simulation: %d of %d start configurations reach the goal\n", check.successes,
+                 check.starts);
+    for (const auto& f : check.failures) std::fprintf(stderr, "  %s\n", f.c_str());
+    if (check.successes != check.starts) {
+      WriteTextOutput(json, a.out);
+      throw JobFailed(a.scene + ": the strategy failed in simulation (a planner bug; please report it)");
+    }
+  }
+  WriteTextOutput(json, a.out);
+  if (!a.svg.empty()) WriteTextOutput(StrategyToSvg(scene, CSpace(scene), strategy), a.svg);
+  if (!a.lcm_url.empty()) {
+    lcm::LCM lcm(a.lcm_url);
+    if (!lcm.good()) throw JobFailed("cannot open LCM at " + a.lcm_url);
+    const motion_strategy_t m = StrategyToLcm(scene, strategy, a.speed);
+    if (lcm.publish(visco::channels::kStrategy, &m) != 0) throw JobFailed("publishing the strategy on LCM failed");
+  }
+  if (!strategy.feasible) throw JobFailed(a.scene + ": " + strategy.reason);
+}
+
+}  // namespace
+
+void RegisterPlanCommand(CLI::App& app) {
+  auto args = std::make_shared<Args>();
+  CLI::App* cmd = app.add_subcommand(
+      "plan",
+      "Plan a motion strategy from the scene's start region to its goal by backchaining preimages (LMT; Fox & "
+      "Hutchinson sections IV-A and VIII): the last step ends when the sensed position is recognisably in the goal "
+      "(the goal kernel), earlier steps end by visual guarded termination on a CVC ray whose free segments all lie in "
+      "the next step's preimage. Commanded directions come from the critical orientations (never sampled). Fewest "
+      "steps win, then the largest margin. Prints JSON {\"feasible\", \"steps\": [{\"theta_deg\", \"active_rays\", "
+      "\"terminate\": {\"kind\", \"ref\"}, \"preimage\": REGION, \"guarantee\", \"interval_deg\", \"margin\"}]} in "
+      "execution order (CONTRACT.md), which `visco run` executes as it is. Exit 1 when no strategy within "
+      "--max-steps exists, with the reason on stderr.");
+  cmd->add_option("SCENE", args->scene, "scene file (JSON, see CONTRACT.md); needs a start region")->required();
+  cmd->add_option("--max-steps", args->max_steps, "the most steps a strategy may have")->capture_default_str();
+  cmd->add_flag("--kernel-only", args->kernel_only,
+                "goal-terminated steps only (no visual guarded subgoals): one step from the start region or none");
+  cmd->add_flag("--no-camera", args->no_camera, "plan as if the scene had no camera (no visual constraints)");
+  cmd->add_option("--out", args->out, "write the JSON to FILE instead of stdout");
+  cmd->add_option("--svg", args->svg, "draw the nested preimages, commanded directions and rays into FILE (SVG)");
+  cmd->add_option("--lcm-url", args->lcm_url, "also publish the strategy as visco.motion_strategy_t on VISCO_STRATEGY");
+  cmd->add_option("--speed", args->speed, "commanded speed in the LCM message, m/s")->capture_default_str();
+  cmd->add_option("--threads", args->threads, "worker threads for the nondirectional backprojections")
+      ->capture_default_str();
+  cmd->add_option("--check", args->check,
+                  "simulate the strategy from N sampled start configurations with adversarial velocities; exit 1 if "
+                  "any fails");
+  cmd->callback([args] { Run(*args); });
+}
+
+}  // namespace visco::planning

@@ -1,0 +1,493 @@
+#include "planning/strategy.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <set>
+
+#include "common/error.h"
+#include "planning/backproject_command.h"
+#include "planning/cspace.h"
+#include "planning/motion_model.h"
+#include "planning/nondirectional.h"
+#include "planning/svg.h"
+#include "planning/vc_rays.h"
+
+namespace visco::planning {
+namespace {
+
+using Eigen::Vector2d;
+
+double Deg(double rad) { return rad * 180.0 / M_PI; }
+
+// A thin rectangle around the segment [a, b]: "somewhere on this piece of the ray".
+NamedPolygon Strip(const Vector2d& a, const Vector2d& b, double half_width, const std::string& ref) {
+  const Vector2d d = (b - a).normalized();
+  const Vector2d n(-d.y() * half_width, d.x() * half_width);
+  NamedPolygon p;
+  p.vertices = {a - n, b - n, b + n, a + n};
+  for (int k = 0; k < 4; ++k) {
+    p.vertex_refs.push_back(ref + ".v[" + std::to_string(k) + "]");
+    p.edge_refs.push_back(ref + ".e[" + std::to_string(k) + "]");
+  }
+  return p;
+}
+
+// The parameters t in [0, 1] of segment [a, b] that lie inside the region (closed, within `tolerance`), as maximal
+// intervals.
+std::vector<std::pair<double, double>> InsidePieces(const Region& region, const Vector2d& a, const Vector2d& b,
+                                                    double tolerance) {
+  std::vector<double> cuts = {0.0, 1.0};
+  const Vector2d d = b - a;
+  auto ring = [&](const RegionRing& r) {
+    for (size_t i = 0; i < r.vertices.size(); ++i) {
+      const Vector2d p = r.vertices[i], q = r.vertices[(i + 1) % r.vertices.size()];
+      const Vector2d f = q - p;
+      const double den = d.x() * f.y() - d.y() * f.x();
+      if (std::abs(den) < 1e-300) continue;
+      const Vector2d w = p - a;
+      const double t = (w.x() * f.y() - w.y() * f.x()) / den, u = (w.x() * d.y() - w.y() * d.x()) / den;
+      if (t > 0 && t < 1 && u >= 0 && u <= 1) cuts.push_back(t);
+    }
+  };
+  for (const auto& poly : region.polygons) {
+    ring(poly.outer);
+    for (const auto& h : poly.holes) ring(h);
+  }
+  std::sort(cuts.begin(), cuts.end());
+  std::vector<std::pair<double, double>> out;
+  for (size_t k = 0; k + 1 < cuts.size(); ++k) {
+    if (cuts[k + 1] - cuts[k] < 1e-12) continue;
+    const Vector2d m = a + 0.5 * (cuts[k] + cuts[k + 1]) * d;
+    if (!(region.Contains(m) || region.BoundaryDistance(m) <= tolerance)) continue;
+    if (!out.empty() && std::abs(out.back().second - cuts[k]) < 1e-12) {
+      out.back().second = cuts[k + 1];
+    } else {
+      out.push_back({cuts[k], cuts[k + 1]});
+    }
+  }
+  return out;
+}
+
+// The best interval: largest margin, then widest, then smallest lo (deterministic).
+const ThetaInterval* Best(const std::vector<ThetaInterval>& v) {
+  const ThetaInterval* best = nullptr;
+  for (const auto& i : v) {
+    if (!best || i.margin > best->margin + 1e-12 ||
+        (std::abs(i.margin - best->margin) <= 1e-12 && i.hi - i.lo > best->hi - best->lo + 1e-12)) {
+      best = &i;
+    }
+  }
+  return best;
+}
+
+// A target of the backchaining: what a step must end in, its backprojection problem and nondirectional
+// backprojection, and the steps that follow it to the goal.
+struct Node {
+  Termination terminate = Termination::kGoal;
+  std::string ray;  // vc: the ray whose strip this is
+  std::vector<NamedPolygon> triggers;  // vc: strips around all of the ray's free segments (reaching one stops it)
+  Vector2d end_a{0, 0}, end_b{0, 0};    // vc: the piece of the ray where the step must end
+  BackprojectionProblem problem;
+  NondirectionalBackprojection nd;
+  bool vc = true;                 // the step into this target may comply to rays
+  std::vector<StrategyStep> rest;  // the steps after the step into this target
+};
+
+StrategyStep MakeStep(const Node& node, const ThetaInterval& interval, const std::string& what_fits) {
+  StrategyStep step;
+  step.theta = WrapAngle(interval.best_theta);
+  const Slice& slice = SliceAt(node.nd, step.theta);
+  if (node.vc) step.active_rays = slice.vc.active_rays;
+  BackprojectionProblem p = node.problem;
+  p.theta = step.theta;
+  step.preimage = node.vc ? BackprojectionWithActiveRays(p, step.active_rays) : ClassicBackprojection(p);
+  step.terminate = node.terminate;
+  step.terminate_ref = node.ray;
+  step.target = node.problem.goal;
+  step.triggers = node.triggers;
+  step.end_a = node.end_a;
+  step.end_b = node.end_b;
+  step.interval_lo = interval.lo;
+  step.interval_hi = interval.hi;
+  step.margin = interval.margin;
+  if (node.terminate == Termination::kGoal) {
+    step.guarantee = fmt::format(
+        "from anywhere in the preimage (it contains {} for every θ in [{:.2f}°, {:.2f}°]), every motion the "
+        "uncertainty allows reaches the goal kernel: the sensed position is then inside the goal and the step ends",
+        what_fits, Deg(interval.lo), Deg(interval.hi));
+  } else {
+    step.guarantee = fmt::format(
+        "from anywhere in the preimage (it contains {} for every θ in [{:.2f}°, {:.2f}°]), every motion reaches "
+        "CVC ray {} first between ({:.4f}, {:.4f}) and ({:.4f}, {:.4f}) (the rest of the ray is never reached first); "
+        "the step ends when the CM vertex crosses the VC line there, and that piece of the ray, widened by {} m, lies "
+        "inside the next step's preimage",
+        what_fits, Deg(interval.lo), Deg(interval.hi), node.ray, node.end_a.x(), node.end_a.y(), node.end_b.x(),
+        node.end_b.y(), kVcStripHalfWidth);
+  }
+  return step;
+}
+
+// Share of R (sampled on a grid) inside the region.
+double Coverage(const Region& region, const std::vector<Vector2d>& r) {
+  Vector2d lo = r[0], hi = r[0];
+  for (const auto& v : r) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+  Region poly;
+  RegionPolygon rp;
+  rp.outer.vertices = r;
+  rp.outer.edges.resize(r.size());
+  poly.polygons.push_back(rp);
+  int in = 0, total = 0;
+  for (int i = 0; i < 24; ++i) {
+    for (int j = 0; j < 24; ++j) {
+      const Vector2d q(lo.x() + (i + 0.5) / 24 * (hi.x() - lo.x()), lo.y() + (j + 0.5) / 24 * (hi.y() - lo.y()));
+      if (!poly.Contains(q)) continue;
+      ++total;
+      in += region.Contains(q);
+    }
+  }
+  return total ? static_cast<double>(in) / total : 0.0;
+}
+
+NondirectionalOptions NdOptions(const PlanOptions& o) {
+  NondirectionalOptions n;
+  n.threads = o.threads;
+  return n;
+}
+
+}  // namespace
+
+const char* TerminationName(Termination t) {
+  switch (t) {
+    case Termination::kGoal:
+      return "goal";
+    case Termination::kVisualGuarded:
+      return "vc";
+    case Termination::kContact:
+      return "contact";
+  }
+  return "?";
+}
+
+Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
+  if (!scene.start) throw InputError(scene.source, "start", "planning needs a start region");
+  if (options.max_steps < 1) throw InputError("command line", "--max-steps", "must be at least 1");
+  const CSpace cspace(scene);
+  const bool camera = options.use_camera && scene.camera.has_value();
+  VcRays rays;
+  if (camera) rays = ComputeVcRays(scene, cspace);
+  const BackprojectionProblem base = ProblemFromScene(scene, cspace, camera ? &rays : nullptr, 0.0, /*kernel=*/true);
+  if (base.goal.empty()) {
+    throw JobFailed(scene.source +
+                    ": goal: the goal kernel is empty (the goal is narrower than twice the position uncertainty)");
+  }
+  NamedPolygon start;
+  start.vertices = scene.start->polygon.vertices;
+  Strategy out;
+  auto progress = [&](double f) {
+    if (options.progress) options.progress(std::clamp(f, 0.0, 1.0));
+  };
+
+  // The last step: goal termination, preimage B_vcθ(kernel).
+  Node goal;
+  goal.terminate = Termination::kGoal;
+  goal.problem = base;
+  goal.vc = camera;
+  goal.nd = ComputeNondirectional(base, nullptr, NdOptions(options));
+  ++out.nondirectional;
+  progress(0.2);
+  {
+    const auto intervals = IntervalsContaining(goal.nd, base, start, goal.vc);
+    if (const ThetaInterval* best = Best(intervals)) {
+      out.feasible = true;
+      out.steps.push_back(MakeStep(goal, *best, "the start region"));
+      progress(1.0);
+      return out;
+    }
+  }
+  // Diagnostics: the largest share of R that one step covers.
+  for (const Slice& s : goal.nd.slices) {
+    const double c = Coverage(goal.vc ? s.vc.region : s.vc.classic, start.vertices);
+    if (c > out.best_coverage) out.best_coverage = c, out.best_theta = s.theta;
+  }
+
+  // Earlier steps: visual guarded termination on a ray whose free segments all fit the next preimage.
+  std::vector<Node> frontier = {std::move(goal)};
+  std::set<std::string> used;
+  struct Candidate {
+    std::vector<StrategyStep> steps;
+    double margin;
+  };
+  for (int level = 2; level <= options.max_steps && !options.kernel_only && camera; ++level) {
+    std::vector<Node> next;
+    std::vector<Candidate> found;
+    for (size_t f = 0; f < frontier.size(); ++f) {
+      const Node& node = frontier[f];
+      for (const CvcRayInput& ray : base.rays) {
+        if (used.count(ray.id) || ray.id == node.ray) continue;
+        // The longest piece of the ray inside one of the node's slices, shrunk at its ends so that its strip fits;
+        // then the θ-interval where that strip lies inside the node's preimage.
+        const double size = (base.bounds_max - base.bounds_min).norm();
+        double best_len = 0;
+        Vector2d pa{0, 0}, pb{0, 0};
+        for (const Slice& s : node.nd.slices) {
+          const Region& region = node.vc ? s.vc.region : s.vc.classic;
+          for (const auto& seg : ray.segments) {
+            for (const auto& [t0, t1] : InsidePieces(region, seg[0], seg[1], 1e-9 * size)) {
+              const Vector2d a = seg[0] + t0 * (seg[1] - seg[0]), b = seg[0] + t1 * (seg[1] - seg[0]);
+              if ((b - a).norm() > best_len) best_len = (b - a).norm(), pa = a, pb = b;
+            }
+          }
+        }
+        const double shrink = 3 * kVcStripHalfWidth;
+        if (best_len < 4 * shrink) continue;
+        const Vector2d dir = (pb - pa) / best_len;
+        const Vector2d ea = pa + shrink * dir, eb = pb - shrink * dir;
+        const NamedPolygon end_strip = Strip(ea, eb, kVcStripHalfWidth, ray.id + ".end");
+        const std::vector<ThetaInterval> fits = IntervalsContaining(node.nd, node.problem, end_strip, node.vc);
+        const ThetaInterval* best = Best(fits);
+        if (!best) continue;
+        used.insert(ray.id);
+        Node child;
+        child.terminate = Termination::kVisualGuarded;
+        child.ray = ray.id;
+        child.problem = base;
+        child.problem.goal = {end_strip};
+        child.end_a = ea;
+        child.end_b = eb;
+        // The rest of the ray (every free segment, outside the piece): reaching it first ends the step outside the
+        // next preimage, so it is forbidden (a hair away from the piece, still inside the next preimage).
+        const double gap = 0.5 * shrink;
+        for (size_t k = 0; k < ray.segments.size(); ++k) {
+          const auto& seg = ray.segments[k];
+          child.triggers.push_back(Strip(seg[0], seg[1], kVcStripHalfWidth, ray.id + ".strip"));
+          const Vector2d d = seg[1] - seg[0];
+          const double len = d.norm();
+          // The piece's parameters on this segment (if it lies on it).
+          const double ta = (ea - seg[0]).dot(d) / (len * len), tb = (eb - seg[0]).dot(d) / (len * len);
+          const bool on = std::abs((ea - seg[0]).x() * d.y() - (ea - seg[0]).y() * d.x()) <= 1e-9 * size * len &&
+                          ta >= -1e-9 && tb <= 1 + 1e-9;
+          std::vector<std::pair<double, double>> rest;
+          if (on) {
+            rest = {{0.0, std::min(ta, tb) - gap / len}, {std::max(ta, tb) + gap / len, 1.0}};
+          } else {
+            rest = {{0.0, 1.0}};
+          }
+          for (const auto& [r0, r1] : rest) {
+            if ((r1 - r0) * len <= 1e-9 * size) continue;
+            child.problem.forbidden.push_back(Strip(seg[0] + r0 * d, seg[0] + r1 * d, kVcStripHalfWidth,
+                                                    ray.id + ".rest" + std::to_string(child.problem.forbidden.size())));
+          }
+        }
+        // The guarded motion towards the ray complies to no ray (its own would carry it along, others could carry it
+        // past the strip).
+        child.problem.rays.clear();
+        child.vc = false;
+        child.rest = node.rest;
+        child.rest.insert(child.rest.begin(), MakeStep(node, *best, "the piece of ray " + ray.id + " where the step before ends"));
+        child.nd = ComputeNondirectional(child.problem, nullptr, NdOptions(options));
+        ++out.nondirectional;
+        const auto start_fits = IntervalsContaining(child.nd, child.problem, start, false);
+        if (const ThetaInterval* s = Best(start_fits)) {
+          Candidate c;
+          c.steps = child.rest;
+          c.steps.insert(c.steps.begin(), MakeStep(child, *s, "the start region"));
+          c.margin = s->margin;
+          found.push_back(std::move(c));
+        }
+        next.push_back(std::move(child));
+      }
+      progress(0.2 + 0.8 * (level - 2 + static_cast<double>(f + 1) / frontier.size()) / (options.max_steps - 1));
+    }
+    if (!found.empty()) {
+      // Fewest steps (this level), then the largest margin; the first found wins ties (rays in id order).
+      const Candidate* best = &found[0];
+      for (const auto& c : found) {
+        if (c.margin > best->margin + 1e-12) best = &c;
+      }
+      out.feasible = true;
+      out.steps = best->steps;
+      progress(1.0);
+      return out;
+    }
+    frontier = std::move(next);
+    if (frontier.empty()) break;
+  }
+  out.reason = fmt::format(
+      "no strategy within {} step(s): one step covers at most {:.0f}% of the start region (at θ = {:.1f}°){}",
+      options.max_steps, 100 * out.best_coverage, Deg(out.best_theta),
+      !scene.camera ? "; the scene has no camera: visual constraints (visco camera) may help"
+      : !camera     ? "; planned without the camera"
+      : options.kernel_only ? "; only goal-terminated steps were allowed (--kernel-only)"
+                            : "; more steps (--max-steps) or another camera position (visco camera) may help");
+  progress(1.0);
+  return out;
+}
+
+std::string StrategyToJson(const Scene& scene, const Strategy& strategy) {
+  nlohmann::json doc;
+  doc["feasible"] = strategy.feasible;
+  doc["scene"] = scene.name;
+  nlohmann::json steps = nlohmann::json::array();
+  for (const auto& s : strategy.steps) {
+    nlohmann::json step;
+    step["theta_deg"] = Deg(s.theta);
+    step["active_rays"] = s.active_rays;
+    step["terminate"] = {{"kind", TerminationName(s.terminate)},
+                         {"ref", s.terminate_ref.empty() ? nlohmann::json() : nlohmann::json(s.terminate_ref)}};
+    step["preimage"] = nlohmann::json::parse(RegionToJson(s.preimage));
+    step["interval_deg"] = {Deg(s.interval_lo), Deg(s.interval_hi)};
+    step["margin"] = s.margin;
+    step["guarantee"] = s.guarantee;
+    if (s.terminate == Termination::kVisualGuarded) {
+      step["ends"] = {{s.end_a.x(), s.end_a.y()}, {s.end_b.x(), s.end_b.y()}};
+    }
+    steps.push_back(step);
+  }
+  doc["steps"] = steps;
+  if (!strategy.feasible) {
+    doc["reason"] = strategy.reason;
+    doc["best_coverage"] = strategy.best_coverage;
+    doc["best_theta_deg"] = Deg(strategy.best_theta);
+  }
+  return doc.dump();
+}
+
+std::string StrategyToSvg(const Scene& scene, const CSpace& cspace, const Strategy& strategy) {
+  SvgCanvas c(scene.bounds.min, scene.bounds.max, 700);
+  const Vector2d lo = scene.bounds.min, hi = scene.bounds.max;
+  c.Polygon(Polygon{{{lo.x(), lo.y()}, {hi.x(), lo.y()}, {hi.x(), hi.y()}, {lo.x(), hi.y()}}},
+            "fill=\"white\" stroke=\"#999\" stroke-width=\"1\"");
+  static const char* colours[] = {"#cfe3ff", "#ffe0b3", "#d9f2d0", "#f2d0e9", "#e0e0e0"};
+  // Preimages from the last step (innermost, around the goal) to the first.
+  for (size_t k = strategy.steps.size(); k-- > 0;) {
+    const auto& s = strategy.steps[k];
+    for (const auto& poly : s.preimage.polygons) {
+      PolygonWithHoles pw;
+      pw.outer.vertices = poly.outer.vertices;
+      for (const auto& h : poly.holes) pw.holes.push_back(Polygon{h.vertices});
+      c.PolygonWithHoles(pw, fmt::format("class=\"preimage step{}\" fill=\"{}\" fill-opacity=\"0.8\" stroke=\"#036\" "
+                                         "stroke-width=\"1.5\" stroke-dasharray=\"6,3\"",
+                                         k, colours[k % 5]));
+    }
+  }
+  for (const auto& o : scene.obstacles) c.Polygon(o.shape.polygon, "fill=\"#bbb\" stroke=\"#777\" stroke-width=\"1\"");
+  for (size_t i = 0; i < cspace.num_c_obstacles(); ++i) {
+    for (const auto& pw : cspace.c_obstacle(i)) c.Polygon(pw.outer, "fill=\"none\" stroke=\"#333\" stroke-width=\"1\"");
+  }
+  c.Polygon(scene.goal.polygon, "fill=\"black\" stroke=\"black\"");
+  if (scene.start) c.Polygon(scene.start->polygon, "class=\"start\" fill=\"#7c7\" stroke=\"#060\" stroke-width=\"2\"");
+  // Rays the strategy uses: active ones dashed red, termination rays solid red.
+  for (size_t k = 0; k < strategy.steps.size(); ++k) {
+    const auto& s = strategy.steps[k];
+    if (s.terminate == Termination::kVisualGuarded) {
+      for (const auto& t : s.target) {
+        c.Polygon(Polygon{t.vertices}, "class=\"terminate-ray\" fill=\"#c00\" stroke=\"#c00\" stroke-width=\"2\"");
+        c.Text(t.vertices[2], s.terminate_ref, 12, "fill=\"#c00\"", 4, -4);
+      }
+    }
+  }
+  // Commanded directions: an arrow per step from the centroid of its preimage's first polygon.
+  const double len = 0.07 * (hi - lo).norm();
+  for (size_t k = 0; k < strategy.steps.size(); ++k) {
+    const auto& s = strategy.steps[k];
+    if (s.preimage.polygons.empty()) continue;
+    Vector2d centroid = Vector2d::Zero();
+    const auto& vs = s.preimage.polygons[0].outer.vertices;
+    for (const auto& v : vs) centroid += v;
+    centroid /= static_cast<double>(vs.size());
+    const Vector2d v(std::cos(s.theta), std::sin(s.theta)), n(-v.y(), v.x());
+    const Vector2d tip = centroid + len * v;
+    const std::string style = "class=\"direction\" stroke=\"#070\" stroke-width=\"3\"";
+    c.Line(centroid, tip, style);
+    c.Line(tip, tip - 0.3 * len * v + 0.15 * len * n, style);
+    c.Line(tip, tip - 0.3 * len * v - 0.15 * len * n, style);
+    c.Text(centroid, fmt::format("step {}: θ = {:.1f}°", k + 1, Deg(s.theta)), 13, "fill=\"#070\"", 6, 14);
+  }
+  c.TextPx(10, 18,
+           strategy.feasible ? fmt::format("{}: {} step(s)", scene.name, strategy.steps.size())
+                             : fmt::format("{}: no strategy", scene.name),
+           14, "fill=\"black\"");
+  return c.Finish();
+}
+
+StrategyCheck CheckStrategy(const Scene& scene, const CSpace& cspace, const VcRays& rays, const Strategy& strategy,
+                            int samples, std::uint64_t seed) {
+  StrategyCheck out;
+  if (!scene.start || !strategy.feasible) return out;
+  const BackprojectionProblem base = ProblemFromScene(scene, cspace, &rays, 0.0, true);
+  // The simulated world of each step: one solid polygon per C-obstacle part, the step's target as its goal.
+  std::vector<MotionModel> models;
+  for (const auto& s : strategy.steps) {
+    MotionWorld w;
+    for (std::size_t i = 0; i < cspace.num_c_obstacles(); ++i) {
+      for (const PolygonWithHoles& part : cspace.c_obstacle(i)) w.obstacles.push_back(part.outer.vertices);
+    }
+    // A guarded step stops wherever the ray is reached first (the executor's event); only its target piece succeeds.
+    for (const auto& g : s.terminate == Termination::kVisualGuarded ? s.triggers : s.target) w.goal.push_back(g.vertices);
+    w.bounds_min = base.bounds_min;
+    w.bounds_max = base.bounds_max;
+    w.friction_cone = base.friction_cone;
+    for (const auto& id : s.active_rays) {
+      for (const auto& ray : base.rays) {
+        if (ray.id != id) continue;
+        for (size_t k = 0; k < ray.segments.size(); ++k) {
+          w.active_rays.push_back(ray.segments[k]);
+          w.active_ray_open_ends.push_back(k < ray.open_ends.size() ? ray.open_ends[k] : std::array<bool, 2>{});
+        }
+      }
+    }
+    models.emplace_back(std::move(w));
+  }
+  const auto& r = scene.start->polygon.vertices;
+  Vector2d lo = r[0], hi = r[0];
+  for (const auto& v : r) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  for (int i = 0; i < samples; ++i) {
+    Vector2d q;
+    if (i % 2 == 0) {  // on the boundary
+      const size_t e = rng() % r.size();
+      q = r[e] + u(rng) * (r[(e + 1) % r.size()] - r[e]);
+    } else {
+      for (int attempt = 0; attempt < 1000; ++attempt) {
+        q = {lo.x() + u(rng) * (hi.x() - lo.x()), lo.y() + u(rng) * (hi.y() - lo.y())};
+        if (InsideEvenOdd(r, q)) break;
+      }
+    }
+    ++out.starts;
+    Vector2d pos = q;
+    bool ok = true;
+    for (size_t k = 0; k < strategy.steps.size() && ok; ++k) {
+      const auto& s = strategy.steps[k];
+      const SimulationResult res = SimulateAdversarially(models[k], pos, s.theta, scene.uncertainty.velocity_cone_rad,
+                                                         seed * 7919 + i * 31 + k, /*greedy=*/i % 3 == 0);
+      bool reached = res.outcome == Outcome::kReachedGoal;
+      if (reached && s.terminate == Termination::kVisualGuarded) {
+        // Where on the ray it stopped: inside the target piece's strip (a hair of slack for the stop's rounding)?
+        const Vector2d d = s.end_b - s.end_a;
+        const double t = std::clamp((res.final_state.position - s.end_a).dot(d) / d.squaredNorm(), 0.0, 1.0);
+        reached = (s.end_a + t * d - res.final_state.position).norm() <= kVcStripHalfWidth * (1 + 1e-6);
+      }
+      if (!reached) {
+        ok = false;
+        if (out.failures.size() < 20) {
+          out.failures.push_back(
+              fmt::format("start ({:.4f}, {:.4f}): step {}: {}", q.x(), q.y(), k + 1,
+                          res.outcome == Outcome::kReachedGoal ? "reached the ray outside the target piece"
+                                                               : OutcomeName(res.outcome)));
+        }
+      }
+      pos = res.final_state.position;
+    }
+    out.successes += ok;
+  }
+  return out;
+}
+
+}  // namespace visco::planning

@@ -1,0 +1,102 @@
+#pragma once
+// Motion strategies by backchaining preimages (LMT; Fox & Hutchinson §IV-A, §VIII; docs/planning_strategy.md).
+//
+// A strategy is a list of steps in execution order; step k is (θ, active CVC rays, termination). The planner works
+// backwards from the goal kernel (the goal eroded by ε_p: the sensed position is then surely in the goal):
+//   * the last step ends by goal termination; its preimage is B_vcθ(kernel);
+//   * an earlier step ends by visual guarded termination on a CVC ray r (`vc`): the motion stops when the named CM
+//     vertex crosses the VC line. The position along the ray is not observed, so the step's target is a piece of r
+//     (a thin strip around it, `kVcStripHalfWidth`) that lies inside the next step's preimage, and the rest of r is
+//     forbidden (BackprojectionProblem::forbidden: reaching it first would end the step outside): the step's
+//     preimage is the set from which every motion reaches r first on that piece.
+// θ is never sampled: each preimage comes from the nondirectional backprojection of its target (nondirectional.h),
+// and the θ-intervals where the previous target fits come from IntervalsContaining (bounded by critical and
+// R-critical orientations). Strategies with fewer steps win, then the larger margin (the distance of the start
+// region's boundary to the first preimage's), then θ and ray ids (deterministic).
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "planning/backprojection.h"
+#include "planning/scene.h"
+
+namespace visco::planning {
+
+class CSpace;
+struct VcRays;
+
+/// Half-width of the strip standing for "somewhere on the ray" (metres): the robot stops within this of the VC line
+/// (the servo's tracking error and the event's latency at the commanded speed must stay below it).
+inline constexpr double kVcStripHalfWidth = 0.01;
+
+enum class Termination : std::uint8_t { kGoal, kVisualGuarded, kContact };
+/// "goal", "vc", "contact" (CONTRACT.md).
+const char* TerminationName(Termination t);
+
+struct StrategyStep {
+  double theta = 0.0;  ///< commanded direction (radians)
+  std::vector<std::string> active_rays;
+  Termination terminate = Termination::kGoal;
+  std::string terminate_ref;  ///< vc: the CVC ray id
+  /// Where the step is guaranteed to succeed from (B_vcθ of its target with the active rays).
+  Region preimage;
+  /// Where it ends: the goal kernel (goal), or a strip around the piece of the ray where it must end (vc).
+  std::vector<NamedPolygon> target;
+  /// vc: strips around all of the ray's free segments (reaching any stops the step; only `target` succeeds).
+  std::vector<NamedPolygon> triggers;
+  /// vc: the ends of that piece of the ray.
+  Eigen::Vector2d end_a{0, 0}, end_b{0, 0};
+  /// The θ-interval in which this step's θ was chosen (every θ in it works) and the margin there: the least distance
+  /// from the boundary of what must fit (the start region, or the previous step's target) to the preimage's.
+  double interval_lo = 0.0, interval_hi = 0.0;
+  double margin = 0.0;
+  /// What the step guarantees, in words (for the JSON and the docs).
+  std::string guarantee;
+};
+
+struct Strategy {
+  bool feasible = false;
+  std::vector<StrategyStep> steps;  ///< execution order
+  /// When infeasible: why, and what would help (the largest share of the start region one step covers, at which θ,
+  /// whether a camera would help).
+  std::string reason;
+  double best_coverage = 0.0;  ///< share of the start region inside the best one-step preimage (0..1)
+  double best_theta = 0.0;
+  std::int64_t nondirectional = 0;  ///< nondirectional backprojections computed
+};
+
+struct PlanOptions {
+  int max_steps = 3;
+  bool kernel_only = false;  ///< goal-terminated steps only (no visual guarded subgoals): one step or none
+  bool use_camera = true;    ///< false: plan as if the scene had no camera (no CVC rays)
+  int threads = 1;
+  std::function<void(double)> progress;
+};
+
+/// Plans a strategy from the scene's start region to its goal. @throws InputError (via the scene) if the scene has
+/// no start region, JobFailed if the goal kernel is empty.
+Strategy PlanStrategy(const Scene& scene, const PlanOptions& options = {});
+
+/// The contract's `visco plan` JSON: {"feasible", "scene", "steps": [{"theta_deg", "active_rays", "terminate":
+/// {"kind", "ref"}, "preimage": REGION, "guarantee", "interval_deg": [lo, hi], "margin"}], "reason"}.
+std::string StrategyToJson(const Scene& scene, const Strategy& strategy);
+
+/// The nested preimages of the steps (Fig. 13 style): the start region, each preimage, its commanded direction, the
+/// rays used and the goal.
+std::string StrategyToSvg(const Scene& scene, const CSpace& cspace, const Strategy& strategy);
+
+/// Result of simulating a strategy (the motion model of SEMANTICS.md with adversarial velocities).
+struct StrategyCheck {
+  int starts = 0;     ///< sampled start configurations (interior and boundary of R)
+  int successes = 0;  ///< reached the goal kernel after the last step
+  std::vector<std::string> failures;  ///< "start (x, y): step k: outcome", at most 20
+};
+
+/// Runs the strategy from `samples` seeded start configurations in the start region (half on its boundary) with the
+/// standard battery of adversaries per step, chaining each step's end into the next.
+StrategyCheck CheckStrategy(const Scene& scene, const CSpace& cspace, const VcRays& rays, const Strategy& strategy,
+                            int samples, std::uint64_t seed);
+
+}  // namespace visco::planning

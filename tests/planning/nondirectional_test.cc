@@ -1,0 +1,290 @@
+// The critical orientations and the nondirectional backprojection (planning/critical.h, planning/nondirectional.h)
+// on seeded random whole scenes that nobody designed (cameras anywhere and on the bounds, θ all around, ε_v 2-20°,
+// non-convex and overlapping obstacles) and on every example scene:
+//   * between two consecutive reported orientations the structure (classic and VC, holes included) does not change,
+//     sampled at ¼, ½, ¾ of every interval, and no change is found where no candidate explains it;
+//   * every reported orientation (R-critical aside) really changes the structure;
+//   * each kind occurs and changes the structure somewhere;
+//   * the kinetic method agrees with Donald's critical-slice baseline;
+//   * points inside every slice's VC region survive the adversarial simulator;
+//   * the intervals where a random region R fits are right at sampled θ.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "planning/backproject_command.h"
+#include "planning/critical.h"
+#include "planning/cspace.h"
+#include "planning/motion_model.h"
+#include "planning/nondirectional.h"
+#include "planning/vc_rays.h"
+#include "tests/planning/random_scenes.h"
+#include "tests/planning/random_vc_scenes.h"
+
+namespace visco::planning {
+namespace {
+
+using Eigen::Vector2d;
+
+struct Tally {
+  int scenes = 0, intervals = 0, broken = 0, orientations = 0, changes = 0, not_changing = 0, unexplained = 0;
+  std::int64_t candidates = 0;
+  std::set<std::string> kinds_changing;
+};
+
+SliceStructure StructureAt(const BackprojectionProblem& pr, double theta) {
+  BackprojectionProblem p = pr;
+  p.theta = theta;
+  const VcBackprojection vc = VcEnlargedBackprojection(p);
+  return {RegionStructure(vc.classic), RegionStructure(vc.region), vc.active_rays};
+}
+
+// The property of CONTRACT.md `visco critical`: sampled at ¼, ½, ¾ of every interval between consecutive
+// orientations, the structure is the same; and across every non-R orientation it changes.
+void CheckStructure(const std::string& name, const BackprojectionProblem& pr, const NondirectionalBackprojection& nd,
+                    Tally& t) {
+  ++t.scenes;
+  t.candidates += nd.stats.candidates;
+  t.unexplained += static_cast<int>(nd.stats.unexplained);
+  EXPECT_EQ(nd.stats.unexplained, 0) << name << ": a change no candidate explains";
+  const auto& o = nd.orientations;
+  t.orientations += static_cast<int>(o.size());
+  std::vector<SliceStructure> mid(o.size());
+  for (size_t k = 0; k < o.size(); ++k) {
+    const double lo = o[k].theta, hi = k + 1 < o.size() ? o[k + 1].theta : o[0].theta + 2 * M_PI;
+    if (hi - lo < 1e-9) continue;
+    ++t.intervals;
+    const SliceStructure a = StructureAt(pr, WrapAngle(lo + 0.25 * (hi - lo)));
+    mid[k] = StructureAt(pr, WrapAngle(lo + 0.5 * (hi - lo)));
+    const SliceStructure c = StructureAt(pr, WrapAngle(lo + 0.75 * (hi - lo)));
+    if (!(a == mid[k] && mid[k] == c)) {
+      ++t.broken;
+      ADD_FAILURE() << name << ": the structure changes inside (" << lo * 180 / M_PI << "°, " << hi * 180 / M_PI
+                    << "°)";
+    }
+  }
+  // Every structural orientation changes the structure: the intervals on its two sides differ (R-critical ones need
+  // not).
+  for (size_t k = 0; k < o.size() && o.size() > 1; ++k) {
+    const size_t prev = (k + o.size() - 1) % o.size();
+    if (o[k].kind == CriticalKind::kR || mid[prev].classic.empty() || mid[k].classic.empty()) continue;
+    ++t.changes;
+    if (mid[prev] == mid[k]) {
+      ++t.not_changing;
+    } else {
+      t.kinds_changing.insert(CriticalKindName(o[k].kind));
+    }
+  }
+  EXPECT_EQ(t.not_changing, 0) << name << ": an orientation where nothing changes";
+}
+
+BackprojectionProblem SceneProblem(const Scene& s, const CSpace& cspace, const VcRays& rays) {
+  return ProblemFromScene(s, cspace, &rays, 0.0, /*kernel=*/false);
+}
+
+NondirectionalOptions Options(int threads = 2) {
+  NondirectionalOptions o;
+  o.threads = threads;
+  return o;
+}
+
+// Seeds of the structure property: 100 whole random scenes of 2 x 1 cells in four parts (run side by side); a
+// sanitizer build runs every fifth.
+#if defined(__SANITIZE_ADDRESS__)
+constexpr std::uint64_t kSeedStride = 5;
+#else
+constexpr std::uint64_t kSeedStride = 1;
+#endif
+
+void StructureOnSeeds(std::uint64_t first, std::uint64_t last, Tally& t) {
+  for (std::uint64_t seed = first; seed <= last; seed += kSeedStride) {
+    Scene s;
+    double theta = 0;
+    if (!testing::RandomWholeScene(seed, s, theta, 2, 1)) continue;
+    const CSpace cspace(s);
+    const VcRays rays = ComputeVcRays(s, cspace);
+    const BackprojectionProblem pr = SceneProblem(s, cspace, rays);
+    const auto nd = ComputeNondirectional(pr, nullptr, Options());
+    CheckStructure("seed " + std::to_string(seed), pr, nd, t);
+  }
+  std::string kinds;
+  for (const auto& k : t.kinds_changing) kinds += k + " ";
+  std::printf("scenes %d, candidates %lld, orientations %d (%d checked across, %d change nothing), intervals %d "
+              "(broken %d), unexplained %d; kinds that change the structure: %s\n",
+              t.scenes, static_cast<long long>(t.candidates), t.orientations, t.changes, t.not_changing, t.intervals,
+              t.broken, t.unexplained, kinds.c_str());
+  EXPECT_GE(t.scenes * static_cast<int>(kSeedStride), static_cast<int>(last - first + 1) * 9 / 10);
+  EXPECT_EQ(t.broken, 0);
+}
+
+TEST(NondirectionalProperty, StructureIsConstantBetweenOrientationsSeeds1To25) {
+  Tally t;
+  StructureOnSeeds(1, 25, t);
+}
+TEST(NondirectionalProperty, StructureIsConstantBetweenOrientationsSeeds26To50) {
+  Tally t;
+  StructureOnSeeds(26, 50, t);
+}
+TEST(NondirectionalProperty, StructureIsConstantBetweenOrientationsSeeds51To75) {
+  Tally t;
+  StructureOnSeeds(51, 75, t);
+}
+TEST(NondirectionalProperty, StructureIsConstantBetweenOrientationsSeeds76To100) {
+  Tally t;
+  StructureOnSeeds(76, 100, t);
+}
+
+// Every example scene, with its start region's R-critical orientations.
+TEST(NondirectionalExamples, StructureIsConstantBetweenConsecutiveOrientations) {
+  Tally t;
+  for (const char* file : {"slot", "fig5", "fig13", "ledge", "slot_pinhole"}) {
+    const Scene s = LoadScene(std::string("data/scenes/") + file + ".json");
+    const CSpace cspace(s);
+    const VcRays rays = ComputeVcRays(s, cspace);
+    const BackprojectionProblem pr = SceneProblem(s, cspace, rays);
+    NamedPolygon start;
+    if (s.start) start.vertices = s.start->polygon.vertices;
+    const auto nd = ComputeNondirectional(pr, s.start ? &start : nullptr, Options());
+    CheckStructure(file, pr, nd, t);
+  }
+  EXPECT_EQ(t.broken, 0);
+}
+
+// Donald's critical-slice baseline and the kinetic method report the same orientations and slices.
+TEST(NondirectionalProperty, KineticAgreesWithTheCriticalSliceBaseline) {
+  int compared = 0;
+  for (std::uint64_t seed = 1; compared < 4 && seed <= 40; ++seed) {
+    Scene s;
+    double theta = 0;
+    if (!testing::RandomWholeScene(seed, s, theta, 2, 1)) continue;
+    const CSpace cspace(s);
+    const VcRays rays = ComputeVcRays(s, cspace);
+    const BackprojectionProblem pr = SceneProblem(s, cspace, rays);
+    if (CriticalCandidates(pr, nullptr).size() > 1500) continue;
+    NondirectionalOptions base = Options();
+    base.method = SliceMethod::kBaseline;
+    const auto kinetic = ComputeNondirectional(pr, nullptr, Options());
+    const auto baseline = ComputeNondirectional(pr, nullptr, base);
+    ASSERT_EQ(kinetic.orientations.size(), baseline.orientations.size()) << "seed " << seed;
+    for (size_t k = 0; k < kinetic.orientations.size(); ++k) {
+      EXPECT_NEAR(kinetic.orientations[k].theta, baseline.orientations[k].theta, 1e-9) << "seed " << seed;
+    }
+    ASSERT_EQ(kinetic.slices.size(), baseline.slices.size());
+    for (size_t k = 0; k < kinetic.slices.size(); ++k) {
+      EXPECT_EQ(kinetic.slices[k].structure, baseline.slices[k].structure) << "seed " << seed << " slice " << k;
+    }
+    EXPECT_LT(kinetic.stats.backprojections, baseline.stats.backprojections) << "seed " << seed;
+    ++compared;
+  }
+  EXPECT_EQ(compared, 4);
+}
+
+// Soundness of every slice: points inside each slice's VC region reach the goal in the adversarial simulator with
+// the slice's rays active.
+TEST(NondirectionalProperty, EverySliceIsSound) {
+  int samples = 0, failures = 0, slices = 0;
+  for (std::uint64_t seed = 1; seed <= 12; ++seed) {
+    Scene s;
+    double theta = 0;
+    if (!testing::RandomWholeScene(seed, s, theta, 2, 1)) continue;
+    const CSpace cspace(s);
+    const VcRays rays = ComputeVcRays(s, cspace);
+    const BackprojectionProblem pr = SceneProblem(s, cspace, rays);
+    const auto nd = ComputeNondirectional(pr, nullptr, Options());
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(0, 1);
+    for (const Slice& sl : nd.slices) {
+      ++slices;
+      BackprojectionProblem p = pr;
+      p.theta = sl.theta;
+      const MotionModel model(ToMotionWorld(cspace, p, sl.vc.active_rays));
+      Vector2d lo(1e300, 1e300), hi = -lo;
+      for (const auto& poly : sl.vc.region.polygons) {
+        for (const auto& v : poly.outer.vertices) {
+          lo = lo.cwiseMin(v);
+          hi = hi.cwiseMax(v);
+        }
+      }
+      for (int i = 0; i < 12; ++i) {
+        const Vector2d q(lo.x() + u(rng) * (hi.x() - lo.x()), lo.y() + u(rng) * (hi.y() - lo.y()));
+        if (!sl.vc.region.Contains(q) || sl.vc.region.BoundaryDistance(q) < 1e-6 || model.InObstacleInterior(q)) {
+          continue;
+        }
+        ++samples;
+        const auto r = SimulateAdversarially(model, q, sl.theta, pr.velocity_cone, seed * 977 + i, i % 3 == 0);
+        if (r.outcome != Outcome::kReachedGoal) {
+          ++failures;
+          ADD_FAILURE() << "seed " << seed << " slice θ = " << sl.theta * 180 / M_PI << ": (" << q.x() << ", "
+                        << q.y() << ") fails: " << OutcomeName(r.outcome);
+        }
+      }
+    }
+  }
+  std::printf("slices %d, samples %d, failures %d\n", slices, samples, failures);
+  EXPECT_GT(samples, 200);
+  EXPECT_EQ(failures, 0);
+}
+
+// Query correctness: for random rectangles R, R lies inside B_vcθ(G) (B_θ(G)) at sampled θ inside the returned
+// intervals, and at no sampled θ outside them (away from the endpoints).
+TEST(NondirectionalProperty, IntervalsContainingARegionAreRight) {
+  int checked = 0, inside = 0, wrong = 0;
+  for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+    Scene s;
+    double theta = 0;
+    if (!testing::RandomWholeScene(seed, s, theta, 2, 1)) continue;
+    const CSpace cspace(s);
+    const VcRays rays = ComputeVcRays(s, cspace);
+    const BackprojectionProblem pr = SceneProblem(s, cspace, rays);
+    const auto nd = ComputeNondirectional(pr, nullptr, Options());
+    std::mt19937_64 rng(seed * 31);
+    std::uniform_real_distribution<double> u(0, 1);
+    const Vector2d g = pr.goal[0].vertices[0];
+    for (int k = 0; k < 3; ++k) {
+      // A rectangle near the goal (so that it fits somewhere), 0.2-1 m wide.
+      const double w = 0.2 + 0.8 * u(rng), h = 0.2 + 0.8 * u(rng);
+      const Vector2d c = g + Vector2d(-2 + 4 * u(rng), -2 + 4 * u(rng));
+      NamedPolygon r;
+      r.vertices = {c, c + Vector2d(w, 0), c + Vector2d(w, h), c + Vector2d(0, h)};
+      for (bool vc : {false, true}) {
+        const auto intervals = IntervalsContaining(nd, pr, r, vc);
+        for (int i = 0; i < 72; ++i) {
+          const double t = -M_PI + (i + 0.37) * 2 * M_PI / 72;
+          bool in_interval = false, near_end = false;
+          for (const auto& iv : intervals) {
+            for (double x : {t, t + 2 * M_PI, t - 2 * M_PI}) {
+              in_interval = in_interval || (x > iv.lo && x < iv.hi);
+              near_end = near_end || std::abs(x - iv.lo) < 1e-6 || std::abs(x - iv.hi) < 1e-6;
+            }
+          }
+          if (near_end) continue;
+          BackprojectionProblem p = pr;
+          p.theta = t;
+          const Region reg = vc ? BackprojectionWithActiveRays(p, SliceAt(nd, t).vc.active_rays)
+                                : ClassicBackprojection(p);
+          const bool contains = RegionContainsPolygon(reg, r.vertices, 1e-9);
+          ++checked;
+          inside += contains;
+          if (contains != in_interval) {
+            ++wrong;
+            ADD_FAILURE() << "seed " << seed << " R " << k << (vc ? " vc" : " classic") << " θ = " << t * 180 / M_PI
+                          << ": contained " << contains << ", in an interval " << in_interval;
+          }
+        }
+      }
+    }
+  }
+  std::printf("checked %d orientations, R inside at %d, wrong %d\n", checked, inside, wrong);
+  EXPECT_GT(inside, 20);
+  EXPECT_EQ(wrong, 0);
+}
+
+}  // namespace
+}  // namespace visco::planning

@@ -1,0 +1,163 @@
+// Motion strategies (planning/strategy.h): every emitted strategy is checked by the adversarial simulator from
+// sampled start configurations (interior and boundary of the start region), on every example scene and on seeded
+// random scenes; scenes where one step suffices only with visual constraints, where two steps are needed, and where
+// no strategy exists; the same scenes without the camera; the same output on every run.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "planning/cspace.h"
+#include "planning/scene.h"
+#include "planning/strategy.h"
+#include "planning/vc_rays.h"
+#include "tests/planning/random_vc_scenes.h"
+
+namespace visco::planning {
+namespace {
+
+struct Planned {
+  Strategy with_camera, without_camera;
+};
+
+// Plans with and without the camera and checks every feasible strategy in simulation.
+Planned PlanAndCheck(const Scene& s, const std::string& name, int samples = 40) {
+  Planned p;
+  const CSpace cspace(s);
+  VcRays rays;
+  if (s.camera) rays = ComputeVcRays(s, cspace);
+  PlanOptions o;
+  o.threads = 2;
+  p.with_camera = PlanStrategy(s, o);
+  o.use_camera = false;
+  p.without_camera = PlanStrategy(s, o);
+  for (const Strategy* st : {&p.with_camera, &p.without_camera}) {
+    if (!st->feasible) continue;
+    const StrategyCheck c = CheckStrategy(s, cspace, rays, *st, samples, 7);
+    EXPECT_EQ(c.successes, c.starts) << name << ": " << (c.failures.empty() ? "" : c.failures[0]);
+    EXPECT_EQ(c.starts, samples);
+  }
+  std::printf("%s: with the camera %s (%zu steps), without %s (%zu steps)\n", name.c_str(),
+              p.with_camera.feasible ? "feasible" : "infeasible", p.with_camera.steps.size(),
+              p.without_camera.feasible ? "feasible" : "infeasible", p.without_camera.steps.size());
+  return p;
+}
+
+// Fig. 13: the start region lies inside B_vcθ(kernel) for some θ, inside no B_θ(kernel): one step only with visual
+// constraints.
+TEST(Strategy, OneStepOnlyWithVisualConstraints) {
+  const Scene s = LoadScene("data/scenes/fig13.json");
+  const Planned p = PlanAndCheck(s, "fig13");
+  ASSERT_TRUE(p.with_camera.feasible) << p.with_camera.reason;
+  ASSERT_EQ(p.with_camera.steps.size(), 1u);
+  EXPECT_EQ(p.with_camera.steps[0].terminate, Termination::kGoal);
+  EXPECT_FALSE(p.with_camera.steps[0].active_rays.empty());
+  PlanOptions one;
+  one.max_steps = 1;
+  one.use_camera = false;
+  EXPECT_FALSE(PlanStrategy(s, one).feasible);
+}
+
+// Every example scene with a start region: each strategy found reaches the goal in simulation.
+TEST(Strategy, ExampleScenesAreCheckedInSimulation) {
+  for (const char* file : {"slot", "fig5", "fig13", "ledge", "slot_pinhole"}) {
+    const Scene s = LoadScene(std::string("data/scenes/") + file + ".json");
+    if (!s.start) continue;
+    PlanAndCheck(s, file);
+  }
+}
+
+// The same scene gives the same strategy, every run.
+TEST(Strategy, SameSceneSameOutput) {
+  const Scene s = LoadScene("data/scenes/slot.json");
+  PlanOptions o;
+  o.threads = 2;
+  const std::string a = StrategyToJson(s, PlanStrategy(s, o));
+  const std::string b = StrategyToJson(s, PlanStrategy(s, o));
+  EXPECT_EQ(a, b);
+}
+
+// No strategy: the goal is walled in (a closed box of four walls around it, with room for the robot inside), so no
+// motion from outside reaches it: exit 1 with a reason a user can act on.
+TEST(Strategy, NoStrategyWithinTheStepsSaysWhy) {
+  Scene s = LoadScene("data/scenes/fig13.json");
+  Eigen::Vector2d glo = s.goal.polygon.vertices[0], ghi = glo;
+  for (const auto& v : s.goal.polygon.vertices) glo = glo.cwiseMin(v), ghi = ghi.cwiseMax(v);
+  double reach = 0;
+  for (const auto& v : s.robot.polygon.vertices) reach = std::max(reach, v.norm());
+  const Eigen::Vector2d lo = glo - Eigen::Vector2d::Constant(reach + 0.3), hi = ghi + Eigen::Vector2d::Constant(reach + 0.3);
+  const double t = 0.2;
+  auto wall = [&](const std::string& id, Eigen::Vector2d a, Eigen::Vector2d b) {
+    ScenePolygon p;
+    p.polygon.vertices = {a, {b.x(), a.y()}, b, {a.x(), b.y()}};
+    p.source_index = {0, 1, 2, 3};
+    s.obstacles.push_back({id, p});
+  };
+  wall("box_bottom", {lo.x() - t, lo.y() - t}, {hi.x() + t, lo.y()});
+  wall("box_top", {lo.x() - t, hi.y()}, {hi.x() + t, hi.y() + t});
+  wall("box_left", {lo.x() - t, lo.y() - t}, {lo.x(), hi.y() + t});
+  wall("box_right", {hi.x(), lo.y() - t}, {hi.x() + t, hi.y() + t});
+  // The start region stays outside the box (fig13's start is above the goal, far from it).
+  PlanOptions o;
+  o.max_steps = 2;
+  o.threads = 2;
+  const Strategy st = PlanStrategy(s, o);
+  EXPECT_FALSE(st.feasible);
+  EXPECT_TRUE(st.steps.empty());
+  EXPECT_NE(st.reason.find("no strategy within 2 step(s)"), std::string::npos) << st.reason;
+  EXPECT_NE(st.reason.find("% of the start region"), std::string::npos) << st.reason;
+  EXPECT_EQ(st.best_coverage, 0.0);
+}
+
+// Seeded random scenes with a start region: every strategy found is checked; the share that has a strategy with and
+// without visual constraints is printed (docs/planning_strategy.md).
+TEST(Strategy, RandomScenesAreCheckedInSimulation) {
+  int scenes = 0, with = 0, without = 0, multi = 0;
+  for (std::uint64_t seed = 1; seed <= 12; ++seed) {
+    Scene s;
+    double theta = 0;
+    if (!testing::RandomWholeScene(seed, s, theta, 2, 1)) continue;
+    // A start region: a 0.3 m square 1-2.5 m from the goal's centre, kept where it is free; a narrower velocity cone
+    // (2-8°) so that strategies exist often enough to be worth checking.
+    const CSpace cspace(s);
+    std::mt19937_64 rng(seed * 101);
+    std::uniform_real_distribution<double> u(0, 1);
+    s.uncertainty.velocity_cone_rad = (2.0 + 6.0 * u(rng)) * M_PI / 180;
+    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+    for (const auto& v : s.goal.polygon.vertices) centre += v / 4.0;
+    bool placed = false;
+    for (int attempt = 0; attempt < 200 && !placed; ++attempt) {
+      const double a = 2 * M_PI * u(rng), d = 1.0 + 1.5 * u(rng);
+      const Eigen::Vector2d c = centre + d * Eigen::Vector2d(std::cos(a), std::sin(a));
+      Polygon r{{c + Eigen::Vector2d(-0.15, -0.15), c + Eigen::Vector2d(0.15, -0.15), c + Eigen::Vector2d(0.15, 0.15),
+                 c + Eigen::Vector2d(-0.15, 0.15)}};
+      bool ok = true;
+      for (auto& v : r.vertices) ok = ok && s.bounds.Contains(v) && cspace.Locate(v) == Location::kOutside;
+      ok = ok && cspace.Locate(c) == Location::kOutside;
+      if (!ok) continue;
+      ScenePolygon sp;
+      sp.polygon = r;
+      sp.source_index = {0, 1, 2, 3};
+      s.start = sp;
+      placed = true;
+    }
+    if (!placed) continue;
+    ++scenes;
+    const Planned p = PlanAndCheck(s, "seed " + std::to_string(seed), 24);
+    with += p.with_camera.feasible;
+    without += p.without_camera.feasible;
+    multi += p.with_camera.feasible && p.with_camera.steps.size() > 1;
+  }
+  std::printf("random scenes %d: a strategy with visual constraints %d (more than one step %d), without %d\n", scenes,
+              with, multi, without);
+  EXPECT_GE(scenes, 8);
+  EXPECT_GE(with, without);
+  EXPECT_GE(with, 3) << "too few random scenes have a strategy for the check to mean much";
+}
+
+}  // namespace
+}  // namespace visco::planning
