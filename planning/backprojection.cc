@@ -363,10 +363,10 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
         const Vector2d d = (wb - wa).normalized();
         s.sweep_normal = rot_.Apply(Vector2d(-d.y(), d.x()));  // into the allowed side
         sources_.push_back(s);
-        vertex_names_.emplace(to_exact(v[k]), AddName(k < poly.vertex_refs.size() && !poly.vertex_refs[k].empty()
-                                                          ? poly.vertex_refs[k]
-                                                          : "forbidden[" + std::to_string(i) + "].v[" +
-                                                                std::to_string(k) + "]"));
+        vertex_names_.emplace(to_exact(v[k]),
+                              AddName(k < poly.vertex_refs.size() && !poly.vertex_refs[k].empty()
+                                          ? poly.vertex_refs[k]
+                                          : "forbidden[" + std::to_string(i) + "].v[" + std::to_string(k) + "]"));
       }
     }
     double top = -1e300;

@@ -10,8 +10,8 @@
 #include "common/write_output.h"
 #include "planning/backproject_command.h"
 #include "planning/critical_command.h"
-#include "planning/plan_command.h"
 #include "planning/cspace.h"
+#include "planning/plan_command.h"
 #include "planning/scene.h"
 #include "planning/vc_rays.h"
 

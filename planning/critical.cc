@@ -52,8 +52,7 @@ struct ObstacleRegion {
     bool in = false;
     for (size_t i = 0, j = ring.size() - 1; i < ring.size(); j = i++) {
       const Vector2d &a = ring[i], &b = ring[j];
-      if ((a.y() > p.y()) != (b.y() > p.y()) &&
-          p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
+      if ((a.y() > p.y()) != (b.y() > p.y()) && p.x() < (b.x() - a.x()) * (p.y() - a.y()) / (b.y() - a.y()) + a.x()) {
         in = !in;
       }
     }
@@ -171,7 +170,8 @@ class Generator {
       AddRing(poly, prefix, SegKind::kObstacle, false);
     }
     for (const auto& s : segs_) cb_.edges.push_back(s);
-    for (size_t i = 0; i < pr_.goal.size(); ++i) AddRing(pr_.goal[i], "goal#" + std::to_string(i), SegKind::kGoal, false);
+    for (size_t i = 0; i < pr_.goal.size(); ++i)
+      AddRing(pr_.goal[i], "goal#" + std::to_string(i), SegKind::kGoal, false);
     const Vector2d lo = pr_.bounds_min, hi = pr_.bounds_max;
     const Vector2d corners[4] = {lo, {hi.x(), lo.y()}, hi, {lo.x(), hi.y()}};
     const char* sides[4] = {"ymin", "xmax", "ymax", "xmin"};

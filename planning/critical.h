@@ -49,9 +49,9 @@ struct CriticalOrientation {
 /// Counts of the candidates by kind, before any filtering (indexed by CriticalKind).
 struct CriticalCounts {
   std::int64_t by_kind[7] = {0, 0, 0, 0, 0, 0, 0};
-  std::int64_t points = 0;          ///< points of the static arrangement
-  std::int64_t segments = 0;        ///< edges of the static arrangement
-  std::int64_t visible_pairs = 0;   ///< pairs of points that see each other
+  std::int64_t points = 0;         ///< points of the static arrangement
+  std::int64_t segments = 0;       ///< edges of the static arrangement
+  std::int64_t visible_pairs = 0;  ///< pairs of points that see each other
   std::int64_t total() const;
 };
 

@@ -73,10 +73,8 @@ nlohmann::json OrientationsJson(const std::vector<CriticalOrientation>& orientat
 nlohmann::json IntervalsJson(const std::vector<ThetaInterval>& intervals) {
   nlohmann::json out = nlohmann::json::array();
   for (const auto& i : intervals) {
-    out.push_back({{"lo_deg", Deg(i.lo)},
-                   {"hi_deg", Deg(i.hi)},
-                   {"best_theta_deg", Deg(i.best_theta)},
-                   {"margin", i.margin}});
+    out.push_back(
+        {{"lo_deg", Deg(i.lo)}, {"hi_deg", Deg(i.hi)}, {"best_theta_deg", Deg(i.best_theta)}, {"margin", i.margin}});
   }
   return out;
 }
@@ -223,15 +221,10 @@ void Run(const Args& a) {
   const auto& st = nd.stats;
   nlohmann::json by_kind;
   for (int k = 0; k < 7; ++k) by_kind[CriticalKindName(static_cast<CriticalKind>(k))] = st.counts.by_kind[k];
-  doc["stats"] = {{"method", a.method},
-                  {"candidates", st.candidates},
-                  {"candidates_by_kind", by_kind},
-                  {"checked", st.checked},
-                  {"backprojections", st.backprojections},
-                  {"changes", st.changes},
-                  {"selection", st.selection},
-                  {"r_critical", st.r_critical},
-                  {"unexplained", st.unexplained}};
+  doc["stats"] = {
+      {"method", a.method},        {"candidates", st.candidates},           {"candidates_by_kind", by_kind},
+      {"checked", st.checked},     {"backprojections", st.backprojections}, {"changes", st.changes},
+      {"selection", st.selection}, {"r_critical", st.r_critical},           {"unexplained", st.unexplained}};
   if (scene.start) {
     doc["start_intervals"] = {{"classic", IntervalsJson(IntervalsContaining(nd, pr, start, false))},
                               {"vc", IntervalsJson(IntervalsContaining(nd, pr, start, true))}};
@@ -278,8 +271,9 @@ void RegisterCriticalCommand(CLI::App& app) {
   cmd->add_option("SCENE", args->scene, "scene file (JSON, see CONTRACT.md)")->required();
   cmd->add_flag("--kernel", args->kernel, "backproject the goal kernel (the goal eroded by the position uncertainty)");
   cmd->add_flag("--slices", args->slices, "print the slices of the nondirectional backprojection too");
-  cmd->add_option("--svg", args->svg,
-                  "draw the areas of B_theta(G) and B_vctheta(G) against theta with the critical orientations into FILE");
+  cmd->add_option(
+      "--svg", args->svg,
+      "draw the areas of B_theta(G) and B_vctheta(G) against theta with the critical orientations into FILE");
   cmd->add_option("--samples", args->samples, "orientations sampled for the --svg curves")->capture_default_str();
   cmd->add_option("--threads", args->threads, "worker threads for the slices")->capture_default_str();
   cmd->add_option("--method", args->method,

@@ -55,8 +55,8 @@ double SegmentsDistance(const Vector2d& a, const Vector2d& b, const Vector2d& c,
     const double t = Cross(c - a, d - c) / den, u = Cross(c - a, b - a) / den;
     if (t >= 0 && t <= 1 && u >= 0 && u <= 1) return 0.0;
   }
-  return std::min({SegmentDistance(a, c, d), SegmentDistance(b, c, d), SegmentDistance(c, a, b),
-                   SegmentDistance(d, a, b)});
+  return std::min(
+      {SegmentDistance(a, c, d), SegmentDistance(b, c, d), SegmentDistance(c, a, b), SegmentDistance(d, a, b)});
 }
 
 template <typename F>
@@ -285,7 +285,8 @@ class Builder {
     std::vector<Slice> out(m);
     if (options_.method == SliceMethod::kBaseline) {
       checked_ = static_cast<std::int64_t>(m);
-      ParallelFor(m, options_.threads, options_.progress, 0.0, 0.7, [&](size_t k) { out[k] = Evaluate(IntervalTheta(k)); });
+      ParallelFor(m, options_.threads, options_.progress, 0.0, 0.7,
+                  [&](size_t k) { out[k] = Evaluate(IntervalTheta(k)); });
       return out;
     }
     // Chunks of events walked independently (one per thread), each starting from a swept interval.
@@ -319,7 +320,7 @@ class Builder {
   int PickCandidate(size_t k, const Slice& before, const Slice& after) const {
     auto vb = VerticesOf(before), va = VerticesOf(after);
     // Prefer the specific kinds (a free edge parallel to a ray is also parallel to the segment of its two ends).
-    static const CriticalKind priority[] = {CriticalKind::kVc,      CriticalKind::kFreeEdge, CriticalKind::kVertex,
+    static const CriticalKind priority[] = {CriticalKind::kVc, CriticalKind::kFreeEdge, CriticalKind::kVertex,
                                             CriticalKind::kSliding, CriticalKind::kVgraph};
     for (CriticalKind kind : priority) {
       for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
@@ -360,7 +361,8 @@ class Builder {
       ParallelFor(3 * n, options_.threads, options_.progress, 0.7 + 0.04 * round, 0.04, [&](size_t t) {
         const size_t k = t / 3;
         const double lo = order.empty() ? -M_PI : order[k].first;
-        const double hi = order.empty() ? M_PI : (k + 1 < order.size() ? order[k + 1].first : order[0].first + 2 * M_PI);
+        const double hi =
+            order.empty() ? M_PI : (k + 1 < order.size() ? order[k + 1].first : order[0].first + 2 * M_PI);
         probes[k].lo = lo;
         probes[k].hi = hi;
         probes[k].s[t % 3] = Evaluate(WrapAngle(lo + fractions[t % 3] * (hi - lo)));
@@ -462,7 +464,8 @@ bool RegionContainsPolygon(const Region& region, const std::vector<Vector2d>& po
                            double* clearance) {
   std::vector<std::array<Vector2d, 2>> edges;
   ForEachRing(region, [&](const RegionRing& r) {
-    for (size_t i = 0; i < r.vertices.size(); ++i) edges.push_back({r.vertices[i], r.vertices[(i + 1) % r.vertices.size()]});
+    for (size_t i = 0; i < r.vertices.size(); ++i)
+      edges.push_back({r.vertices[i], r.vertices[(i + 1) % r.vertices.size()]});
   });
   auto inside = [&](const Vector2d& p) { return region.Contains(p) || region.BoundaryDistance(p) <= tolerance; };
   const size_t n = polygon.size();
@@ -511,8 +514,7 @@ std::vector<ThetaInterval> IntervalsContaining(const NondirectionalBackprojectio
     if (relevant) cuts.push_back(c.theta);
   }
   std::sort(cuts.begin(), cuts.end());
-  cuts.erase(std::unique(cuts.begin(), cuts.end(), [](double x, double y) { return y - x <= kSameTheta; }),
-             cuts.end());
+  cuts.erase(std::unique(cuts.begin(), cuts.end(), [](double x, double y) { return y - x <= kSameTheta; }), cuts.end());
   if (cuts.empty()) cuts.push_back(-M_PI);
   std::vector<ThetaInterval> out;
   const size_t n = cuts.size();

@@ -90,7 +90,7 @@ const Slice& SliceAt(const NondirectionalBackprojection& nd, double theta);
 /// A θ-interval [lo, hi] (radians; hi may exceed π when it wraps) on which R lies inside the region.
 struct ThetaInterval {
   double lo = 0.0, hi = 0.0;
-  double margin = 0.0;  ///< the largest, over the interval's sampled orientations, of R's distance to the boundary
+  double margin = 0.0;      ///< the largest, over the interval's sampled orientations, of R's distance to the boundary
   double best_theta = 0.0;  ///< where that margin was found
 };
 

@@ -42,8 +42,7 @@ struct Args {
 
 motion_strategy_t StrategyToLcm(const Scene& scene, const Strategy& strategy, double speed) {
   motion_strategy_t m;
-  m.utime = std::chrono::duration_cast<std::chrono::microseconds>(
-                std::chrono::system_clock::now().time_since_epoch())
+  m.utime = std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
                 .count();
   m.scene = scene.name;
   m.feasible = strategy.feasible;

@@ -90,12 +90,12 @@ const ThetaInterval* Best(const std::vector<ThetaInterval>& v) {
 // backprojection, and the steps that follow it to the goal.
 struct Node {
   Termination terminate = Termination::kGoal;
-  std::string ray;  // vc: the ray whose strip this is
+  std::string ray;                     // vc: the ray whose strip this is
   std::vector<NamedPolygon> triggers;  // vc: strips around all of the ray's free segments (reaching one stops it)
-  Vector2d end_a{0, 0}, end_b{0, 0};    // vc: the piece of the ray where the step must end
+  Vector2d end_a{0, 0}, end_b{0, 0};   // vc: the piece of the ray where the step must end
   BackprojectionProblem problem;
   NondirectionalBackprojection nd;
-  bool vc = true;                 // the step into this target may comply to rays
+  bool vc = true;                  // the step into this target may comply to rays
   std::vector<StrategyStep> rest;  // the steps after the step into this target
 };
 
@@ -289,7 +289,8 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
         child.problem.rays.clear();
         child.vc = false;
         child.rest = node.rest;
-        child.rest.insert(child.rest.begin(), MakeStep(node, *best, "the piece of ray " + ray.id + " where the step before ends"));
+        child.rest.insert(child.rest.begin(),
+                          MakeStep(node, *best, "the piece of ray " + ray.id + " where the step before ends"));
         child.nd = ComputeNondirectional(child.problem, nullptr, NdOptions(options));
         ++out.nondirectional;
         const auto start_fits = IntervalsContaining(child.nd, child.problem, start, false);
@@ -321,8 +322,8 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
   out.reason = fmt::format(
       "no strategy within {} step(s): one step covers at most {:.0f}% of the start region (at θ = {:.1f}°){}",
       options.max_steps, 100 * out.best_coverage, Deg(out.best_theta),
-      !scene.camera ? "; the scene has no camera: visual constraints (visco camera) may help"
-      : !camera     ? "; planned without the camera"
+      !scene.camera         ? "; the scene has no camera: visual constraints (visco camera) may help"
+      : !camera             ? "; planned without the camera"
       : options.kernel_only ? "; only goal-terminated steps were allowed (--kernel-only)"
                             : "; more steps (--max-steps) or another camera position (visco camera) may help");
   progress(1.0);
@@ -429,7 +430,8 @@ StrategyCheck CheckStrategy(const Scene& scene, const CSpace& cspace, const VcRa
       for (const PolygonWithHoles& part : cspace.c_obstacle(i)) w.obstacles.push_back(part.outer.vertices);
     }
     // A guarded step stops wherever the ray is reached first (the executor's event); only its target piece succeeds.
-    for (const auto& g : s.terminate == Termination::kVisualGuarded ? s.triggers : s.target) w.goal.push_back(g.vertices);
+    for (const auto& g : s.terminate == Termination::kVisualGuarded ? s.triggers : s.target)
+      w.goal.push_back(g.vertices);
     w.bounds_min = base.bounds_min;
     w.bounds_max = base.bounds_max;
     w.friction_cone = base.friction_cone;
@@ -477,10 +479,10 @@ StrategyCheck CheckStrategy(const Scene& scene, const CSpace& cspace, const VcRa
       if (!reached) {
         ok = false;
         if (out.failures.size() < 20) {
-          out.failures.push_back(
-              fmt::format("start ({:.4f}, {:.4f}): step {}: {}", q.x(), q.y(), k + 1,
-                          res.outcome == Outcome::kReachedGoal ? "reached the ray outside the target piece"
-                                                               : OutcomeName(res.outcome)));
+          out.failures.push_back(fmt::format("start ({:.4f}, {:.4f}): step {}: {}", q.x(), q.y(), k + 1,
+                                             res.outcome == Outcome::kReachedGoal
+                                                 ? "reached the ray outside the target piece"
+                                                 : OutcomeName(res.outcome)));
         }
       }
       pos = res.final_state.position;

@@ -89,8 +89,8 @@ std::string StrategyToSvg(const Scene& scene, const CSpace& cspace, const Strate
 
 /// Result of simulating a strategy (the motion model of SEMANTICS.md with adversarial velocities).
 struct StrategyCheck {
-  int starts = 0;     ///< sampled start configurations (interior and boundary of R)
-  int successes = 0;  ///< reached the goal kernel after the last step
+  int starts = 0;                     ///< sampled start configurations (interior and boundary of R)
+  int successes = 0;                  ///< reached the goal kernel after the last step
   std::vector<std::string> failures;  ///< "start (x, y): step k: outcome", at most 20
 };
 

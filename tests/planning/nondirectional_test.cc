@@ -9,6 +9,8 @@
 //   * points inside every slice's VC region survive the adversarial simulator;
 //   * the intervals where a random region R fits are right at sampled θ.
 
+#include "planning/nondirectional.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -23,7 +25,6 @@
 #include "planning/critical.h"
 #include "planning/cspace.h"
 #include "planning/motion_model.h"
-#include "planning/nondirectional.h"
 #include "planning/vc_rays.h"
 #include "tests/planning/random_scenes.h"
 #include "tests/planning/random_vc_scenes.h"
@@ -116,10 +117,11 @@ void StructureOnSeeds(std::uint64_t first, std::uint64_t last, Tally& t) {
   }
   std::string kinds;
   for (const auto& k : t.kinds_changing) kinds += k + " ";
-  std::printf("scenes %d, candidates %lld, orientations %d (%d checked across, %d change nothing), intervals %d "
-              "(broken %d), unexplained %d; kinds that change the structure: %s\n",
-              t.scenes, static_cast<long long>(t.candidates), t.orientations, t.changes, t.not_changing, t.intervals,
-              t.broken, t.unexplained, kinds.c_str());
+  std::printf(
+      "scenes %d, candidates %lld, orientations %d (%d checked across, %d change nothing), intervals %d "
+      "(broken %d), unexplained %d; kinds that change the structure: %s\n",
+      t.scenes, static_cast<long long>(t.candidates), t.orientations, t.changes, t.not_changing, t.intervals, t.broken,
+      t.unexplained, kinds.c_str());
   EXPECT_GE(t.scenes * static_cast<int>(kSeedStride), static_cast<int>(last - first + 1) * 9 / 10);
   EXPECT_EQ(t.broken, 0);
 }
@@ -221,8 +223,8 @@ TEST(NondirectionalProperty, EverySliceIsSound) {
         const auto r = SimulateAdversarially(model, q, sl.theta, pr.velocity_cone, seed * 977 + i, i % 3 == 0);
         if (r.outcome != Outcome::kReachedGoal) {
           ++failures;
-          ADD_FAILURE() << "seed " << seed << " slice θ = " << sl.theta * 180 / M_PI << ": (" << q.x() << ", "
-                        << q.y() << ") fails: " << OutcomeName(r.outcome);
+          ADD_FAILURE() << "seed " << seed << " slice θ = " << sl.theta * 180 / M_PI << ": (" << q.x() << ", " << q.y()
+                        << ") fails: " << OutcomeName(r.outcome);
         }
       }
     }
@@ -267,8 +269,8 @@ TEST(NondirectionalProperty, IntervalsContainingARegionAreRight) {
           if (near_end) continue;
           BackprojectionProblem p = pr;
           p.theta = t;
-          const Region reg = vc ? BackprojectionWithActiveRays(p, SliceAt(nd, t).vc.active_rays)
-                                : ClassicBackprojection(p);
+          const Region reg =
+              vc ? BackprojectionWithActiveRays(p, SliceAt(nd, t).vc.active_rays) : ClassicBackprojection(p);
           const bool contains = RegionContainsPolygon(reg, r.vertices, 1e-9);
           ++checked;
           inside += contains;

@@ -116,8 +116,9 @@ inline Scene RandomScene(std::uint64_t seed, const RandomSceneOptions& o = {}) {
   return s;
 }
 
-// A whole random scene for the VC property tests: cells_x x cells_y cells of 4 m (3 x 3 by default), star-shaped (non-convex) obstacles, some overlapping; the camera on the edge
-// of the bounds for two seeds in three, anywhere otherwise; a small goal in free space; θ and ε_v random.
+// A whole random scene for the VC property tests: cells_x x cells_y cells of 4 m (3 x 3 by default), star-shaped
+// (non-convex) obstacles, some overlapping; the camera on the edge of the bounds for two seeds in three, anywhere
+// otherwise; a small goal in free space; θ and ε_v random.
 inline bool RandomWholeScene(std::uint64_t seed, Scene& s, double& theta, int cells_x = 3, int cells_y = 3) {
   testing::RandomSceneOptions o;
   o.cells_x = cells_x;
@@ -135,9 +136,9 @@ inline bool RandomWholeScene(std::uint64_t seed, Scene& s, double& theta, int ce
     const double t = unit(rng);
     const Eigen::Vector2d lo = s.bounds.min, hi = s.bounds.max;
     const Eigen::Vector2d c = side == 0   ? Eigen::Vector2d(lo.x() + t * (hi.x() - lo.x()), lo.y())
-                       : side == 1 ? Eigen::Vector2d(hi.x(), lo.y() + t * (hi.y() - lo.y()))
-                       : side == 2 ? Eigen::Vector2d(lo.x() + t * (hi.x() - lo.x()), hi.y())
-                                   : Eigen::Vector2d(lo.x(), lo.y() + t * (hi.y() - lo.y()));
+                              : side == 1 ? Eigen::Vector2d(hi.x(), lo.y() + t * (hi.y() - lo.y()))
+                              : side == 2 ? Eigen::Vector2d(lo.x() + t * (hi.x() - lo.x()), hi.y())
+                                          : Eigen::Vector2d(lo.x(), lo.y() + t * (hi.y() - lo.y()));
     bool inside = false;
     for (const Obstacle& ob : s.obstacles) inside |= Locate(ob.shape.polygon, c) == Location::kInside;
     if (!inside) {

@@ -3,6 +3,8 @@
 // random scenes; scenes where one step suffices only with visual constraints, where two steps are needed, and where
 // no strategy exists; the same scenes without the camera; the same output on every run.
 
+#include "planning/strategy.h"
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -13,7 +15,6 @@
 
 #include "planning/cspace.h"
 #include "planning/scene.h"
-#include "planning/strategy.h"
 #include "planning/vc_rays.h"
 #include "tests/planning/random_vc_scenes.h"
 
@@ -89,7 +90,8 @@ TEST(Strategy, NoStrategyWithinTheStepsSaysWhy) {
   for (const auto& v : s.goal.polygon.vertices) glo = glo.cwiseMin(v), ghi = ghi.cwiseMax(v);
   double reach = 0;
   for (const auto& v : s.robot.polygon.vertices) reach = std::max(reach, v.norm());
-  const Eigen::Vector2d lo = glo - Eigen::Vector2d::Constant(reach + 0.3), hi = ghi + Eigen::Vector2d::Constant(reach + 0.3);
+  const Eigen::Vector2d lo = glo - Eigen::Vector2d::Constant(reach + 0.3),
+                        hi = ghi + Eigen::Vector2d::Constant(reach + 0.3);
   const double t = 0.2;
   auto wall = [&](const std::string& id, Eigen::Vector2d a, Eigen::Vector2d b) {
     ScenePolygon p;
