@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 
 #include "app/cli_run.h"
+#include "app/demo.h"
 #include "app/spy_command.h"
 #include "control/commands.h"
 #include "control/sim_commands.h"
@@ -26,6 +27,7 @@ int main(int argc, char** argv) {
   app.fallthrough(false);
 
   visco::app::RegisterSpyCommand(app);
+  visco::app::RegisterDemoCommand(app);
   visco::drivers::RegisterCommands(app);
   visco::planning::RegisterCommands(app);
   visco::vision::RegisterCommands(app);

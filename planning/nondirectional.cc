@@ -289,26 +289,47 @@ class Builder {
                   [&](size_t k) { out[k] = Evaluate(IntervalTheta(k)); });
       return out;
     }
-    // Chunks of events walked independently (one per thread), each starting from a swept interval.
+    // Chunks of events walked independently (one per thread), each starting from a swept interval. An event is
+    // swept again when it is relevant, and every kPeriod events anyway; when the structure differs from the last
+    // swept interval's, the skipped events in between are bisected for where it changed (an event whose free edges
+    // are the region's only after it is found that way).
+    constexpr size_t kPeriod = 8;
     const size_t chunks = std::clamp<size_t>(static_cast<size_t>(std::max(1, options_.threads)), 1, m);
     std::vector<std::int64_t> checked(chunks, 0);
-    std::vector<bool> swept(m, false);
+    std::vector<char> swept(m, 0);
     ParallelFor(chunks, options_.threads, options_.progress, 0.0, 0.7, [&](size_t c) {
       const size_t begin = m * c / chunks, end = m * (c + 1) / chunks;
-      out[begin] = Evaluate(IntervalTheta(begin));
-      swept[begin] = true;
+      auto sweep = [&](size_t k) {
+        out[k] = Evaluate(IntervalTheta(k));
+        swept[k] = 1;
+        ++checked[c];
+      };
+      // Finds every change between swept intervals lo < hi whose structures differ.
+      std::function<void(size_t, size_t)> locate = [&](size_t lo, size_t hi) {
+        if (hi - lo <= 1) return;
+        const size_t mid = lo + (hi - lo) / 2;
+        sweep(mid);
+        if (!(out[mid].structure == out[lo].structure)) locate(lo, mid);
+        if (!(out[mid].structure == out[hi].structure)) locate(mid, hi);
+      };
+      sweep(begin);
       std::vector<Vector2d> vertices = VerticesOf(out[begin]);
-      size_t current = begin;
+      size_t last = begin;
       for (size_t k = begin + 1; k < end; ++k) {
-        if (EventRelevant(k, vertices)) {
-          ++checked[c];
-          out[k] = Evaluate(IntervalTheta(k));
-          swept[k] = true;
-          current = k;
-          vertices = VerticesOf(out[k]);
+        if (!EventRelevant(k, vertices) && k - last < kPeriod && k + 1 < end) continue;
+        sweep(k);
+        if (!(out[k].structure == out[last].structure)) locate(last, k);
+        last = k;
+        vertices = VerticesOf(out[k]);
+      }
+      // Intervals not swept have the structure of the last swept one before them.
+      size_t source = begin;
+      for (size_t k = begin + 1; k < end; ++k) {
+        if (swept[k]) {
+          source = k;
         } else {
-          out[k].structure = out[current].structure;
-          out[k].theta = out[current].theta;
+          out[k].structure = out[source].structure;
+          out[k].theta = out[source].theta;
         }
       }
     });

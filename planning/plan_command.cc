@@ -87,7 +87,7 @@ void Run(const Args& a) {
   };
   const Strategy strategy = PlanStrategy(scene, options);
   if (tty) std::fprintf(stderr, "\r%20s\r", "");
-  std::string json = StrategyToJson(scene, strategy);
+  std::string json = StrategyToJson(scene, strategy, a.speed);
   if (a.check > 0 && strategy.feasible) {
     const CSpace cspace(scene);
     VcRays rays;
@@ -134,7 +134,8 @@ void RegisterPlanCommand(CLI::App& app) {
   cmd->add_option("--out", args->out, "write the JSON to FILE instead of stdout");
   cmd->add_option("--svg", args->svg, "draw the nested preimages, commanded directions and rays into FILE (SVG)");
   cmd->add_option("--lcm-url", args->lcm_url, "also publish the strategy as visco.motion_strategy_t on VISCO_STRATEGY");
-  cmd->add_option("--speed", args->speed, "commanded speed in the LCM message, m/s")->capture_default_str();
+  cmd->add_option("--speed", args->speed, "commanded speed for `visco run` (JSON \"speed\" and the LCM message), m/s")
+      ->capture_default_str();
   cmd->add_option("--threads", args->threads, "worker threads for the nondirectional backprojections")
       ->capture_default_str();
   cmd->add_option("--check", args->check,

@@ -330,10 +330,12 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
   return out;
 }
 
-std::string StrategyToJson(const Scene& scene, const Strategy& strategy) {
+std::string StrategyToJson(const Scene& scene, const Strategy& strategy, double speed) {
   nlohmann::json doc;
   doc["feasible"] = strategy.feasible;
   doc["scene"] = scene.name;
+  doc["speed"] = speed;
+  const double timeout = 3.0 * (scene.bounds.max - scene.bounds.min).norm() / speed + 10.0;
   nlohmann::json steps = nlohmann::json::array();
   for (const auto& s : strategy.steps) {
     nlohmann::json step;
@@ -345,6 +347,7 @@ std::string StrategyToJson(const Scene& scene, const Strategy& strategy) {
     step["interval_deg"] = {Deg(s.interval_lo), Deg(s.interval_hi)};
     step["margin"] = s.margin;
     step["guarantee"] = s.guarantee;
+    step["timeout_s"] = std::round(timeout);
     if (s.terminate == Termination::kVisualGuarded) {
       step["ends"] = {{s.end_a.x(), s.end_a.y()}, {s.end_b.x(), s.end_b.y()}};
     }

@@ -81,7 +81,9 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options = {});
 
 /// The contract's `visco plan` JSON: {"feasible", "scene", "steps": [{"theta_deg", "active_rays", "terminate":
 /// {"kind", "ref"}, "preimage": REGION, "guarantee", "interval_deg": [lo, hi], "margin"}], "reason"}.
-std::string StrategyToJson(const Scene& scene, const Strategy& strategy);
+/// `speed` (m/s) is the commanded speed `visco run` uses (an extension of the contract's fields, as are the per-step
+/// "timeout_s": three times the bounds' diagonal at that speed, plus 10 s).
+std::string StrategyToJson(const Scene& scene, const Strategy& strategy, double speed = 0.25);
 
 /// The nested preimages of the steps (Fig. 13 style): the start region, each preimage, its commanded direction, the
 /// rays used and the goal.

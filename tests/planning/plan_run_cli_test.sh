@@ -13,12 +13,12 @@ trap '[[ -n $sim_pid ]] && kill $sim_pid 2>/dev/null; rm -rf "$tmp"' EXIT
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
 
-"$visco" plan "$scene" --out "$tmp/plan.json" --svg "$tmp/plan.svg" --check 20 2>"$tmp/plan.log" ||
+"$visco" plan "$scene" --speed 0.5 --out "$tmp/plan.json" --svg "$tmp/plan.svg" --check 20 2>"$tmp/plan.log" ||
   fail "visco plan exited $?: $(cat "$tmp/plan.log")"
 grep -q '"feasible":true' "$tmp/plan.json" || fail "no feasible plan: $(head -c 400 "$tmp/plan.json")"
 grep -q "20 of 20 start configurations reach the goal" "$tmp/plan.log" || fail "simulation check: $(cat "$tmp/plan.log")"
 grep -q '<svg' "$tmp/plan.svg" && grep -q 'class="preimage' "$tmp/plan.svg" || fail "plan.svg has no preimage"
-"$visco" plan "$scene" --out "$tmp/plan2.json" 2>/dev/null
+"$visco" plan "$scene" --speed 0.5 --out "$tmp/plan2.json" 2>/dev/null
 cmp -s "$tmp/plan.json" "$tmp/plan2.json" || fail "two runs of visco plan differ"
 "$visco" vcrays "$scene" --out "$tmp/rays.json" || fail "visco vcrays failed"
 

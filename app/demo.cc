@@ -1,0 +1,491 @@
+// `visco demo`: the whole system on the embedded default scene (or --scene FILE). It plans (`visco plan`), then
+// executes the strategy in closed loop as separate processes talking LCM, as on real hardware:
+//   visco sim    the simulated robot behind its driver (the motion model of SEMANTICS.md with a seeded adversary) and
+//                the rendered camera (the AprilTags of robot and obstacles, published as images);
+//   visco track  the vision pipeline (detection, tracking, poses, CM vertices, visual events);
+//   visco run    the controller (visual guarded and compliant motions, contact, goal);
+//   lcm-logger   every channel into DIR/run.lcmlog.
+// The demo supervises them: Ctrl-C or any failure stops all of them (they also die with the demo: PR_SET_PDEATHSIG).
+// Outputs in DIR: scene.json, rays.json, plan.json, plan.svg, run.svg, run.lcmlog, summary.json, and each
+// process's output and log.
+
+#include "app/demo.h"
+
+#include <fmt/format.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <CLI/CLI.hpp>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <lcm/lcm-cpp.hpp>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "app/paths.h"
+#include "common/error.h"
+#include "common/write_output.h"
+#include "lcmtypes/channels.h"
+#include "planning/cspace.h"
+#include "planning/scene.h"
+#include "planning/strategy.h"
+#include "planning/svg.h"
+#include "planning/vc_rays.h"
+#include "visco/robot_estimate_t.hpp"
+#include "visco/robot_status_t.hpp"
+#include "visco/visual_events_t.hpp"
+
+#ifndef VISCO_SOURCE_DATA_DIR
+#define VISCO_SOURCE_DATA_DIR "data"
+#endif
+
+namespace visco::app {
+namespace {
+
+namespace fs = std::filesystem;
+using Clock = std::chrono::steady_clock;
+
+std::atomic<int> g_signal{0};
+void OnSignal(int sig) { g_signal = sig; }
+
+struct Args {
+  std::string out;
+  std::string scene;
+  std::uint64_t seed = 1;
+  bool can = false;
+  int runs = 1;
+  double timeout_s = 120;
+};
+
+struct Child {
+  std::string name;
+  pid_t pid = -1;
+  int status = -1;
+  bool exited = false;
+};
+
+// Starts `argv` with stdout and stderr redirected; the child dies with the demo.
+Child Spawn(const std::string& name, const std::vector<std::string>& argv, const fs::path& out, const fs::path& err) {
+  const pid_t parent = getpid();
+  const pid_t pid = fork();
+  if (pid < 0) throw JobFailed("cannot start " + name + ": fork failed");
+  if (pid == 0) {
+    prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (getppid() != parent) _exit(126);
+    if (!freopen(out.c_str(), "w", stdout) || !freopen(err.c_str(), "w", stderr)) _exit(126);
+    std::vector<char*> cargv;
+    for (const auto& a : argv) cargv.push_back(const_cast<char*>(a.c_str()));
+    cargv.push_back(nullptr);
+    execvp(cargv[0], cargv.data());
+    std::fprintf(stderr, "cannot execute %s\n", cargv[0]);
+    _exit(127);
+  }
+  return {name, pid, -1, false};
+}
+
+bool Poll(Child& c) {
+  if (c.exited) return true;
+  int status = 0;
+  if (waitpid(c.pid, &status, WNOHANG) == c.pid) {
+    c.exited = true;
+    c.status = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+  return c.exited;
+}
+
+// SIGINT, then SIGKILL after `grace`: no orphans.
+void Stop(std::vector<Child>& children, std::chrono::milliseconds grace = std::chrono::milliseconds(4000)) {
+  for (auto& c : children) {
+    if (!Poll(c)) kill(c.pid, SIGINT);
+  }
+  const auto deadline = Clock::now() + grace;
+  for (auto& c : children) {
+    while (!Poll(c) && Clock::now() < deadline) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    if (!Poll(c)) {
+      kill(c.pid, SIGKILL);
+      int status = 0;
+      waitpid(c.pid, &status, 0);
+      c.exited = true;
+      c.status = 128 + SIGKILL;
+    }
+  }
+}
+
+std::string ReadText(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+nlohmann::json ReadJson(const fs::path& p) {
+  try {
+    return nlohmann::json::parse(ReadText(p));
+  } catch (const std::exception&) {
+    return nlohmann::json();
+  }
+}
+
+// The trajectory (vision's estimates), visual events and contacts from the LCM log (lcm-logger's format).
+struct Trace {
+  std::vector<Eigen::Vector2d> path;
+  std::vector<Eigen::Vector2d> crossings;  // where a visual event reported a crossing
+  std::vector<Eigen::Vector2d> contacts;   // where contact started
+  int events = 0;
+  int messages = 0;
+};
+
+Trace ReadTrace(const fs::path& log) {
+  Trace t;
+  lcm::LogFile file(log.string(), "r");
+  if (!file.good()) return t;
+  bool in_contact = false;
+  Eigen::Vector2d last(NAN, NAN);
+  while (const lcm::LogEvent* e = file.readNextEvent()) {
+    ++t.messages;
+    if (e->channel == channels::kRobotEstimate) {
+      // The trajectory as vision saw it (the driver's status carries odometry, zero in the simulation).
+      robot_estimate_t s{};
+      if (s.decode(e->data, 0, e->datalen) < 0 || !s.valid) continue;
+      const Eigen::Vector2d p(s.position[0], s.position[1]);
+      if (t.path.empty() || (p - t.path.back()).norm() > 0.01) t.path.push_back(p);
+      last = p;
+    } else if (e->channel == channels::kStatus) {
+      robot_status_t s{};
+      if (s.decode(e->data, 0, e->datalen) < 0) continue;
+      if (s.contact && !in_contact && std::isfinite(last.x())) t.contacts.push_back(last);
+      in_contact = s.contact;
+    } else if (e->channel == channels::kVisualEvents) {
+      visual_events_t v{};
+      if (v.decode(e->data, 0, e->datalen) < 0) continue;
+      for (const auto& ev : v.events) {
+        if (ev.crossed && std::isfinite(last.x())) {
+          ++t.events;
+          t.crossings.push_back(last);
+        }
+      }
+    }
+  }
+  return t;
+}
+
+std::string RunSvg(const planning::Scene& scene, const planning::CSpace& cspace, const planning::Strategy& strategy,
+                   const Trace& trace) {
+  // The plan's picture underneath, the executed trajectory over it.
+  planning::SvgCanvas c(scene.bounds.min, scene.bounds.max, 700);
+  const Eigen::Vector2d lo = scene.bounds.min, hi = scene.bounds.max;
+  c.Polygon(planning::Polygon{{{lo.x(), lo.y()}, {hi.x(), lo.y()}, {hi.x(), hi.y()}, {lo.x(), hi.y()}}},
+            "fill=\"white\" stroke=\"#999\" stroke-width=\"1\"");
+  for (size_t k = strategy.steps.size(); k-- > 0;) {
+    for (const auto& poly : strategy.steps[k].preimage.polygons) {
+      planning::PolygonWithHoles pw;
+      pw.outer.vertices = poly.outer.vertices;
+      for (const auto& h : poly.holes) pw.holes.push_back(planning::Polygon{h.vertices});
+      c.PolygonWithHoles(pw, "fill=\"#cfe3ff\" fill-opacity=\"0.6\" stroke=\"#036\" stroke-dasharray=\"6,3\"");
+    }
+  }
+  for (const auto& o : scene.obstacles) c.Polygon(o.shape.polygon, "fill=\"#bbb\" stroke=\"#777\" stroke-width=\"1\"");
+  for (size_t i = 0; i < cspace.num_c_obstacles(); ++i) {
+    for (const auto& pw : cspace.c_obstacle(i)) c.Polygon(pw.outer, "fill=\"none\" stroke=\"#333\" stroke-width=\"1\"");
+  }
+  c.Polygon(scene.goal.polygon, "fill=\"black\" stroke=\"black\" fill-opacity=\"0.7\"");
+  if (scene.start) c.Polygon(scene.start->polygon, "fill=\"#7c7\" stroke=\"#060\" stroke-width=\"2\"");
+  for (size_t i = 1; i < trace.path.size(); ++i) {
+    c.Line(trace.path[i - 1], trace.path[i], "class=\"trajectory\" stroke=\"#c00\" stroke-width=\"2.5\"");
+  }
+  for (const auto& p : trace.crossings)
+    c.Circle(p, 6, "class=\"vc-event\" fill=\"none\" stroke=\"#90c\" stroke-width=\"3\"");
+  for (const auto& p : trace.contacts) c.Circle(p, 4, "class=\"contact\" fill=\"#f80\" stroke=\"none\"");
+  if (!trace.path.empty()) c.Circle(trace.path.back(), 5, "class=\"end\" fill=\"#c00\" stroke=\"black\"");
+  c.TextPx(10, 18,
+           fmt::format("{}: executed trajectory (red) over the plan's preimages; purple: visual events, orange: "
+                       "contacts",
+                       scene.name),
+           13, "fill=\"black\"");
+  return c.Finish();
+}
+
+fs::path FreshDir(const std::string& requested) {
+  if (!requested.empty()) {
+    fs::create_directories(requested);
+    return requested;
+  }
+  for (int k = 1;; ++k) {
+    const fs::path p = fmt::format("visco-demo-{}", k);
+    if (!fs::exists(p)) {
+      fs::create_directories(p);
+      return p;
+    }
+  }
+}
+
+double DistanceToPolygon(const planning::Polygon& poly, const Eigen::Vector2d& p) {
+  if (planning::InsideEvenOdd(poly.vertices, p)) return 0.0;
+  double best = INFINITY;
+  for (size_t i = 0; i < poly.vertices.size(); ++i) {
+    const Eigen::Vector2d a = poly.vertices[i], b = poly.vertices[(i + 1) % poly.vertices.size()];
+    const double t = std::clamp((p - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+    best = std::min(best, (a + t * (b - a) - p).norm());
+  }
+  return best;
+}
+
+void Progress(const char* what) {
+  std::fprintf(stderr, "visco demo: %s\n", what);
+  std::fflush(stderr);
+}
+
+int Run(const Args& a) {
+  if (a.runs < 1) throw InputError("command line", "--runs", "must be at least 1");
+  if (a.can && !fs::exists("/sys/class/net/vcan0")) {
+    throw InputError("command line", "--can",
+                     "no vcan0 interface on this machine: run the demo over CAN inside the HIL VM (docs/hil.md)");
+  }
+  const auto t0 = Clock::now();
+  const fs::path dir = FreshDir(a.out);
+  // The scene: the embedded default (no file needed) or the user's.
+  std::string scene_text = a.scene.empty() ? std::string(planning::DefaultSceneJson()) : ReadText(a.scene);
+  if (!a.scene.empty() && scene_text.empty()) throw InputError(a.scene, "", "cannot read the scene file");
+  const planning::Scene scene = a.scene.empty() ? planning::DefaultScene() : planning::LoadScene(a.scene);
+  if (!scene.start)
+    throw InputError(a.scene.empty() ? "<embedded slot.json>" : a.scene, "start", "the demo needs a start region");
+  WriteTextOutput(scene_text, (dir / "scene.json").string());
+  const planning::CSpace cspace(scene);
+  planning::VcRays rays;
+  if (scene.camera) rays = planning::ComputeVcRays(scene, cspace);
+  WriteTextOutput(planning::VcRaysToJson(scene, rays), (dir / "rays.json").string());
+
+  Progress("planning (visco plan)");
+  planning::PlanOptions po;
+  po.threads = 2;
+  const planning::Strategy strategy = planning::PlanStrategy(scene, po);
+  WriteTextOutput(planning::StrategyToJson(scene, strategy, 0.6), (dir / "plan.json").string());
+  WriteTextOutput(planning::StrategyToSvg(scene, cspace, strategy), (dir / "plan.svg").string());
+  if (!strategy.feasible) throw JobFailed("no strategy: " + strategy.reason);
+  const double plan_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  std::fprintf(stderr, "visco demo: %zu step(s), planned in %.1f s\n", strategy.steps.size(), plan_s);
+
+  // The rendered camera for the default scene; other scenes get the synthetic camera (visual events without images).
+  const fs::path data = VISCO_SOURCE_DATA_DIR;
+  const bool rendered = a.scene.empty() && fs::exists(data / "sim" / "slot_camera.xml");
+  std::vector<std::string> cam;
+  if (rendered) {
+    cam = {"--camera",     (data / "sim" / "slot_camera.xml").string(),
+           "--extrinsics", (data / "sim" / "slot_extrinsics.json").string(),
+           "--objects",    (data / "sim" / "slot_objects.json").string()};
+  }
+  const std::string self = (ExecutableDir() / "visco").string();
+  const std::string url = fmt::format("udpm://239.255.76.67:{}?ttl=0", 20000 + getpid() % 20000);
+  signal(SIGINT, OnSignal);
+  signal(SIGTERM, OnSignal);
+
+  nlohmann::json runs = nlohmann::json::array();
+  int successes = 0;
+  std::mt19937_64 rng(a.seed);
+  for (int r = 0; r < a.runs && g_signal == 0; ++r) {
+    const std::uint64_t seed = a.seed + static_cast<std::uint64_t>(r);
+    const fs::path rd = a.runs == 1 ? dir : dir / fmt::format("run{:03d}", r);
+    fs::create_directories(rd);
+    // The start: the start region's centroid for one run, seeded random points in it for Monte Carlo.
+    const auto& sv = scene.start->polygon.vertices;
+    Eigen::Vector2d start = Eigen::Vector2d::Zero();
+    for (const auto& v : sv) start += v / static_cast<double>(sv.size());
+    if (a.runs > 1) {
+      Eigen::Vector2d lo = sv[0], hi = sv[0];
+      for (const auto& v : sv) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+      std::uniform_real_distribution<double> u(0, 1);
+      for (int k = 0; k < 1000; ++k) {
+        const Eigen::Vector2d q(lo.x() + u(rng) * (hi.x() - lo.x()), lo.y() + u(rng) * (hi.y() - lo.y()));
+        if (planning::InsideEvenOdd(sv, q)) {
+          start = q;
+          break;
+        }
+      }
+    }
+    std::vector<Child> children;
+    children.push_back(Spawn("lcm-logger",
+                             {"lcm-logger", "--lcm-url=" + url, "--quiet", "--force", (rd / "run.lcmlog").string()},
+                             rd / "logger.out", rd / "logger.log"));
+    std::vector<std::string> sim = {self,
+                                    "sim",
+                                    (dir / "scene.json").string(),
+                                    "--rays",
+                                    (dir / "rays.json").string(),
+                                    "--start",
+                                    fmt::format("{}", start.x()),
+                                    fmt::format("{}", start.y()),
+                                    "--seed",
+                                    std::to_string(seed),
+                                    "--lcm-url",
+                                    url,
+                                    "--duration",
+                                    fmt::format("{}", a.timeout_s + 30),
+                                    "--watchdog-ms",
+                                    "500"};
+    if (rendered) {
+      sim.insert(sim.end(), cam.begin(), cam.end());
+      for (const char* o :
+           {"--camera-hz", "15", "--latency-ms", "5", "--supersample", "2", "--image-noise", "2", "--blur-px", "0.5"}) {
+        sim.push_back(o);
+      }
+    }
+    if (a.can) {
+      sim.push_back("--can");
+      sim.push_back("vcan0");
+    }
+    children.push_back(Spawn("sim", sim, rd / "sim.json", rd / "sim.log"));
+    if (rendered) {
+      std::vector<std::string> track = {self, "track", "--lcm", "--lcm-url", url + "&recv_buf_size=4194304"};
+      track.insert(track.end(), cam.begin(), cam.end());
+      children.push_back(Spawn("track", track, rd / "track.jsonl", rd / "track.log"));
+    }
+    std::vector<std::string> run = {self,
+                                    "run",
+                                    (dir / "plan.json").string(),
+                                    "--scene",
+                                    (dir / "scene.json").string(),
+                                    "--rays",
+                                    (dir / "rays.json").string(),
+                                    "--lcm-url",
+                                    url,
+                                    "--max-speed",
+                                    "1.0",
+                                    "--max-accel",
+                                    "4",
+                                    "--max-vision-age-ms",
+                                    "400",
+                                    "--max-hold",
+                                    "4",
+                                    "--startup-timeout",
+                                    "30",
+                                    "--status-timeout-ms",
+                                    "500",
+                                    "--heartbeat-timeout-ms",
+                                    "1000",
+                                    "--no-realtime"};
+    if (rendered) {
+      run.push_back("--focal-px");
+      run.push_back("560");
+    }
+    if (a.can) {
+      run.push_back("--can");
+      run.push_back("vcan0");
+    }
+    Child controller = Spawn("run", run, rd / "run.json", rd / "run.log");
+    const auto started = Clock::now();
+    int last_report = -1;
+    bool failed_early = false;
+    while (!Poll(controller) && g_signal == 0) {
+      const double elapsed = std::chrono::duration<double>(Clock::now() - started).count();
+      if (elapsed > a.timeout_s) break;
+      for (auto& c : children) {
+        if (Poll(c) && c.name != "lcm-logger") failed_early = true;
+      }
+      if (failed_early) break;
+      if (static_cast<int>(elapsed) / 5 != last_report) {
+        last_report = static_cast<int>(elapsed) / 5;
+        std::fprintf(stderr, "visco demo: run %d/%d: executing, %.0f s\n", r + 1, a.runs, elapsed);
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    std::vector<Child> all = children;
+    all.push_back(controller);
+    Stop(all);
+    const double run_s = std::chrono::duration<double>(Clock::now() - started).count();
+    const nlohmann::json run_json = ReadJson(rd / "run.json");
+    const nlohmann::json sim_json = ReadJson(rd / "sim.json");
+    const Trace trace = ReadTrace(rd / "run.lcmlog");
+    if (a.runs == 1) WriteTextOutput(RunSvg(scene, cspace, strategy, trace), (rd / "run.svg").string());
+    Eigen::Vector2d final_pos(NAN, NAN);
+    if (sim_json.contains("position")) {
+      final_pos = Eigen::Vector2d(sim_json["position"][0].get<double>(), sim_json["position"][1].get<double>());
+    }
+    const double error = std::isfinite(final_pos.x()) ? DistanceToPolygon(scene.goal.polygon, final_pos) : INFINITY;
+    const bool done = run_json.value("result", "") == "done";
+    const bool in_goal = error == 0.0;
+    const bool ok = done && in_goal;
+    successes += ok;
+    nlohmann::json item = {
+        {"seed", seed},
+        {"start", {start.x(), start.y()}},
+        {"result", run_json.value("result", "no result")},
+        {"reason", run_json.value("reason", "")},
+        {"steps_completed", run_json.value("steps_completed", 0)},
+        {"commands_sent", run_json.value("commands_sent", 0)},
+        {"faults_published", run_json.value("faults_published", 0)},
+        {"visual_events", trace.events},
+        {"contacts", trace.contacts.size()},
+        {"logged_messages", trace.messages},
+        {"time_s", run_s},
+        {"final_position",
+         std::isfinite(final_pos.x()) ? nlohmann::json({final_pos.x(), final_pos.y()}) : nlohmann::json()},
+        {"goal_error_m", std::isfinite(error) ? nlohmann::json(error) : nlohmann::json()},
+        {"success", ok}};
+    if (failed_early) item["reason"] = "a process ended early (see its log in " + rd.string() + ")";
+    runs.push_back(item);
+  }
+  const double total_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  nlohmann::json summary = {{"scene", scene.name},
+                            {"steps", strategy.steps.size()},
+                            {"plan_s", plan_s},
+                            {"total_s", total_s},
+                            {"runs", runs},
+                            {"successes", successes},
+                            {"camera", rendered ? "rendered" : "events"},
+                            {"transport", a.can ? "can" : "lcm"},
+                            {"interrupted", g_signal != 0}};
+  WriteTextOutput(summary.dump(2) + "\n", (dir / "summary.json").string());
+  for (const auto& item : runs) {
+    std::printf(
+        "run seed %llu: %s (%s), %d/%zu steps, %d visual events, %d commands, %d faults, %.1f s, final error "
+        "%s m\n",
+        static_cast<unsigned long long>(item["seed"].get<std::uint64_t>()),
+        item["success"].get<bool>() ? "goal reached" : "FAILED", item["reason"].get<std::string>().c_str(),
+        item["steps_completed"].get<int>(), strategy.steps.size(), item["visual_events"].get<int>(),
+        item["commands_sent"].get<int>(), item["faults_published"].get<int>(), item["time_s"].get<double>(),
+        item["goal_error_m"].is_null() ? "?" : fmt::format("{:.3f}", item["goal_error_m"].get<double>()).c_str());
+  }
+  std::printf("visco demo: %d of %zu run(s) reached the goal recognisably; %.1f s in all; outputs in %s\n", successes,
+              runs.size(), total_s, dir.c_str());
+  if (g_signal != 0) return 130;
+  return successes == static_cast<int>(runs.size()) ? 0 : 1;
+}
+
+}  // namespace
+
+void RegisterDemoCommand(CLI::App& app) {
+  auto args = std::make_shared<Args>();
+  CLI::App* cmd = app.add_subcommand(
+      "demo",
+      "The main job: plans the embedded default scene (or --scene FILE) with `visco plan`, then executes the "
+      "strategy in closed loop as separate processes over LCM (the simulated robot and its driver, the rendered "
+      "camera, the vision pipeline, the controller, lcm-logger), and writes plan.svg, run.svg, run.lcmlog and "
+      "summary.json into DIR. Exit 0 only when the goal is recognisably reached (the controller recognised it and "
+      "the simulated robot is in the goal).");
+  cmd->add_option("--out", args->out, "output directory (default: a fresh ./visco-demo-N)");
+  cmd->add_option("--scene", args->scene, "scene file instead of the embedded default (CONTRACT.md)");
+  cmd->add_option("--seed", args->seed, "seed of the adversary and the camera noise")->capture_default_str();
+  cmd->add_flag("--can", args->can, "the controller talks to the driver over SocketCAN vcan0 instead of LCM");
+  cmd->add_option("--runs", args->runs, "Monte Carlo: runs from seeded random starts in the start region")
+      ->capture_default_str();
+  cmd->add_option("--timeout", args->timeout_s, "give up a run after this many seconds")->capture_default_str();
+  cmd->callback([args] {
+    const int status = Run(*args);
+    if (status == 130) throw JobFailed("interrupted");
+    if (status != 0) throw JobFailed("the goal was not reached in every run (see summary.json)");
+  });
+}
+
+}  // namespace visco::app

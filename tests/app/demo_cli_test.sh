@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# `visco demo` as a user runs it: the embedded default scene is planned and executed in closed loop by separate
+# processes over LCM (simulated robot and driver, rendered camera, vision, controller, lcm-logger); exit 0 with the
+# goal recognisably reached, every output written (the pictures drawn, the log readable by LCM's own tools). Ctrl-C
+# stops every process it started (no orphans) and exits non-zero.
+set -uo pipefail
+visco="$1"
+tmp=$(mktemp -d)
+trap 'pkill -f "$tmp" 2>/dev/null; rm -rf "$tmp"' EXIT
+failures=0
+fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+
+"$visco" demo --out "$tmp/d" >"$tmp/out.txt" 2>"$tmp/err.txt"
+status=$?
+[[ $status -eq 0 ]] || { fail "visco demo exited $status"; cat "$tmp/out.txt" "$tmp/err.txt"; tail -20 "$tmp"/d/*.log; }
+grep -q "1 of 1 run(s) reached the goal recognisably" "$tmp/out.txt" || fail "summary line: $(cat "$tmp/out.txt")"
+grep -q "visco demo: planning" "$tmp/err.txt" || fail "no progress on stderr"
+for f in scene.json rays.json plan.json plan.svg run.svg run.lcmlog summary.json run.log sim.json track.jsonl; do
+  [[ -s "$tmp/d/$f" ]] || fail "$f missing or empty"
+done
+python3 - "$tmp/d" <<'PY' || fail "outputs are not what the summary says"
+import json, re, sys, xml.etree.ElementTree as ET
+d = sys.argv[1]
+s = json.load(open(d + "/summary.json"))
+run = s["runs"][0]
+assert s["camera"] == "rendered" and s["transport"] == "lcm", s
+assert run["success"] and run["result"] == "done" and run["goal_error_m"] == 0.0, run
+assert run["steps_completed"] == s["steps"] >= 1, run
+assert run["commands_sent"] > 100 and run["logged_messages"] > 100, run
+plan = json.load(open(d + "/plan.json"))
+assert plan["feasible"] and len(plan["steps"]) == s["steps"], plan
+svg = open(d + "/run.svg").read()
+ET.fromstring(svg.split("?>", 1)[1])
+assert len(re.findall('class="trajectory"', svg)) > 10, "run.svg draws no trajectory"
+ET.fromstring(open(d + "/plan.svg").read().split("?>", 1)[1])
+PY
+# The log is lcm-logger's format: LCM's own player reads it.
+if command -v lcm-logplayer >/dev/null; then
+  timeout 20 lcm-logplayer --speed=20 --lcm-url="udpm://239.255.76.67:$((30000 + $$ % 20000))?ttl=0" \
+    "$tmp/d/run.lcmlog" >/dev/null 2>&1 || fail "lcm-logplayer cannot play run.lcmlog"
+fi
+
+# Ctrl-C during the run: every process stops, the demo exits non-zero.
+"$visco" demo --out "$tmp/int" >"$tmp/int.out" 2>"$tmp/int.err" &
+demo=$!
+for _ in $(seq 1 300); do
+  grep -q "executing" "$tmp/int.err" 2>/dev/null && break
+  sleep 0.1
+done
+sleep 2
+kill -INT $demo
+wait $demo
+status=$?
+[[ $status -ne 0 ]] || fail "an interrupted demo exited 0"
+sleep 1
+left=$(pgrep -f "$tmp/int" | wc -l)
+[[ $left -eq 0 ]] || { fail "$left process(es) left after Ctrl-C"; pgrep -af "$tmp/int"; }
+grep -q '"interrupted": true' "$tmp/int/summary.json" || fail "the summary does not say it was interrupted"
+
+# Bad input: exit 2 naming what is wrong.
+out=$("$visco" demo --scene "$tmp/nonexistent.json" --out "$tmp/bad" 2>&1); status=$?
+[[ $status -eq 2 ]] || fail "a missing scene exited $status, expected 2: $out"
+out=$("$visco" demo --runs 0 --out "$tmp/bad" 2>&1); status=$?
+[[ $status -eq 2 ]] || fail "--runs 0 exited $status, expected 2: $out"
+
+echo "$(( failures == 0 ? 1 : 0 )) passed, $(( failures == 0 ? 0 : 1 )) failed"
+exit $(( failures == 0 ? 0 : 1 ))
