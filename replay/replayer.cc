@@ -1,0 +1,369 @@
+#include "replay/replayer.h"
+
+#include <chrono>
+#include <cstdio>
+#include <deque>
+#include <lcm/lcm-cpp.hpp>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <set>
+#include <thread>
+#include <utility>
+
+#include "common/error.h"
+#include "lcmtypes/channels.h"
+#include "visco/fault_t.hpp"
+#include "visco/image_t.hpp"
+#include "visco/object_poses_t.hpp"
+#include "visco/robot_estimate_t.hpp"
+#include "visco/tag_detections_t.hpp"
+#include "visco/visual_events_t.hpp"
+#include "vision/pipeline.h"
+
+namespace visco::replay {
+namespace {
+
+const std::set<std::string>& KnownChannels() {
+  static const std::set<std::string> known = {
+      channels::kCameraImage,     channels::kTagDetections,  channels::kObjectPoses, channels::kRobotEstimate,
+      channels::kVisualEvents,    channels::kStrategy,       channels::kCommand,     channels::kStatus,
+      channels::kTelemetry,       channels::kFault,          channels::kEstop,       channels::kHeartbeatController,
+      channels::kHeartbeatDriver, channels::kHeartbeatVision};
+  return known;
+}
+
+bool Known(const std::string& channel, const std::string& prefix) {
+  if (KnownChannels().count(channel) > 0) return true;
+  if (channel == "LCM_SELF_TEST") return true;  // LCM's own start-up check of a udpm:// bus (not replayed)
+  return !prefix.empty() && channel.rfind(prefix, 0) == 0 && KnownChannels().count(channel.substr(prefix.size())) > 0;
+}
+
+template <class M>
+bool DecodeAs(const LogEvent& e, M& m) {
+  return m.decode(e.data.data(), 0, static_cast<int>(e.data.size())) >= 0;
+}
+
+template <class M>
+std::vector<std::uint8_t> Encode(const M& m) {
+  std::vector<std::uint8_t> buffer(static_cast<std::size_t>(m.getEncodedSize()));
+  m.encode(buffer.data(), 0, static_cast<int>(buffer.size()));
+  return buffer;
+}
+
+// The frame (image_t.utime) a logged vision output belongs to, if it is one.
+bool VisionOutputFrame(const LogEvent& e, std::int64_t& frame_utime) {
+  const std::string_view c = e.channel;
+  if (c == channels::kTagDetections) {
+    tag_detections_t m;
+    if (!DecodeAs(e, m)) return false;
+    frame_utime = m.frame_utime;
+    return true;
+  }
+  if (c == channels::kObjectPoses) {
+    object_poses_t m;
+    if (!DecodeAs(e, m)) return false;
+    frame_utime = m.frame_utime;
+    return true;
+  }
+  if (c == channels::kRobotEstimate) {
+    robot_estimate_t m;
+    if (!DecodeAs(e, m)) return false;
+    frame_utime = m.utime;
+    return true;
+  }
+  if (c == channels::kVisualEvents) {
+    visual_events_t m;
+    if (!DecodeAs(e, m)) return false;
+    frame_utime = m.frame_utime;
+    return true;
+  }
+  if (c == channels::kFault) {
+    fault_t m;
+    if (!DecodeAs(e, m) || m.source != "vision") return false;
+    frame_utime = m.utime;
+    return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+ReplaySummary RunReplay(const ReplayOptions& o) {
+  if (!o.can_interface.empty() && !o.arm) {
+    throw InputError("command line", "--can",
+                     "replay never commands hardware unless armed: give --arm to use a CAN interface");
+  }
+  if (!o.can_interface.empty()) {
+    throw InputError("command line", "--can",
+                     "replay feeds the logged images through vision and publishes its outputs on LCM; it has no "
+                     "robot commands to send on CAN");
+  }
+  if (!o.fast && !(o.speed > 0)) throw InputError("command line", "--speed", "must be positive");
+  if (!(o.from_s >= 0) || !(o.to_s >= o.from_s)) {
+    throw InputError("command line", "--from/--to", "need 0 <= FROM <= TO (seconds after the log's first event)");
+  }
+  std::regex channel_filter;
+  try {
+    channel_filter = std::regex(o.channels);
+  } catch (const std::regex_error& e) {
+    throw InputError("command line", "--channels", std::string("not a regular expression: ") + e.what());
+  }
+  const vision::LoadedPipeline loaded = vision::LoadPipelineConfig(o.pipeline);
+
+  const auto wall_start = std::chrono::steady_clock::now();
+  EventLogReader reader(o.log_path);
+  std::vector<LogEvent> events;
+  LogEvent event;
+  while (reader.Next(event)) events.push_back(event);
+  ReplaySummary s;
+  s.log = reader.report();
+  if (events.empty()) throw InputError(o.log_path, "", "no usable event: " + s.log.Describe());
+  s.log_start_utime = events.front().timestamp;
+  s.log_end_utime = events.back().timestamp;
+
+  // What the live vision process published, per channel and frame, in log order.
+  std::map<std::pair<std::string, std::int64_t>, std::deque<std::size_t>> logged;
+  std::set<std::int64_t> logged_frames;
+  std::int64_t images_total = 0, first_image = 0, last_image = 0;
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    const LogEvent& e = events[i];
+    const std::string channel(e.channel);
+    if (!Known(channel, o.prefix)) ++s.unknown_channels[channel];
+    if (channel == channels::kCameraImage) {
+      if (images_total++ == 0) first_image = e.timestamp;
+      last_image = e.timestamp;
+    }
+    std::int64_t frame_utime = 0;
+    if (VisionOutputFrame(e, frame_utime)) {
+      logged[{channel, frame_utime}].push_back(i);
+      logged_frames.insert(frame_utime);
+    }
+  }
+  if (images_total > 1 && last_image > first_image) {
+    s.log_frame_rate_hz =
+        static_cast<double>(images_total - 1) / (static_cast<double>(last_image - first_image) * 1e-6);
+  }
+  const std::int64_t last_logged_frame = logged_frames.empty() ? 0 : *logged_frames.rbegin();
+  if (o.check && logged_frames.empty()) {
+    throw InputError(o.log_path, "",
+                     "holds no vision output (VISCO_ROBOT_ESTIMATE, VISCO_VISUAL_EVENTS, ...) to check against: record "
+                     "the live run with --log on a process of its bus");
+  }
+
+  std::unique_ptr<lcm::LCM> bus;
+  if (o.publish) {
+    bus = std::make_unique<lcm::LCM>(o.lcm_url);
+    if (!bus->good()) throw InputError("command line", "--lcm-url", "cannot open LCM bus '" + o.lcm_url + "'");
+  }
+  std::unique_ptr<EventLogWriter> out;
+  if (!o.out_path.empty()) {
+    WriterOptions wo;
+    wo.max_queue_bytes = std::size_t{1} << 30;
+    out = std::make_unique<EventLogWriter>(o.out_path, wo);
+  }
+  const std::string prefix = o.arm ? "" : o.prefix;
+
+  std::int64_t log_now = 0;
+  vision::PipelineOptions options = loaded.options;
+  options.clock = [&log_now] { return log_now; };
+  vision::VisionPipeline pipeline(loaded.camera, loaded.wMc, loaded.models, options);
+
+  bool paced = false;
+  std::int64_t pace_origin = 0;
+  auto pace_start = std::chrono::steady_clock::now();
+  auto pace = [&](std::int64_t timestamp) {
+    if (o.fast) return;
+    if (!paced) {
+      paced = true;
+      pace_origin = timestamp;
+      pace_start = std::chrono::steady_clock::now();
+      return;
+    }
+    const double s_after = static_cast<double>(timestamp - pace_origin) * 1e-6 / o.speed;
+    std::this_thread::sleep_until(pace_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                   std::chrono::duration<double>(s_after)));
+  };
+  auto emit = [&](const std::string& channel, std::int64_t timestamp, const std::vector<std::uint8_t>& bytes) {
+    const std::string name = prefix + channel;
+    if (bus) bus->publish(name, bytes.data(), static_cast<unsigned int>(bytes.size()));
+    if (out) out->Write(name, timestamp, bytes);
+  };
+  auto note = [&](std::string text) {
+    if (s.notes.size() < 20) s.notes.push_back(std::move(text));
+  };
+
+  bool stopped = false;
+  bool cut_off = false;
+  std::int64_t images_seen = 0;
+  for (const LogEvent& e : events) {
+    const double t = static_cast<double>(e.timestamp - s.log_start_utime) * 1e-6;
+    if (t > o.to_s) break;
+    const std::string channel(e.channel);
+    if (!std::regex_match(channel, channel_filter)) continue;
+    if (channel != channels::kCameraImage) {
+      if (t < o.from_s || !Known(channel, o.prefix) || channel == "LCM_SELF_TEST") continue;
+      pace(e.timestamp);
+      emit(channel, e.timestamp, std::vector<std::uint8_t>(e.data.begin(), e.data.end()));
+      ++s.republished;
+      continue;
+    }
+    ++s.images;
+    ++images_seen;
+    if (o.progress && images_seen % 10 == 0) {
+      std::fprintf(stderr, "\rreplay: %lld/%lld images (%.0f%%), %zu difference(s)",
+                   static_cast<long long>(images_seen), static_cast<long long>(images_total),
+                   100.0 * static_cast<double>(images_seen) / static_cast<double>(images_total), s.differences.size());
+    }
+    image_t message;
+    if (!DecodeAs(e, message)) {
+      ++s.undecodable;
+      note("event " + std::to_string(e.number) + " at byte " + std::to_string(e.offset) + " on " + channel +
+           " does not decode as visco.image_t: skipped (a live subscriber drops it too)");
+      continue;
+    }
+    if (o.check && logged_frames.count(message.utime) == 0) {
+      ++s.skipped_frames;  // the live pipeline never saw it (its queue dropped it, or it was killed first)
+      continue;
+    }
+    pace(e.timestamp);
+    log_now = e.timestamp;
+    vision::Frame frame;
+    std::string error;
+    vision::PipelineOutput result;
+    if (!vision::DecodeImageMessage(message, frame, error)) {
+      result.faults.push_back(pipeline.BadFrame(frame, error));
+    } else {
+      result = pipeline.Process(frame, e.timestamp);
+    }
+    if (result.processed) {
+      ++s.frames;
+    } else {
+      ++s.bad_frames;
+    }
+    if (t < o.from_s) {
+      ++s.warmup_frames;
+      for (const char* c : {channels::kTagDetections, channels::kObjectPoses, channels::kRobotEstimate,
+                            channels::kVisualEvents, channels::kFault}) {
+        logged.erase({c, message.utime});
+      }
+      continue;
+    }
+    vision::ForEachMessage(result, [&](const char* produced_channel, const auto& produced) {
+      const std::vector<std::uint8_t> bytes = Encode(produced);
+      emit(produced_channel, e.timestamp, bytes);
+      ++s.published;
+      if (!o.check || !s.differences.empty()) return;
+      Difference d{produced_channel, e.timestamp, message.seq, message.utime, {}};
+      auto found = logged.find({produced_channel, message.utime});
+      if (found == logged.end() || found->second.empty()) {
+        if (message.utime == last_logged_frame) {
+          cut_off = true;  // the log ends inside the last frame's outputs (the process was stopped or killed)
+          return;
+        }
+        d.field = {"(message)", "absent", "produced"};
+        s.differences.push_back(d);
+        return;
+      }
+      const LogEvent& live = events[found->second.front()];
+      found->second.pop_front();
+      ++s.compared;
+      if (auto diff = CompareMessages(produced_channel, live.data, bytes)) {
+        d.field = *diff;
+        s.differences.push_back(d);
+      }
+    });
+    if (cut_off) {
+      note("the log ends inside the outputs of frame seq " + std::to_string(message.seq) +
+           " (the live process stopped): compared up to there");
+      break;
+    }
+    if (o.check && s.differences.empty()) {
+      // Whatever the live process published for this frame and the replay did not.
+      for (const char* c : {channels::kTagDetections, channels::kObjectPoses, channels::kRobotEstimate,
+                            channels::kVisualEvents, channels::kFault}) {
+        auto found = logged.find({c, message.utime});
+        if (found != logged.end() && !found->second.empty()) {
+          s.differences.push_back({c, e.timestamp, message.seq, message.utime, {"(message)", "present", "absent"}});
+          break;
+        }
+      }
+    }
+    if (o.check && !s.differences.empty()) {
+      stopped = true;
+      break;
+    }
+  }
+  if (o.progress) std::fprintf(stderr, "\n");
+  if (o.check && !stopped) {
+    // Vision outputs in the replayed window whose image is not in the log (lost by the logger, or cut off).
+    for (const auto& [key, indices] : logged) {
+      for (std::size_t i : indices) {
+        const double t = static_cast<double>(events[i].timestamp - s.log_start_utime) * 1e-6;
+        if (t < o.from_s || t > o.to_s) continue;
+        if (s.unmatched_logged++ == 0) {
+          s.differences.push_back({key.first,
+                                   events[i].timestamp,
+                                   -1,
+                                   key.second,
+                                   {"(message)", "present", "no image of this frame in the log"}});
+        }
+      }
+    }
+  }
+  if (out) {
+    const WriterStats ws = out->Close();
+    if (ws.events_dropped > 0 || !ws.error.empty()) {
+      note(o.out_path + ": " + std::to_string(ws.events_dropped) + " event(s) dropped " + ws.error);
+    }
+  }
+  s.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  if (s.frames == 0 && s.bad_frames == 0 && s.republished == 0 && s.skipped_frames == 0) {
+    throw InputError(o.log_path, "",
+                     "nothing usable to replay: " + std::to_string(s.images) + " image event(s), " +
+                         std::to_string(s.undecodable) + " undecodable; " + s.log.Describe());
+  }
+  return s;
+}
+
+std::string ReplaySummary::ToJson() const {
+  nlohmann::json j;
+  j["identical"] = identical();
+  j["images"] = images;
+  j["frames"] = frames;
+  j["bad_frames"] = bad_frames;
+  j["undecodable"] = undecodable;
+  j["skipped_frames"] = skipped_frames;
+  j["warmup_frames"] = warmup_frames;
+  j["published"] = published;
+  j["republished"] = republished;
+  j["compared"] = compared;
+  j["unmatched_logged"] = unmatched_logged;
+  j["differences"] = differences.size();
+  if (!differences.empty()) {
+    const Difference& d = differences.front();
+    j["first_difference"] = {{"channel", d.channel},         {"log_utime", d.log_utime}, {"frame_seq", d.frame_seq},
+                             {"frame_utime", d.frame_utime}, {"field", d.field.field},   {"logged", d.field.logged},
+                             {"replayed", d.field.replayed}};
+  }
+  nlohmann::json skipped = nlohmann::json::array();
+  for (const SkippedRange& r : log.skipped)
+    skipped.push_back({{"offset", r.offset}, {"bytes", r.bytes}, {"reason", r.reason}});
+  j["log"] = {{"bytes", log.file_bytes},
+              {"events", log.events},
+              {"skipped_bytes", log.skipped_bytes},
+              {"skipped_ranges", log.skipped_ranges},
+              {"skipped", skipped},
+              {"truncated_tail", log.truncated_tail},
+              {"number_gaps", log.number_gaps},
+              {"missing_events", log.missing_numbers},
+              {"duration_s", static_cast<double>(log_end_utime - log_start_utime) * 1e-6},
+              {"frame_rate_hz", log_frame_rate_hz}};
+  j["unknown_channels"] = unknown_channels;
+  j["notes"] = notes;
+  j["wall_s"] = wall_s;
+  j["frames_per_s"] = wall_s > 0 ? static_cast<double>(frames + bad_frames) / wall_s : 0.0;
+  return j.dump();
+}
+
+}  // namespace visco::replay

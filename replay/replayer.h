@@ -1,0 +1,76 @@
+#pragma once
+// `visco replay`: the logged camera images go through the vision pipeline again, on the log's clock, and what it
+// produces is published (on prefixed channels unless armed), written to a log, and, with `check`, compared field by
+// field with what the live process published into the same log.
+//
+// The seam between live and log: the live `visco track --lcm` decodes each image_t with vision::DecodeImageMessage,
+// hands the frame to vision::VisionPipeline::Process and publishes vision::ForEachMessage's messages; the replay does
+// exactly that with the logged bytes, and gives the pipeline the log's receive time of the image as its clock
+// (PipelineOptions::clock), so that nothing it computes depends on the wall clock or on the replay's speed.
+
+#include <cstdint>
+#include <limits>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "replay/event_log.h"
+#include "replay/message_diff.h"
+#include "vision/pipeline_config.h"
+
+namespace visco::replay {
+
+struct ReplayOptions {
+  std::string log_path;
+  vision::PipelineConfig pipeline;
+  bool fast = false;   // as fast as possible (default: at the log's pace times `speed`)
+  double speed = 1.0;  // pace, multiple of the log's
+  double from_s = 0;   // seconds after the log's first event: publish and compare from here (frames before it
+                       // still go through vision, so that its tracking state is the live one)
+  double to_s = std::numeric_limits<double>::infinity();  // ... up to here
+  std::string channels = "VISCO_CAMERA_IMAGE";            // regex of the logged channels to replay; non-image ones are
+                                                          // republished unchanged
+  bool check = false;
+  std::string out_path;  // write what the replay produces to this log
+  bool publish = true;   // publish on LCM
+  std::string lcm_url;   // "" = LCM's default
+  std::string prefix = "REPLAY_";
+  bool arm = false;           // publish on the live channel names
+  std::string can_interface;  // refused without `arm`
+  bool progress = false;      // a progress line on stderr
+};
+
+struct Difference {
+  std::string channel;
+  std::int64_t log_utime = 0;    // receive time of the frame's image in the log
+  std::int64_t frame_seq = -1;   // image_t.seq
+  std::int64_t frame_utime = 0;  // image_t.utime (capture)
+  FieldDifference field;
+};
+
+struct ReplaySummary {
+  ReadReport log;
+  std::int64_t log_start_utime = 0, log_end_utime = 0;
+  double log_frame_rate_hz = 0;         // images per second of log time
+  std::int64_t images = 0;              // image events replayed
+  std::int64_t frames = 0;              // frames vision processed
+  std::int64_t bad_frames = 0;          // frames vision rejected (reported as faults, as live)
+  std::int64_t undecodable = 0;         // events that do not decode as their channel's type
+  std::int64_t skipped_frames = 0;      // --check: frames the live pipeline never processed (no output in the log)
+  std::int64_t warmup_frames = 0;       // frames before --from (processed, not published)
+  std::int64_t published = 0;           // messages produced (published and/or written)
+  std::int64_t republished = 0;         // logged non-image messages republished
+  std::int64_t compared = 0;            // messages compared with the log
+  std::int64_t unmatched_logged = 0;    // logged vision outputs no replayed frame produced
+  std::vector<Difference> differences;  // --check stops at the first
+  std::map<std::string, std::int64_t> unknown_channels;  // channel -> events
+  std::vector<std::string> notes;                        // undecodable events and other remarks (the first few)
+  double wall_s = 0;
+  bool identical() const { return differences.empty() && unmatched_logged == 0; }
+  std::string ToJson() const;
+};
+
+/// Runs the replay. @throws InputError for bad options or a log with nothing usable (exit 2).
+ReplaySummary RunReplay(const ReplayOptions& options);
+
+}  // namespace visco::replay
