@@ -35,6 +35,7 @@ void Run(CliOptions& cli) {
   o.realtime = !cli.no_realtime;
   // The event log records the bus from before the strategy is loaded (a strategy on VISCO_STRATEGY is in it).
   std::unique_ptr<EventLogTap> log = OpenEventLog(cli.log, o.lcm_url);
+  o.log = log.get();
   const Task task = LoadTask(o);
   struct sigaction action {};
   action.sa_handler = OnSignal;

@@ -24,20 +24,28 @@ void Run(const ReplayOptions& options) {
   for (const std::string& note : s.notes) std::fprintf(stderr, "replay: %s\n", note.c_str());
   std::printf("%s\n", s.ToJson().c_str());
   std::fflush(stdout);
+  if (!s.control_note.empty()) std::fprintf(stderr, "replay: controller: %s\n", s.control_note.c_str());
+  if (s.control_cycles > 0) {
+    std::fprintf(stderr, "replay: controller: %lld period(s) through the executor (%lld with the replayed vision)\n",
+                 static_cast<long long>(s.control_cycles), static_cast<long long>(s.control_frames_from_vision));
+  }
   std::fprintf(stderr, "replay: %lld frame(s) through vision (%lld rejected as live), %lld message(s) produced",
                static_cast<long long>(s.frames), static_cast<long long>(s.bad_frames),
                static_cast<long long>(s.published));
   if (o.check) {
-    std::fprintf(stderr, ", %lld compared, %s\n", static_cast<long long>(s.compared),
+    std::fprintf(stderr, ", %lld compared, %s\n", static_cast<long long>(s.compared + s.control_compared),
                  s.identical() ? "identical" : "DIFFERENT");
   } else {
     std::fprintf(stderr, "\n");
   }
   if (o.check && !s.identical()) {
     const Difference& d = s.differences.front();
+    const std::string where =
+        d.cycle >= 0 ? "controller cycle " + std::to_string(d.cycle) + ", frame seq " + std::to_string(d.frame_seq)
+                     : "frame seq " + std::to_string(d.frame_seq) + ", capture utime " + std::to_string(d.frame_utime);
     throw JobFailed("replay --check: first difference on " + d.channel + " at log time " + std::to_string(d.log_utime) +
-                    " (frame seq " + std::to_string(d.frame_seq) + ", capture utime " + std::to_string(d.frame_utime) +
-                    "), field " + d.field.field + ": log " + d.field.logged + ", replay " + d.field.replayed);
+                    " (" + where + "), field " + d.field.field + ": log " + d.field.logged + ", replay " +
+                    d.field.replayed);
   }
 }
 
@@ -74,6 +82,10 @@ void RegisterCommands(CLI::App& app) {
   cmd->add_flag("--arm", o->arm, "publish on the live channel names (a live controller may act on them)");
   cmd->add_option("--can", o->can_interface, "a CAN interface: refused unless --arm");
   cmd->add_flag("!--no-progress", o->progress, "no progress line on a terminal");
+  cmd->add_flag("!--no-control", o->control, "do not replay the controller (its records from visco run --log)");
+  cmd->add_option("--strategy", o->strategy_path, "controller: the strategy file (default: the one the log names)");
+  cmd->add_option("--scene", o->scene_path, "controller: the scene file (default: the one the log names)");
+  cmd->add_option("--rays", o->rays_path, "controller: the rays file (default: the one the log names)");
   o->progress = true;
   cmd->callback([o] { Run(*o); });
 }

@@ -335,9 +335,14 @@ bool EventLogReader::Next(LogEvent& event) {
                                      static_cast<std::size_t>(channel_bytes));
     event.data = std::span<const std::uint8_t>(bytes_ + pos_ + kHeaderBytes + channel_bytes,
                                                static_cast<std::size_t>(data_bytes));
-    if (have_previous_number_ && event.number != previous_number_ + 1) {
+    // Damaged numbers can be anything: no signed overflow in the bookkeeping.
+    std::int64_t step = 0;
+    const bool overflow = __builtin_sub_overflow(event.number, previous_number_, &step);
+    if (have_previous_number_ && (overflow || step != 1)) {
       ++report_.number_gaps;
-      if (event.number > previous_number_ + 1) report_.missing_numbers += event.number - previous_number_ - 1;
+      if (!overflow && step > 1 && !__builtin_add_overflow(report_.missing_numbers, step - 1, &step)) {
+        report_.missing_numbers = step;
+      }
     }
     have_previous_number_ = true;
     previous_number_ = event.number;

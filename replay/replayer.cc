@@ -12,12 +12,18 @@
 #include <utility>
 
 #include "common/error.h"
+#include "control/executor.h"
+#include "control/lcm_bridge.h"
+#include "control/run.h"
 #include "lcmtypes/channels.h"
+#include "visco/controller_cycle_t.hpp"
 #include "visco/fault_t.hpp"
 #include "visco/image_t.hpp"
+#include "visco/log_annotation_t.hpp"
 #include "visco/object_poses_t.hpp"
 #include "visco/robot_estimate_t.hpp"
 #include "visco/tag_detections_t.hpp"
+#include "visco/velocity_command_t.hpp"
 #include "visco/visual_events_t.hpp"
 #include "vision/pipeline.h"
 
@@ -26,10 +32,10 @@ namespace {
 
 const std::set<std::string>& KnownChannels() {
   static const std::set<std::string> known = {
-      channels::kCameraImage,     channels::kTagDetections,  channels::kObjectPoses, channels::kRobotEstimate,
-      channels::kVisualEvents,    channels::kStrategy,       channels::kCommand,     channels::kStatus,
-      channels::kTelemetry,       channels::kFault,          channels::kEstop,       channels::kHeartbeatController,
-      channels::kHeartbeatDriver, channels::kHeartbeatVision};
+      channels::kCameraImage,     channels::kTagDetections,   channels::kObjectPoses, channels::kRobotEstimate,
+      channels::kVisualEvents,    channels::kStrategy,        channels::kCommand,     channels::kStatus,
+      channels::kTelemetry,       channels::kFault,           channels::kEstop,       channels::kHeartbeatController,
+      channels::kHeartbeatDriver, channels::kHeartbeatVision, control::kCycleChannel, control::kAnnotationChannel};
   return known;
 }
 
@@ -87,6 +93,92 @@ bool VisionOutputFrame(const LogEvent& e, std::int64_t& frame_utime) {
   return false;
 }
 
+control::ExecutorInput FromMessage(const controller_cycle_t& m) {
+  control::ExecutorInput in;
+  in.now_ns = m.now_ns;
+  in.now_utime = m.utime;
+  in.have_status = m.have_status;
+  in.status.receive_ns = m.status_receive_ns;
+  in.status.utime = m.status_utime;
+  in.status.seq = m.status_seq;
+  in.status.command_seq = m.status_command_seq;
+  in.status.position = {m.status_position[0], m.status_position[1]};
+  in.status.velocity = {m.status_velocity[0], m.status_velocity[1]};
+  in.status.contact = m.status_contact;
+  in.status.contact_force = {m.status_contact_force[0], m.status_contact_force[1]};
+  in.status.state = m.status_state;
+  in.status.fault_bits = m.status_fault_bits;
+  in.heartbeat_ns = m.heartbeat_ns;
+  in.peer_lost = m.peer_lost;
+  in.link_fault_code = m.link_fault_code;
+  control::CopyText(in.link_fault, m.link_fault.c_str());
+  in.have_frame = m.have_frame;
+  in.frame.capture_ns = m.frame_capture_ns;
+  in.frame.frame_seq = m.frame_seq;
+  in.frame.count = std::min<std::int32_t>(m.num_observations, control::kMaxVisualObservations);
+  for (int i = 0; i < in.frame.count; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    control::VisualObservation& o = in.frame.items[i];
+    o.ray = m.ray[k];
+    o.state = m.state[k];
+    o.crossed = m.crossed[k];
+    o.signed_distance_px = m.signed_distance_px[k];
+    o.stddev_px = m.stddev_px[k];
+  }
+  in.have_estimate = m.have_estimate;
+  in.estimate.capture_ns = m.estimate_capture_ns;
+  in.estimate.frame_seq = m.estimate_frame_seq;
+  in.estimate.valid = m.estimate_valid;
+  in.estimate.position = {m.estimate_position[0], m.estimate_position[1]};
+  in.estimate.stddev = m.estimate_stddev;
+  in.estop = m.estop;
+  return in;
+}
+
+// Field-by-field differences of the controller's values, numbers bit for bit.
+class ControlDiffer {
+ public:
+  std::optional<FieldDifference> result;
+  void Field(const std::string& name, double a, double b) {
+    if (result || std::memcmp(&a, &b, sizeof a) == 0) return;
+    char x[64], y[64];
+    std::snprintf(x, sizeof x, "%.17g", a);
+    std::snprintf(y, sizeof y, "%.17g", b);
+    result = FieldDifference{name, x, y};
+  }
+  void Field(const std::string& name, std::int64_t a, std::int64_t b) {
+    if (result || a == b) return;
+    result = FieldDifference{name, std::to_string(a), std::to_string(b)};
+  }
+  void Field(const std::string& name, const std::string& a, const std::string& b) {
+    if (result || a == b) return;
+    result = FieldDifference{name, "\"" + a + "\"", "\"" + b + "\""};
+  }
+};
+
+void CompareFrames(ControlDiffer& d, const control::VisualFrame& a, const control::VisualFrame& b) {
+  d.Field("input.frame.capture_ns", a.capture_ns, b.capture_ns);
+  d.Field("input.frame.count", std::int64_t{a.count}, std::int64_t{b.count});
+  for (int i = 0; i < a.count && i < b.count; ++i) {
+    const std::string p = "input.frame.items[" + std::to_string(i) + "].";
+    const control::VisualObservation& x = a.items[i];
+    const control::VisualObservation& y = b.items[i];
+    d.Field(p + "ray", std::int64_t{x.ray}, std::int64_t{y.ray});
+    d.Field(p + "state", std::int64_t{x.state}, std::int64_t{y.state});
+    d.Field(p + "crossed", std::int64_t{x.crossed}, std::int64_t{y.crossed});
+    d.Field(p + "signed_distance_px", x.signed_distance_px, y.signed_distance_px);
+    d.Field(p + "stddev_px", x.stddev_px, y.stddev_px);
+  }
+}
+
+void CompareEstimates(ControlDiffer& d, const control::PositionEstimate& a, const control::PositionEstimate& b) {
+  d.Field("input.estimate.capture_ns", a.capture_ns, b.capture_ns);
+  d.Field("input.estimate.valid", std::int64_t{a.valid}, std::int64_t{b.valid});
+  d.Field("input.estimate.position[0]", a.position.x, b.position.x);
+  d.Field("input.estimate.position[1]", a.position.y, b.position.y);
+  d.Field("input.estimate.stddev", a.stddev, b.stddev);
+}
+
 }  // namespace
 
 ReplaySummary RunReplay(const ReplayOptions& o) {
@@ -126,6 +218,9 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
   std::map<std::pair<std::string, std::int64_t>, std::deque<std::size_t>> logged;
   std::set<std::int64_t> logged_frames;
   std::int64_t images_total = 0, first_image = 0, last_image = 0;
+  std::vector<std::size_t> cycle_events;                              // the controller's period records
+  std::int64_t annotation = -1;                                       // the run's configuration
+  std::map<std::int64_t, std::deque<std::size_t>> controller_faults;  // by utime (the period's), overruns aside
   for (std::size_t i = 0; i < events.size(); ++i) {
     const LogEvent& e = events[i];
     const std::string channel(e.channel);
@@ -133,6 +228,18 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
     if (channel == channels::kCameraImage) {
       if (images_total++ == 0) first_image = e.timestamp;
       last_image = e.timestamp;
+    }
+    if (channel == control::kCycleChannel) cycle_events.push_back(i);
+    if (channel == control::kAnnotationChannel) {
+      log_annotation_t a;
+      if (DecodeAs(e, a) && a.kind == "controller_config") annotation = static_cast<std::int64_t>(i);
+    }
+    if (channel == channels::kFault) {
+      fault_t f;
+      if (DecodeAs(e, f) && f.source == "controller" &&
+          f.code != static_cast<std::int32_t>(control::FaultCode::kOverrun)) {
+        controller_faults[f.utime].push_back(i);
+      }
     }
     std::int64_t frame_utime = 0;
     if (VisionOutputFrame(e, frame_utime)) {
@@ -195,6 +302,8 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
 
   bool stopped = false;
   bool cut_off = false;
+  std::map<std::int64_t, visual_events_t> replayed_events;      // by frame seq, for the controller
+  std::map<std::int64_t, robot_estimate_t> replayed_estimates;  // by frame seq
   std::int64_t images_seen = 0;
   for (const LogEvent& e : events) {
     const double t = static_cast<double>(e.timestamp - s.log_start_utime) * 1e-6;
@@ -222,7 +331,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
            " does not decode as visco.image_t: skipped (a live subscriber drops it too)");
       continue;
     }
-    if (o.check && logged_frames.count(message.utime) == 0) {
+    if (!logged_frames.empty() && logged_frames.count(message.utime) == 0) {
       ++s.skipped_frames;  // the live pipeline never saw it (its queue dropped it, or it was killed first)
       continue;
     }
@@ -238,6 +347,8 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
     }
     if (result.processed) {
       ++s.frames;
+      replayed_events[result.events.frame_seq] = result.events;
+      replayed_estimates[result.robot.frame_seq] = result.robot;
     } else {
       ++s.bad_frames;
     }
@@ -254,7 +365,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
       emit(produced_channel, e.timestamp, bytes);
       ++s.published;
       if (!o.check || !s.differences.empty()) return;
-      Difference d{produced_channel, e.timestamp, message.seq, message.utime, {}};
+      Difference d{produced_channel, e.timestamp, message.seq, message.utime, -1, {}};
       auto found = logged.find({produced_channel, message.utime});
       if (found == logged.end() || found->second.empty()) {
         if (message.utime == last_logged_frame) {
@@ -284,7 +395,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
                             channels::kVisualEvents, channels::kFault}) {
         auto found = logged.find({c, message.utime});
         if (found != logged.end() && !found->second.empty()) {
-          s.differences.push_back({c, e.timestamp, message.seq, message.utime, {"(message)", "present", "absent"}});
+          s.differences.push_back({c, e.timestamp, message.seq, message.utime, -1, {"(message)", "present", "absent"}});
           break;
         }
       }
@@ -306,8 +417,149 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
                                    events[i].timestamp,
                                    -1,
                                    key.second,
+                                   -1,
                                    {"(message)", "present", "no image of this frame in the log"}});
         }
+      }
+    }
+  }
+  // The controller, period by period on its recorded inputs, with the replayed vision in place of the recorded one.
+  if (!o.control) {
+    s.control_note = "not replayed (--no-control)";
+  } else if (cycle_events.empty()) {
+    s.control_note = "the log holds no controller records (they are written by visco run --log)";
+  } else if (annotation < 0) {
+    s.control_note = "the log holds controller records but not the run's configuration (the run did not end normally)";
+  } else if (stopped) {
+    s.control_note = "not replayed: vision already differs";
+  } else {
+    log_annotation_t a;
+    DecodeAs(events[static_cast<std::size_t>(annotation)], a);
+    nlohmann::json config;
+    try {
+      config = nlohmann::json::parse(a.text);
+    } catch (const nlohmann::json::exception& e) {
+      throw InputError(o.log_path, "controller_config", std::string("not JSON: ") + e.what());
+    }
+    control::RunOptions run;
+    run.strategy_path = !o.strategy_path.empty() ? o.strategy_path : config.value("strategy", std::string());
+    run.scene_path = !o.scene_path.empty() ? o.scene_path : config.value("scene", std::string());
+    run.rays_path = !o.rays_path.empty() ? o.rays_path : config.value("rays", std::string());
+    if (run.strategy_path.empty()) {
+      throw InputError(o.log_path, "controller_config",
+                       "the run's strategy came over LCM: give the strategy file with --strategy (or --no-control)");
+    }
+    const control::Task task = control::LoadTask(run);
+    const control::ExecutorConfig executor_config =
+        control::ExecutorConfigFromJson(config.value("executor", nlohmann::json()).dump(), o.log_path);
+    control::Executor executor(task, executor_config);
+    executor.Start(config.value("start_ns", std::int64_t{0}));
+    control::ExecutorOutput output;
+    std::int64_t previous_cycle = -1, last_utime = 0;
+    for (std::size_t index : cycle_events) {
+      const LogEvent& e = events[index];
+      controller_cycle_t m;
+      if (!DecodeAs(e, m)) {
+        ++s.undecodable;
+        note("event " + std::to_string(e.number) + " on " + control::kCycleChannel +
+             " does not decode as visco.controller_cycle_t: skipped");
+        continue;
+      }
+      const double t = static_cast<double>(m.utime - s.log_start_utime) * 1e-6;
+      if (t > o.to_s) break;
+      if (m.cycle != previous_cycle + 1) {
+        s.control_note = "period records missing before cycle " + std::to_string(m.cycle) +
+                         " (dropped by the run's recorder or the log): the controller is compared up to there";
+        break;
+      }
+      previous_cycle = m.cycle;
+      last_utime = m.utime;
+      const control::ExecutorInput recorded = FromMessage(m);
+      control::ExecutorInput in = recorded;
+      ControlDiffer d;
+      if (in.have_frame) {
+        auto found = replayed_events.find(in.frame.frame_seq);
+        if (found != replayed_events.end()) {
+          in.frame = control::ToVisualFrame(found->second, task, recorded.frame.capture_ns, found->second.frame_utime);
+          CompareFrames(d, recorded.frame, in.frame);
+          ++s.control_frames_from_vision;
+        } else {
+          ++s.control_frames_recorded;
+        }
+      }
+      if (in.have_estimate) {
+        auto found = replayed_estimates.find(in.estimate.frame_seq);
+        if (found != replayed_estimates.end()) {
+          in.estimate = control::ToPositionEstimate(found->second, recorded.estimate.capture_ns, found->second.utime);
+          CompareEstimates(d, recorded.estimate, in.estimate);
+        }
+      }
+      executor.Update(in, output);
+      ++s.control_cycles;
+      velocity_command_t command{};
+      command.utime = in.now_utime;
+      command.seq = output.command.seq;
+      command.velocity[0] = output.command.velocity.x;
+      command.velocity[1] = output.command.velocity.y;
+      command.estop = output.command.estop;
+      command.reset = output.command.reset;
+      command.quick_stop = output.command.quick_stop;
+      emit(channels::kCommand, in.now_utime, Encode(command));
+      ++s.published;
+      for (int i = 0; i < output.num_faults; ++i) {
+        const control::FaultEvent& f = output.faults[i];
+        fault_t message{};
+        message.utime = f.utime;
+        message.source = "controller";
+        message.code = static_cast<std::int32_t>(f.code);
+        message.severity = f.severity;
+        message.robot_stopped = f.robot_stopped;
+        message.cleared = f.cleared;
+        message.message = f.message;
+        emit(channels::kFault, in.now_utime, Encode(message));
+        ++s.published;
+        if (!o.check || t < o.from_s || d.result) continue;
+        auto logged_fault = controller_faults.find(f.utime);
+        if (logged_fault == controller_faults.end() || logged_fault->second.empty()) {
+          d.result = FieldDifference{"fault (message)", "absent", "produced: " + std::string(f.message)};
+          continue;
+        }
+        fault_t live;
+        DecodeAs(events[logged_fault->second.front()], live);
+        logged_fault->second.pop_front();
+        ++s.control_faults_compared;
+        d.Field("fault.code", std::int64_t{live.code}, std::int64_t{message.code});
+        d.Field("fault.severity", std::int64_t{live.severity}, std::int64_t{message.severity});
+        d.Field("fault.robot_stopped", std::int64_t{live.robot_stopped}, std::int64_t{message.robot_stopped});
+        d.Field("fault.cleared", std::int64_t{live.cleared}, std::int64_t{message.cleared});
+        d.Field("fault.message", live.message, message.message);
+      }
+      if (!o.check || t < o.from_s) continue;
+      ++s.control_compared;
+      d.Field("command.velocity[0]", m.command_velocity[0], output.command.velocity.x);
+      d.Field("command.velocity[1]", m.command_velocity[1], output.command.velocity.y);
+      d.Field("command.estop", std::int64_t{m.command_estop}, std::int64_t{output.command.estop});
+      d.Field("command.reset", std::int64_t{m.command_reset}, std::int64_t{output.command.reset});
+      d.Field("command.quick_stop", std::int64_t{m.command_quick_stop}, std::int64_t{output.command.quick_stop});
+      d.Field("mode", std::int64_t{m.mode}, static_cast<std::int64_t>(output.mode));
+      d.Field("step_index", std::int64_t{m.step_index}, std::int64_t{output.step_index});
+      d.Field("holding", std::int64_t{m.holding}, std::int64_t{output.holding});
+      if (d.result) {
+        s.differences.push_back(
+            {control::kCycleChannel, m.utime, in.have_frame ? in.frame.frame_seq : -1, 0, m.cycle, *d.result});
+        break;
+      }
+    }
+    if (o.check && s.differences.empty()) {
+      for (const auto& [utime, indices] : controller_faults) {
+        if (indices.empty()) continue;
+        const double t = static_cast<double>(utime - s.log_start_utime) * 1e-6;
+        if (t < o.from_s || t > o.to_s || utime > last_utime) continue;
+        fault_t live;
+        DecodeAs(events[indices.front()], live);
+        s.differences.push_back(
+            {channels::kFault, utime, -1, 0, -1, {"fault (message)", "present: " + live.message, "absent"}});
+        break;
       }
     }
   }
@@ -342,9 +594,10 @@ std::string ReplaySummary::ToJson() const {
   j["differences"] = differences.size();
   if (!differences.empty()) {
     const Difference& d = differences.front();
-    j["first_difference"] = {{"channel", d.channel},         {"log_utime", d.log_utime}, {"frame_seq", d.frame_seq},
-                             {"frame_utime", d.frame_utime}, {"field", d.field.field},   {"logged", d.field.logged},
-                             {"replayed", d.field.replayed}};
+    j["first_difference"] = {{"channel", d.channel},         {"cycle", d.cycle},
+                             {"log_utime", d.log_utime},     {"frame_seq", d.frame_seq},
+                             {"frame_utime", d.frame_utime}, {"field", d.field.field},
+                             {"logged", d.field.logged},     {"replayed", d.field.replayed}};
   }
   nlohmann::json skipped = nlohmann::json::array();
   for (const SkippedRange& r : log.skipped)
@@ -359,6 +612,12 @@ std::string ReplaySummary::ToJson() const {
               {"missing_events", log.missing_numbers},
               {"duration_s", static_cast<double>(log_end_utime - log_start_utime) * 1e-6},
               {"frame_rate_hz", log_frame_rate_hz}};
+  j["control"] = {{"cycles", control_cycles},
+                  {"compared", control_compared},
+                  {"frames_from_vision", control_frames_from_vision},
+                  {"frames_recorded", control_frames_recorded},
+                  {"faults_compared", control_faults_compared},
+                  {"note", control_note}};
   j["unknown_channels"] = unknown_channels;
   j["notes"] = notes;
   j["wall_s"] = wall_s;

@@ -3,7 +3,8 @@
 #   visco sim (robot + rendered camera) -> visco track --log (vision) -> visco run --log (the executor), over real LCM
 #   (UDP multicast, private port, ttl=0); then
 #   1. `visco replay TRACK_LOG --check`: the logged images through vision again: identical, field by field;
-#   2. the same on the controller's log (it records the same bus);
+#   2. the same on the controller's log (it records the same bus), and the executor again on every recorded period
+#      with the replayed vision: identical; one recorded command changed: found at its period;
 #   3. two replays write byte-identical logs (--out): the replay is deterministic;
 #   4. one image of the log corrupted: --check exits 1 naming that frame;
 #   5. lcm-logplayer plays the log and lcm-spy's type database decodes every channel.
@@ -71,10 +72,28 @@ print("replay: %d frames, %d messages compared, identical %s, %.1f frames/s agai
       (s["frames"], s["compared"], s["identical"], s["frames_per_s"], s["log"]["frame_rate_hz"]))
 sys.exit(0 if ok else 1)' "$tmp/replay1.json" || fail "replay summary: not identical or too few frames"
 
-# 2. The controller's log holds the same bus.
+# 2. The controller's log holds the same bus and every period of the loop: vision and the executor replayed, the
+#    executor's visual input taken from the replayed vision, commands, modes and faults compared.
 "$visco" replay "$tmp/run.lcmlog" "${cam[@]}" --fast --check --no-publish >"$tmp/replay_run.json" 2>"$tmp/replay_run.log"
 status=$?
+tail -n 2 "$tmp/replay_run.log"
 [[ $status -eq 0 ]] || { fail "replay --check of run's log exited $status"; tail -n 3 "$tmp/replay_run.log"; }
+python3 -S -c '
+import json, sys
+s = json.load(open(sys.argv[1]))
+c = s["control"]
+print("controller: %d periods replayed and compared, %d with the replayed vision" % (c["compared"], c["frames_from_vision"]))
+sys.exit(0 if s["identical"] and c["compared"] >= 1000 and c["compared"] == c["cycles"] and
+         c["frames_from_vision"] >= c["cycles"] // 2 else 1)' "$tmp/replay_run.json" ||
+  fail "the controller was not replayed identically"
+# One recorded command changed by one bit: the difference is found at that period.
+cycle=$(python3 -S $here/logtool.py corrupt-cycle "$tmp/run.lcmlog" "$tmp/corrupt_cycle.lcmlog" 2000)
+"$visco" replay "$tmp/corrupt_cycle.lcmlog" "${cam[@]}" --fast --check --no-publish >/dev/null 2>"$tmp/corrupt_cycle.log"
+status=$?
+tail -n 1 "$tmp/corrupt_cycle.log"
+[[ $status -eq 1 ]] || fail "replay --check of a changed command exited $status, expected 1"
+grep -q "first difference on VISCO_CONTROLLER_CYCLE at log time [0-9]* (controller cycle $cycle, .*field command.velocity\[0\]" \
+  "$tmp/corrupt_cycle.log" || fail "the changed command is not reported at cycle $cycle"
 
 # 3. Deterministic: a second replay writes the same bytes.
 "$visco" replay "$tmp/track.lcmlog" "${cam[@]}" --fast --no-publish --out "$tmp/replay2.lcmlog" >/dev/null 2>&1 ||
@@ -120,7 +139,8 @@ grep -E '^(undecodable|error)' "$tmp/decode.out" | grep -qv 'SPYTEST_LCM_SELF_TE
   fail "lcm-spy could not decode some channel"
 
 if [[ -n "$fixture_out" && $failures -eq 0 ]]; then
-  python3 -S $here/logtool.py fixture "$tmp/track.lcmlog" "$fixture_out" 2000000
+  cp "$tmp/rays.json" $here/data/slot_e2e_rays.json
+  python3 -S $here/logtool.py fixture "$tmp/run.lcmlog" "$fixture_out" 2000000 "$plan" "$scene" $here/data/slot_e2e_rays.json
 fi
 echo "$((failures == 0 ? 1 : 0)) passed, $((failures == 0 ? 0 : 1)) failed"
 exit $((failures == 0 ? 0 : 1))

@@ -7,14 +7,19 @@ usage: logtool.py list LOG
        logtool.py damage LOG OUT KIND               KIND: truncate | flip-header | bad-sync | unknown-channel |
                                                      undecodable | garbage | empty | only-undecodable
        logtool.py rename LOG OUT PREFIX             prefix every channel name
-       logtool.py fixture LOG OUT MAX_BYTES         keep the camera and vision channels from the start while the
-                                                     file stays under MAX_BYTES, images as PNG
+       logtool.py corrupt-cycle LOG OUT K           flip the lowest bit of the commanded x velocity in the K-th
+                                                     controller record; prints its cycle number
+       logtool.py fixture LOG OUT MAX_BYTES [STRATEGY SCENE RAYS]
+                                                     keep the camera, vision and controller channels from the start
+                                                     while the file stays under MAX_BYTES, images as PNG; the run's
+                                                     configuration at the end, its file names replaced by these
 """
 import struct
 import sys
 import zlib
 
 SYNC = 0xEDA1DA01
+CYCLE, ANNOTATION = "VISCO_CONTROLLER_CYCLE", "VISCO_LOG_ANNOTATION"
 VISION = {"VISCO_CAMERA_IMAGE", "VISCO_TAG_DETECTIONS", "VISCO_OBJECT_POSES", "VISCO_ROBOT_ESTIMATE",
           "VISCO_VISUAL_EVENTS", "VISCO_FAULT"}
 GRAY8, PNG = 1, 5
@@ -84,6 +89,15 @@ def main():
                 write(out, encode(events))
                 return
         raise SystemExit("no image with seq %d" % seq)
+    if cmd == "corrupt-cycle":
+        k = int(sys.argv[4])
+        cycles = [e for e in events if e[2] == CYCLE]
+        e = cycles[k]
+        # controller_cycle_t ends with command_velocity[2] (16 bytes) and 9 bytes of flags, mode, step, holding.
+        e[3][len(e[3]) - 9 - 16 + 7] ^= 0x01
+        write(out, encode(events))
+        print(struct.unpack(">q", bytes(e[3][24:32]))[0])
+        return
     if cmd == "rename":
         for e in events:
             e[2] = sys.argv[4] + e[2]
@@ -92,8 +106,28 @@ def main():
     if cmd == "fixture":
         limit = int(sys.argv[4])
         kept, size = [], 0
+        notes = [e for e in events if e[2] == ANNOTATION]
+        if notes:
+            import json
+            note = notes[-1][3]
+            # log_annotation_t: fingerprint, utime, then three strings (source, kind, text).
+            p = 16
+            strings = []
+            for _ in range(3):
+                (n,) = struct.unpack(">I", note[p:p + 4])
+                strings.append(bytes(note[p + 4:p + 4 + n - 1]).decode())
+                p += 4 + n
+            config = json.loads(strings[2])
+            if len(sys.argv) > 7:
+                config["strategy"], config["scene"], config["rays"] = sys.argv[5:8]
+            body = bytearray(note[:16])
+            for text in strings[:2] + [json.dumps(config, sort_keys=True)]:
+                raw = text.encode() + b"\0"
+                body += struct.pack(">I", len(raw)) + raw
+            notes[-1][3] = body
+            size += 28 + len(ANNOTATION) + len(body)
         for e in events:
-            if e[2] not in VISION:
+            if e[2] not in VISION and e[2] != CYCLE:
                 continue
             if e[2] == "VISCO_CAMERA_IMAGE":
                 seq, fmt_at, data_at, n, (w, h, stride, fmt) = image_fields(e[3])
@@ -107,6 +141,9 @@ def main():
                 break
             kept.append(e)
             size = grown
+        if notes:
+            notes[-1][1] = kept[-1][1] if kept else notes[-1][1]
+            kept.append(notes[-1])
         write(out, encode(kept))
         print("%d events, %d bytes" % (len(kept), size))
         return

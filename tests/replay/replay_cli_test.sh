@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# `visco replay` on the small checked-in log of a rendered closed-loop run (tests/replay/data/slot_run.lcmlog,
-# written by closed_loop_replay_test.sh with FIXTURE_OUT): identical with --check; a time window; damaged logs give
+# `visco replay` on the small checked-in log of a rendered closed-loop run (tests/replay/data/slot_run.lcmlog: the
+# first seconds of `visco run --log`, images as PNG, written by closed_loop_replay_test.sh with FIXTURE_OUT): vision and
+# the controller identical with --check; a time window; damaged logs give
 # a report and the documented exit statuses (never a crash); replay refuses CAN without --arm.
 # Also: `visco driver --log` killed with SIGKILL leaves a log that replays; `visco-rt` refuses --log.
 # usage: replay_cli_test.sh VISCO VISCO_RT
@@ -27,8 +28,12 @@ cat "$tmp/out.json"; tail -n 1 "$tmp/err.log"
 python3 -S -c '
 import json, sys
 s = json.load(open(sys.argv[1]))
-sys.exit(0 if s["identical"] and s["frames"] >= 20 and s["compared"] >= 4 * s["frames"] else 1)' "$tmp/out.json" ||
-  fail "fixture: not identical or too few frames compared"
+c = s["control"]
+print("fixture: %d frames, %d vision messages compared; controller: %d periods compared (%d with the replayed vision)" %
+      (s["frames"], s["compared"], c["compared"], c["frames_from_vision"]))
+sys.exit(0 if s["identical"] and s["frames"] >= 20 and s["compared"] >= 4 * s["frames"] and
+         c["compared"] >= 1000 and c["frames_from_vision"] > 0 else 1)' "$tmp/out.json" ||
+  fail "fixture: not identical or too few frames or periods compared"
 
 # A window (earlier frames go through vision silently): identical too, fewer messages compared.
 status=$(replay "$log" --check --from 1 --to 2)
