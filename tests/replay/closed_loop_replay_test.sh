@@ -35,7 +35,7 @@ noise=2
 [[ -n "$fixture_out" ]] && noise=0  # the fixture's images compress to PNG without noise
 "$visco" vcrays "$scene" >"$tmp/rays.json" || { echo "FAIL: visco vcrays"; exit 1; }
 "$visco" sim "$scene" "${cam[@]}" --camera-hz 15 --latency-ms 5 --supersample 2 --image-noise $noise --blur-px 0.5 \
-  --seed 7 --lcm-url "$url" --duration 90 --watchdog-ms 500 >"$tmp/sim.json" 2>"$tmp/sim.log" &
+  --seed 7 --lcm-url "$url" --duration 90 --watchdog-ms 500 --log "$tmp/sim.lcmlog" >"$tmp/sim.json" 2>"$tmp/sim.log" &
 sim=$!
 "$visco" track --lcm --lcm-url "$url&recv_buf_size=4194304" "${cam[@]}" --log "$tmp/track.lcmlog" \
   >"$tmp/track.jsonl" 2>"$tmp/track.log" &
@@ -49,13 +49,18 @@ kill -INT $sim $track
 wait $sim $track
 pids=()
 echo "visco run exited $run_status"
-grep -h "event log" "$tmp/track.log" "$tmp/run.log"
+grep -h "event log" "$tmp/track.log" "$tmp/run.log" "$tmp/sim.log"
 [[ $run_status -eq 0 ]] || fail "the closed-loop run did not reach the goal (exit $run_status)"
 grep -q '"result":"done"' "$tmp/run.json" || fail "run summary is not done"
 grep -q "event log $tmp/track.lcmlog: [0-9]* event(s), [0-9]* bytes written; 0 dropped" "$tmp/track.log" ||
   fail "track's log was not written without drops"
 grep -q "event log $tmp/run.lcmlog: [0-9]* event(s), [0-9]* bytes written; 0 dropped" "$tmp/run.log" ||
   fail "run's log was not written without drops"
+grep -q "event log $tmp/sim.lcmlog: [0-9]* event(s), [0-9]* bytes written; 0 dropped" "$tmp/sim.log" ||
+  fail "sim's log was not written without drops"
+# The simulator's log holds the same bus: its images replay identically too.
+"$visco" replay "$tmp/sim.lcmlog" "${cam[@]}" --fast --check --no-publish --no-control >/dev/null 2>"$tmp/replay_sim.log" ||
+  { fail "replay --check of sim's log failed"; tail -n 2 "$tmp/replay_sim.log"; }
 
 # 1. Replay through vision with --check.
 "$visco" replay "$tmp/track.lcmlog" "${cam[@]}" --fast --check --no-publish --out "$tmp/replay1.lcmlog" \
