@@ -62,7 +62,13 @@ void RegisterCommands(CLI::App& app) {
       "1 at the first difference (channel, time, field), 0 when identical. A damaged log (truncated, flipped bits, "
       "wrong sync words, unknown channels, undecodable messages) is reported; exit 2 when nothing usable remains. "
       "Prints a JSON summary. See docs/replay.md.");
-  cmd->add_option("LOG", o->log_path, "the event log")->required();
+  cmd->add_option("LOG", o->log_path, "the event log (or --images / --video)");
+  cmd->add_option("--images", o->images_dir, "instead of a log: a folder of image files, in name order");
+  cmd->add_option("--video", o->video_path, "instead of a log: a video file (OpenCV)");
+  cmd->add_option("--fps", o->fps, "frame rate of an image folder (timestamps)")->capture_default_str();
+  cmd->add_option("--start-utime", o->start_utime,
+                  "capture time of a folder's or video's first frame, microseconds since the epoch")
+      ->capture_default_str();
   vision::AddPipelineConfigOptions(*cmd, o->pipeline);
   cmd->add_flag("--fast", o->fast, "as fast as possible instead of at the log's pace");
   cmd->add_option("--speed", o->speed, "pace as a multiple of the log's")->capture_default_str();

@@ -1,11 +1,14 @@
 #include "replay/replayer.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <deque>
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <regex>
 #include <set>
 #include <thread>
@@ -181,7 +184,96 @@ void CompareEstimates(ControlDiffer& d, const control::PositionEstimate& a, cons
 
 }  // namespace
 
+namespace {
+
+// An image folder or a video file instead of a log: the frames go through vision as `visco track` would take them,
+// on the frames' own timestamps (from `start_utime`, so that two replays give the same bytes). Nothing to compare.
+ReplaySummary ReplaySource(const ReplayOptions& o, const vision::LoadedPipeline& loaded) {
+  ReplaySummary s;
+  const auto wall_start = std::chrono::steady_clock::now();
+  std::unique_ptr<vision::FrameSource> source = !o.images_dir.empty()
+                                                    ? vision::MakeFolderSource(o.images_dir, o.fps, o.start_utime)
+                                                    : vision::MakeVideoSource(o.video_path, o.start_utime);
+  std::unique_ptr<lcm::LCM> bus;
+  if (o.publish) {
+    bus = std::make_unique<lcm::LCM>(o.lcm_url);
+    if (!bus->good()) throw InputError("command line", "--lcm-url", "cannot open LCM bus '" + o.lcm_url + "'");
+  }
+  std::unique_ptr<EventLogWriter> out;
+  if (!o.out_path.empty()) {
+    WriterOptions wo;
+    wo.max_queue_bytes = std::size_t{1} << 30;
+    out = std::make_unique<EventLogWriter>(o.out_path, wo);
+  }
+  const std::string prefix = o.arm ? "" : o.prefix;
+  std::int64_t now = 0;
+  vision::PipelineOptions options = loaded.options;
+  options.clock = [&now] { return now; };
+  vision::VisionPipeline pipeline(loaded.camera, loaded.wMc, loaded.models, options);
+  vision::Frame frame;
+  std::string error;
+  bool first = true;
+  std::int64_t first_utime = 0;
+  auto pace_start = std::chrono::steady_clock::now();
+  for (;;) {
+    error.clear();
+    const vision::SourceStatus status = source->Next(frame, error, 0);
+    if (status == vision::SourceStatus::kEnd) break;
+    if (status == vision::SourceStatus::kNoFrameYet) continue;
+    if (first) {
+      first = false;
+      first_utime = frame.utime;
+      s.log_start_utime = frame.utime;
+    }
+    s.log_end_utime = frame.utime;
+    const double t = static_cast<double>(frame.utime - first_utime) * 1e-6;
+    if (t > o.to_s) break;
+    ++s.images;
+    if (!o.fast) {
+      std::this_thread::sleep_until(pace_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                     std::chrono::duration<double>(t / o.speed)));
+    }
+    now = frame.utime;
+    vision::PipelineOutput result;
+    if (status == vision::SourceStatus::kBadFrame) {
+      result.faults.push_back(pipeline.BadFrame(frame, error));
+    } else {
+      result = pipeline.Process(frame, frame.utime);
+    }
+    if (result.processed) {
+      ++s.frames;
+    } else {
+      ++s.bad_frames;
+    }
+    if (t < o.from_s) {
+      ++s.warmup_frames;
+      continue;
+    }
+    vision::ForEachMessage(result, [&](const char* channel, const auto& message) {
+      const std::vector<std::uint8_t> bytes = Encode(message);
+      if (bus) bus->publish(prefix + channel, bytes.data(), static_cast<unsigned int>(bytes.size()));
+      if (out) out->Write(prefix + channel, frame.utime, bytes);
+      ++s.published;
+    });
+  }
+  if (out) out->Close();
+  if (s.images > 1 && s.log_end_utime > s.log_start_utime) {
+    s.log_frame_rate_hz =
+        static_cast<double>(s.images - 1) / (static_cast<double>(s.log_end_utime - s.log_start_utime) * 1e-6);
+  }
+  s.control_note = "no controller records in an image folder or video";
+  s.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  return s;
+}
+
+}  // namespace
+
 ReplaySummary RunReplay(const ReplayOptions& o) {
+  const int sources = (o.log_path.empty() ? 0 : 1) + (o.images_dir.empty() ? 0 : 1) + (o.video_path.empty() ? 0 : 1);
+  if (sources != 1) throw InputError("command line", "LOG/--images/--video", "give exactly one of them");
+  if (o.check && o.log_path.empty()) {
+    throw InputError("command line", "--check", "compares with what a log holds: give a LOG, not --images/--video");
+  }
   if (!o.can_interface.empty() && !o.arm) {
     throw InputError("command line", "--can",
                      "replay never commands hardware unless armed: give --arm to use a CAN interface");
@@ -202,6 +294,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
     throw InputError("command line", "--channels", std::string("not a regular expression: ") + e.what());
   }
   const vision::LoadedPipeline loaded = vision::LoadPipelineConfig(o.pipeline);
+  if (o.log_path.empty()) return ReplaySource(o, loaded);
 
   const auto wall_start = std::chrono::steady_clock::now();
   EventLogReader reader(o.log_path);

@@ -27,6 +27,10 @@ namespace visco::replay {
 
 struct ReplayOptions {
   std::string log_path;
+  std::string images_dir;        // instead of a log: an image folder (name order, timestamps start_utime + i / fps)
+  std::string video_path;        // ... or a video file (OpenCV; the container's timestamps)
+  double fps = 30;               // of an image folder
+  std::int64_t start_utime = 0;  // microseconds since the epoch of a folder's or video's first frame (deterministic)
   vision::PipelineConfig pipeline;
   bool fast = false;   // as fast as possible (default: at the log's pace times `speed`)
   double speed = 1.0;  // pace, multiple of the log's

@@ -6,6 +6,7 @@ usage: logtool.py list LOG
        logtool.py corrupt-image LOG OUT SEQ         XOR every pixel byte of the image with image_t.seq SEQ with 0x08
        logtool.py damage LOG OUT KIND               KIND: truncate | flip-header | bad-sync | unknown-channel |
                                                      undecodable | garbage | empty | only-undecodable
+       logtool.py extract-images LOG DIR            write the PNG images of the log as DIR/frame_NNNN.png
        logtool.py rename LOG OUT PREFIX             prefix every channel name
        logtool.py corrupt-cycle LOG OUT K           flip the lowest bit of the commanded x velocity in the K-th
                                                      controller record; prints its cycle number
@@ -79,6 +80,18 @@ def main():
         return
     events = read(sys.argv[2])
     out = sys.argv[3]
+    if cmd == "extract-images":
+        import os
+        os.makedirs(out, exist_ok=True)
+        n = 0
+        for e in events:
+            if e[2] == "VISCO_CAMERA_IMAGE":
+                _, _, data_at, size, (_, _, _, fmt) = image_fields(e[3])
+                if fmt == PNG:
+                    open(os.path.join(out, "frame_%04d.png" % n), "wb").write(e[3][data_at:data_at + size])
+                    n += 1
+        print(n)
+        return
     if cmd == "corrupt-image":
         seq = int(sys.argv[4])
         for e in events:

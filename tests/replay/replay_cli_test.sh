@@ -50,6 +50,20 @@ grep -q '"warmup_frames":[1-9]' "$tmp/out.json" || fail "the window had no warm-
 cmp -s "$tmp/a.lcmlog" "$tmp/b.lcmlog" || fail "two replays wrote different logs"
 grep -q "REPLAY_VISCO_ROBOT_ESTIMATE" "$tmp/a.lcmlog" || fail "the replay's log has no REPLAY_ channels"
 
+# An image folder as the source (the fixture's frames as PNG files): vision as `visco track --images` takes them, on
+# the folder's deterministic timestamps; two replays write the same bytes; nothing to --check against.
+frames=$(python3 -S $here/logtool.py extract-images "$log" "$tmp/frames")
+for k in 1 2; do
+  "$visco" replay --images "$tmp/frames" --fps 15 "${cam[@]}" --fast --no-publish --out "$tmp/folder$k.lcmlog" \
+    >"$tmp/folder.json" 2>"$tmp/err.log" || fail "replay --images exited $?: $(tail -n 1 "$tmp/err.log")"
+done
+grep -q "\"frames\":$frames," "$tmp/folder.json" || fail "replay --images did not process the $frames frames"
+cmp -s "$tmp/folder1.lcmlog" "$tmp/folder2.lcmlog" || fail "two replays of an image folder wrote different logs"
+status=$(replay --images "$tmp/frames" --check)
+[[ $status -eq 2 ]] || fail "--check with --images: exit $status, expected 2"
+status=$(replay "$log" --images "$tmp/frames")
+[[ $status -eq 2 ]] || fail "a LOG and --images: exit $status, expected 2"
+
 # Damaged logs: a report of what was skipped, exit 0 without --check, never a crash.
 for kind in truncate flip-header bad-sync; do
   python3 -S $here/logtool.py damage "$log" "$tmp/$kind.lcmlog" $kind
