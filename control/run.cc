@@ -255,6 +255,9 @@ RunResult RunTask(const Task& task, const RunOptions& options, const std::atomic
   if (o.log != nullptr) {
     records = std::make_unique<CycleRecordQueue>();
     sources.records = records.get();
+  }
+  ControlLoop loop(executor, sources, loop_config, outbox);  // may throw: before any thread starts
+  if (o.log != nullptr) {
     recording = true;
     recorder = std::thread([&] {
       CycleRecord r;
@@ -269,7 +272,6 @@ RunResult RunTask(const Task& task, const RunOptions& options, const std::atomic
       }
     });
   }
-  ControlLoop loop(executor, sources, loop_config, outbox);
 
   spdlog::info("run: {} step(s), {} CVC ray(s), {:.0f} Hz, robot node {} on {}", task.steps.size(), task.rays.size(),
                o.rate_hz, o.node_id, o.can_interface.empty() ? "LCM" : "CAN " + o.can_interface);
