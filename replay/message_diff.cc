@@ -6,6 +6,7 @@
 #include <type_traits>
 
 #include "lcmtypes/channels.h"
+#include "replay/safe_decode.h"
 #include "visco/fault_t.hpp"
 #include "visco/object_poses_t.hpp"
 #include "visco/robot_estimate_t.hpp"
@@ -134,8 +135,8 @@ void Compare(Differ& d, const fault_t& a, const fault_t& b) {
 template <class M>
 std::optional<FieldDifference> Decoded(std::span<const std::uint8_t> logged, std::span<const std::uint8_t> replayed) {
   M a, b;
-  const bool a_ok = a.decode(logged.data(), 0, static_cast<int>(logged.size())) >= 0;
-  const bool b_ok = b.decode(replayed.data(), 0, static_cast<int>(replayed.size())) >= 0;
+  const bool a_ok = SafeDecode(logged, a);
+  const bool b_ok = SafeDecode(replayed, b);
   if (!a_ok || !b_ok) {
     return FieldDifference{"(message)", a_ok ? "decodes" : "does not decode as " + std::string(M::getTypeName()),
                            b_ok ? "decodes" : "does not decode as " + std::string(M::getTypeName())};

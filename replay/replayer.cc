@@ -19,6 +19,7 @@
 #include "control/lcm_bridge.h"
 #include "control/run.h"
 #include "lcmtypes/channels.h"
+#include "replay/safe_decode.h"
 #include "visco/controller_cycle_t.hpp"
 #include "visco/fault_t.hpp"
 #include "visco/image_t.hpp"
@@ -32,6 +33,11 @@
 
 namespace visco::replay {
 namespace {
+
+// Seconds from `from` to `to` (microseconds); damaged timestamps can be anything, so no integer subtraction.
+double SecondsBetween(std::int64_t from, std::int64_t to) {
+  return (static_cast<double>(to) - static_cast<double>(from)) * 1e-6;
+}
 
 const std::set<std::string>& KnownChannels() {
   static const std::set<std::string> known = {
@@ -50,7 +56,7 @@ bool Known(const std::string& channel, const std::string& prefix) {
 
 template <class M>
 bool DecodeAs(const LogEvent& e, M& m) {
-  return m.decode(e.data.data(), 0, static_cast<int>(e.data.size())) >= 0;
+  return SafeDecode(e.data, m);
 }
 
 template <class M>
@@ -226,7 +232,7 @@ ReplaySummary ReplaySource(const ReplayOptions& o, const vision::LoadedPipeline&
       s.log_start_utime = frame.utime;
     }
     s.log_end_utime = frame.utime;
-    const double t = static_cast<double>(frame.utime - first_utime) * 1e-6;
+    const double t = SecondsBetween(first_utime, frame.utime);
     if (t > o.to_s) break;
     ++s.images;
     if (!o.fast) {
@@ -258,8 +264,7 @@ ReplaySummary ReplaySource(const ReplayOptions& o, const vision::LoadedPipeline&
   }
   if (out) out->Close();
   if (s.images > 1 && s.log_end_utime > s.log_start_utime) {
-    s.log_frame_rate_hz =
-        static_cast<double>(s.images - 1) / (static_cast<double>(s.log_end_utime - s.log_start_utime) * 1e-6);
+    s.log_frame_rate_hz = static_cast<double>(s.images - 1) / SecondsBetween(s.log_start_utime, s.log_end_utime);
   }
   s.control_note = "no controller records in an image folder or video";
   s.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
@@ -341,8 +346,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
     }
   }
   if (images_total > 1 && last_image > first_image) {
-    s.log_frame_rate_hz =
-        static_cast<double>(images_total - 1) / (static_cast<double>(last_image - first_image) * 1e-6);
+    s.log_frame_rate_hz = static_cast<double>(images_total - 1) / SecondsBetween(first_image, last_image);
   }
   const std::int64_t last_logged_frame = logged_frames.empty() ? 0 : *logged_frames.rbegin();
   if (o.check && logged_frames.empty()) {
@@ -369,20 +373,22 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
   options.clock = [&log_now] { return log_now; };
   vision::VisionPipeline pipeline(loaded.camera, loaded.wMc, loaded.models, options);
 
+  // Pacing by the gaps between consecutive events, each at most 1 s (a damaged timestamp must not stall the replay);
+  // the results do not depend on it (the pipeline's clock is the log's).
   bool paced = false;
-  std::int64_t pace_origin = 0;
-  auto pace_start = std::chrono::steady_clock::now();
+  std::int64_t previous_timestamp = 0;
+  auto next_wall = std::chrono::steady_clock::now();
   auto pace = [&](std::int64_t timestamp) {
     if (o.fast) return;
     if (!paced) {
       paced = true;
-      pace_origin = timestamp;
-      pace_start = std::chrono::steady_clock::now();
-      return;
+      next_wall = std::chrono::steady_clock::now();
+    } else {
+      const double gap = std::clamp(SecondsBetween(previous_timestamp, timestamp), 0.0, 1.0) / o.speed;
+      next_wall += std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(gap));
+      std::this_thread::sleep_until(next_wall);
     }
-    const double s_after = static_cast<double>(timestamp - pace_origin) * 1e-6 / o.speed;
-    std::this_thread::sleep_until(pace_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                                   std::chrono::duration<double>(s_after)));
+    previous_timestamp = timestamp;
   };
   auto emit = [&](const std::string& channel, std::int64_t timestamp, const std::vector<std::uint8_t>& bytes) {
     const std::string name = prefix + channel;
@@ -399,7 +405,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
   std::map<std::int64_t, robot_estimate_t> replayed_estimates;  // by frame seq
   std::int64_t images_seen = 0;
   for (const LogEvent& e : events) {
-    const double t = static_cast<double>(e.timestamp - s.log_start_utime) * 1e-6;
+    const double t = SecondsBetween(s.log_start_utime, e.timestamp);
     if (t > o.to_s) break;
     const std::string channel(e.channel);
     if (!std::regex_match(channel, channel_filter)) continue;
@@ -503,7 +509,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
     // Vision outputs in the replayed window whose image is not in the log (lost by the logger, or cut off).
     for (const auto& [key, indices] : logged) {
       for (std::size_t i : indices) {
-        const double t = static_cast<double>(events[i].timestamp - s.log_start_utime) * 1e-6;
+        const double t = SecondsBetween(s.log_start_utime, events[i].timestamp);
         if (t < o.from_s || t > o.to_s) continue;
         if (s.unmatched_logged++ == 0) {
           s.differences.push_back({key.first,
@@ -558,7 +564,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
              " does not decode as visco.controller_cycle_t: skipped");
         continue;
       }
-      const double t = static_cast<double>(m.utime - s.log_start_utime) * 1e-6;
+      const double t = SecondsBetween(s.log_start_utime, m.utime);
       if (t > o.to_s) break;
       if (m.cycle != previous_cycle + 1) {
         s.control_note = "period records missing before cycle " + std::to_string(m.cycle) +
@@ -646,7 +652,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
     if (o.check && s.differences.empty()) {
       for (const auto& [utime, indices] : controller_faults) {
         if (indices.empty()) continue;
-        const double t = static_cast<double>(utime - s.log_start_utime) * 1e-6;
+        const double t = SecondsBetween(s.log_start_utime, utime);
         if (t < o.from_s || t > o.to_s || utime > last_utime) continue;
         fault_t live;
         DecodeAs(events[indices.front()], live);
@@ -703,7 +709,7 @@ std::string ReplaySummary::ToJson() const {
               {"truncated_tail", log.truncated_tail},
               {"number_gaps", log.number_gaps},
               {"missing_events", log.missing_numbers},
-              {"duration_s", static_cast<double>(log_end_utime - log_start_utime) * 1e-6},
+              {"duration_s", SecondsBetween(log_start_utime, log_end_utime)},
               {"frame_rate_hz", log_frame_rate_hz}};
   j["control"] = {{"cycles", control_cycles},
                   {"compared", control_compared},
