@@ -11,6 +11,8 @@
 #include "drivers/commands.h"
 #include "planning/apo_command.h"
 #include "planning/commands.h"
+#include "replay/commands.h"
+#include "replay/log_tap.h"
 #include "vision/commands.h"
 
 #ifndef VISCO_VERSION
@@ -34,6 +36,8 @@ int main(int argc, char** argv) {
   visco::control::RegisterCommands(app);
   visco::control::RegisterSimCommands(app);
   visco::planning::RegisterApoCommand(app);
+  visco::replay::RegisterCommands(app);
+  visco::replay::InstallEventLog();  // --log of run, sim, track and driver (common/event_log.h)
 
   return visco::app::RunCommandLine(app, "visco", argc, argv);
 }

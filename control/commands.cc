@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "common/error.h"
+#include "common/event_log.h"
 #include "control/run.h"
 
 namespace visco::control {
@@ -22,6 +23,7 @@ struct CliOptions {
   double status_timeout_ms = 100;
   double heartbeat_timeout_ms = 250;
   bool no_realtime = false;
+  std::string log;
 };
 
 void Run(CliOptions& cli) {
@@ -31,6 +33,9 @@ void Run(CliOptions& cli) {
   o.executor.heartbeat_timeout_s = cli.status_timeout_ms / 1000.0;
   o.heartbeat_timeout_s = cli.heartbeat_timeout_ms / 1000.0;
   o.realtime = !cli.no_realtime;
+  // The event log records the bus from before the strategy is loaded (a strategy on VISCO_STRATEGY is in it).
+  std::unique_ptr<EventLogTap> log = OpenEventLog(cli.log, o.lcm_url);
+  o.log = log.get();
   const Task task = LoadTask(o);
   struct sigaction action {};
   action.sa_handler = OnSignal;
@@ -39,6 +44,7 @@ void Run(CliOptions& cli) {
   const RunResult result = RunTask(task, o, g_stop);
   std::printf("%s\n", result.ToJson().c_str());
   std::fflush(stdout);
+  if (log) std::fprintf(stderr, "run: %s\n", log->Close().c_str());
   if (result.mode != Mode::kDone) throw JobFailed("run stopped: " + result.reason);
 }
 
@@ -65,6 +71,9 @@ void RegisterCommands(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--strategy-wait", o.strategy_wait_s, "seconds to wait for VISCO_STRATEGY")->capture_default_str();
   cmd->add_option("--lcm-url", o.lcm_url, "LCM provider URL (LCM's default when empty)");
+  cmd->add_option("--log", cli->log,
+                  "write an LCM event log (lcm-logger format) of the bus: every channel it publishes and receives "
+                  "(needs a udpm:// bus; docs/replay.md)");
   cmd->add_option("--can", o.can_interface, "SocketCAN interface of the robot (e.g. vcan0); default: LCM");
   cmd->add_option("--node", o.node_id, "robot node id, 1..127")->capture_default_str();
   cmd->add_option("--rate", o.rate_hz, "control rate, Hz (10..2000)")->capture_default_str();

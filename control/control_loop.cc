@@ -168,6 +168,15 @@ void ControlLoop::RunCycle(std::int64_t now_ns, std::int64_t now_utime) {
 
   // Update.
   executor_.Update(input_, output_);
+  if (sources_.records != nullptr) {
+    record_scratch_.cycle = cycles_;
+    record_scratch_.input = input_;
+    record_scratch_.command = output_.command;
+    record_scratch_.mode = output_.mode;
+    record_scratch_.step_index = output_.step_index;
+    record_scratch_.holding = output_.holding;
+    sources_.records->TryPush(record_scratch_);
+  }
 
   // Write.
   drivers::VelocityCommand command;

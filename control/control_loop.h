@@ -66,12 +66,25 @@ struct LoopConfig {
   double overrun_report_s = 1.0;  // at most one overrun warning per this many seconds
 };
 
+/// One period as the loop saw it: the executor's input and what it commanded (for an event log; `visco replay` runs
+/// the executor again on `input` and compares).
+struct CycleRecord {
+  std::int64_t cycle = 0;
+  ExecutorInput input;
+  RobotCommand command;
+  Mode mode = Mode::kIdle;
+  std::int32_t step_index = -1;
+  bool holding = false;
+};
+using CycleRecordQueue = SpscQueue<CycleRecord, 256>;
+
 /// What the loop reads besides the driver.
 struct LoopSources {
   drivers::RobotLink* link = nullptr;                  // required (SocketCAN, LCM or in-process)
   LatestValue<VisualFrame>* frames = nullptr;          // optional
   LatestValue<PositionEstimate>* estimates = nullptr;  // optional
   const std::atomic<bool>* estop = nullptr;            // optional
+  CycleRecordQueue* records = nullptr;  // optional: every period's CycleRecord is pushed here (dropped when full)
 };
 
 /// Result of asking for real-time scheduling; `message` is the log line.
@@ -126,6 +139,7 @@ class ControlLoop {
   std::int64_t cycles_ = 0;
   std::int64_t overruns_ = 0;
   std::int64_t last_overrun_report_ns_ = 0;
+  CycleRecord record_scratch_;
   Mode last_mode_ = Mode::kIdle;
   std::int32_t last_step_ = -2;
   bool last_holding_ = false;

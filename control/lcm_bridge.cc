@@ -19,41 +19,52 @@ std::int64_t CaptureToMonotonic(std::int64_t capture_utime, std::int64_t receive
   return receive_ns - age_us * 1000;
 }
 
+VisualFrame ToVisualFrame(const visual_events_t& m, const Task& task, std::int64_t receive_ns,
+                          std::int64_t receive_utime, std::uint64_t* unknown_rays) {
+  VisualFrame frame;
+  frame.capture_ns = CaptureToMonotonic(m.frame_utime, receive_ns, receive_utime);
+  frame.frame_seq = m.frame_seq;
+  for (const visual_event_t& e : m.events) {
+    const int ray = task.RayIndex(e.cvc_ray);
+    if (ray < 0) {
+      if (unknown_rays != nullptr) ++*unknown_rays;
+      continue;
+    }
+    if (frame.count >= kMaxVisualObservations) break;
+    VisualObservation& obs = frame.items[frame.count++];
+    obs.ray = ray;
+    obs.state = e.state;
+    obs.crossed = e.crossed;
+    obs.signed_distance_px = e.signed_distance_px;
+    obs.stddev_px = e.distance_stddev_px;
+  }
+  return frame;
+}
+
+PositionEstimate ToPositionEstimate(const robot_estimate_t& m, std::int64_t receive_ns, std::int64_t receive_utime) {
+  PositionEstimate e;
+  e.capture_ns = CaptureToMonotonic(m.utime, receive_ns, receive_utime);
+  e.frame_seq = m.frame_seq;
+  e.valid = m.valid;
+  e.position = {m.position[0], m.position[1]};
+  e.stddev = m.position_stddev;
+  return e;
+}
+
 class ControllerBridge::Handlers {
  public:
   explicit Handlers(ControllerBridge& bridge) : bridge_(bridge) {}
 
   void Events(const lcm::ReceiveBuffer*, const std::string&, const visual_events_t* m) {
-    const std::int64_t now_ns = MonotonicNs();
-    const std::int64_t now_utime = WallUtime();
-    VisualFrame frame;
-    frame.capture_ns = CaptureToMonotonic(m->frame_utime, now_ns, now_utime);
-    frame.frame_seq = m->frame_seq;
-    for (const visual_event_t& e : m->events) {
-      const int ray = bridge_.task_.RayIndex(e.cvc_ray);
-      if (ray < 0) {
-        bridge_.counters_.unknown_rays.fetch_add(1, std::memory_order_relaxed);
-        continue;
-      }
-      if (frame.count >= kMaxVisualObservations) break;
-      VisualObservation& obs = frame.items[frame.count++];
-      obs.ray = ray;
-      obs.state = e.state;
-      obs.crossed = e.crossed;
-      obs.signed_distance_px = e.signed_distance_px;
-      obs.stddev_px = e.distance_stddev_px;
-    }
+    std::uint64_t unknown = 0;
+    const VisualFrame frame = ToVisualFrame(*m, bridge_.task_, MonotonicNs(), WallUtime(), &unknown);
+    if (unknown > 0) bridge_.counters_.unknown_rays.fetch_add(unknown, std::memory_order_relaxed);
     bridge_.frames_.Publish(frame);
     bridge_.counters_.frames.fetch_add(1, std::memory_order_relaxed);
   }
 
   void Estimate(const lcm::ReceiveBuffer*, const std::string&, const robot_estimate_t* m) {
-    PositionEstimate e;
-    e.capture_ns = CaptureToMonotonic(m->utime, MonotonicNs(), WallUtime());
-    e.valid = m->valid;
-    e.position = {m->position[0], m->position[1]};
-    e.stddev = m->position_stddev;
-    bridge_.estimates_.Publish(e);
+    bridge_.estimates_.Publish(ToPositionEstimate(*m, MonotonicNs(), WallUtime()));
     bridge_.counters_.estimates.fetch_add(1, std::memory_order_relaxed);
   }
 

@@ -15,6 +15,8 @@
 #include "control/control_loop.h"
 #include "control/spsc_queue.h"
 #include "control/task.h"
+#include "visco/robot_estimate_t.hpp"
+#include "visco/visual_events_t.hpp"
 
 namespace lcm {
 class LCM;
@@ -25,6 +27,14 @@ namespace visco::control {
 /// Converts a capture time (utime, microseconds since the epoch) to the monotonic clock, given the reception time on
 /// both clocks. A capture "in the future" (clock skew) counts as received now.
 std::int64_t CaptureToMonotonic(std::int64_t capture_utime, std::int64_t receive_ns, std::int64_t receive_utime);
+
+/// The loop's view of a visual_events_t received at `receive_ns` / `receive_utime`: ray ids resolved against `task`
+/// (events of unknown rays are left out and counted in `unknown_rays`), capture time on the monotonic clock. The
+/// bridge and `visco replay` use it. Not real-time safe.
+VisualFrame ToVisualFrame(const visual_events_t& m, const Task& task, std::int64_t receive_ns,
+                          std::int64_t receive_utime, std::uint64_t* unknown_rays = nullptr);
+/// The loop's view of a robot_estimate_t (as ToVisualFrame). Not real-time safe.
+PositionEstimate ToPositionEstimate(const robot_estimate_t& m, std::int64_t receive_ns, std::int64_t receive_utime);
 
 struct BridgeCounters {
   std::atomic<std::uint64_t> frames{0};

@@ -5,16 +5,20 @@
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <thread>
+#include <vector>
 
 #include "common/error.h"
 #include "control/control_loop.h"
 #include "control/lcm_bridge.h"
 #include "drivers/robot_link.h"
 #include "lcmtypes/channels.h"
+#include "visco/controller_cycle_t.hpp"
+#include "visco/log_annotation_t.hpp"
 #include "visco/motion_strategy_t.hpp"
 
 namespace visco::control {
@@ -51,7 +55,119 @@ void CheckOptions(const RunOptions& o) {
   if (o.node_id < 1 || o.node_id > 127) throw InputError("command line", "--node", "must be in 1..127");
 }
 
+controller_cycle_t ToMessage(const CycleRecord& r) {
+  controller_cycle_t m{};
+  const ExecutorInput& in = r.input;
+  m.utime = in.now_utime;
+  m.now_ns = in.now_ns;
+  m.cycle = r.cycle;
+  m.have_status = in.have_status;
+  m.status_receive_ns = in.status.receive_ns;
+  m.status_utime = in.status.utime;
+  m.status_seq = in.status.seq;
+  m.status_command_seq = in.status.command_seq;
+  m.status_position[0] = in.status.position.x, m.status_position[1] = in.status.position.y;
+  m.status_velocity[0] = in.status.velocity.x, m.status_velocity[1] = in.status.velocity.y;
+  m.status_contact = in.status.contact;
+  m.status_contact_force[0] = in.status.contact_force.x, m.status_contact_force[1] = in.status.contact_force.y;
+  m.status_state = in.status.state;
+  m.status_fault_bits = in.status.fault_bits;
+  m.heartbeat_ns = in.heartbeat_ns;
+  m.peer_lost = in.peer_lost;
+  m.link_fault_code = in.link_fault_code;
+  m.link_fault = in.link_fault;
+  m.have_frame = in.have_frame;
+  m.frame_capture_ns = in.frame.capture_ns;
+  m.frame_seq = in.frame.frame_seq;
+  m.num_observations = in.frame.count;
+  for (int i = 0; i < in.frame.count; ++i) {
+    const VisualObservation& o = in.frame.items[i];
+    m.ray.push_back(o.ray);
+    m.state.push_back(o.state);
+    m.crossed.push_back(o.crossed);
+    m.signed_distance_px.push_back(o.signed_distance_px);
+    m.stddev_px.push_back(o.stddev_px);
+  }
+  m.have_estimate = in.have_estimate;
+  m.estimate_capture_ns = in.estimate.capture_ns;
+  m.estimate_frame_seq = in.estimate.frame_seq;
+  m.estimate_valid = in.estimate.valid;
+  m.estimate_position[0] = in.estimate.position.x, m.estimate_position[1] = in.estimate.position.y;
+  m.estimate_stddev = in.estimate.stddev;
+  m.estop = in.estop;
+  m.command_velocity[0] = r.command.velocity.x, m.command_velocity[1] = r.command.velocity.y;
+  m.command_estop = r.command.estop;
+  m.command_reset = r.command.reset;
+  m.command_quick_stop = r.command.quick_stop;
+  m.mode = static_cast<std::int8_t>(r.mode);
+  m.step_index = r.step_index;
+  m.holding = r.holding;
+  return m;
+}
+
+template <class M>
+void WriteToLog(EventLogTap& log, const char* channel, std::int64_t utime, const M& m) {
+  std::vector<std::uint8_t> bytes(static_cast<std::size_t>(m.getEncodedSize()));
+  m.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+  log.Write(channel, utime, bytes.data(), bytes.size());
+}
+
 }  // namespace
+
+std::string ExecutorConfigToJson(const ExecutorConfig& c) {
+  nlohmann::json j;
+  j["period_s"] = c.period_s;
+  j["default_speed"] = c.default_speed;
+  j["default_step_timeout_s"] = c.default_step_timeout_s;
+  j["max_vision_age_s"] = c.max_vision_age_s;
+  j["max_hold_s"] = c.max_hold_s;
+  j["heartbeat_timeout_s"] = c.heartbeat_timeout_s;
+  j["startup_timeout_s"] = c.startup_timeout_s;
+  j["contact_speed"] = c.contact_speed;
+  j["contact_dwell_s"] = c.contact_dwell_s;
+  j["contact_min_step_s"] = c.contact_min_step_s;
+  j["goal_from_odometry"] = c.goal_from_odometry;
+  j["servo"] = {{"gain", c.servo.gain},
+                {"focal_px", c.servo.focal_px},
+                {"nominal_range_m", c.servo.nominal_range_m},
+                {"min_range_m", c.servo.min_range_m},
+                {"max_normal_speed", c.servo.max_normal_speed}};
+  j["limits"] = {
+      {"max_speed", c.limits.max_speed}, {"max_accel", c.limits.max_accel}, {"bounds_margin", c.limits.bounds_margin}};
+  // Doubles as JSON numbers round-trip exactly (nlohmann prints the shortest exact representation).
+  return j.dump();
+}
+
+ExecutorConfig ExecutorConfigFromJson(const std::string& text, const std::string& source) {
+  try {
+    const nlohmann::json j = nlohmann::json::parse(text);
+    ExecutorConfig c;
+    c.period_s = j.at("period_s").get<double>();
+    c.default_speed = j.at("default_speed").get<double>();
+    c.default_step_timeout_s = j.at("default_step_timeout_s").get<double>();
+    c.max_vision_age_s = j.at("max_vision_age_s").get<double>();
+    c.max_hold_s = j.at("max_hold_s").get<double>();
+    c.heartbeat_timeout_s = j.at("heartbeat_timeout_s").get<double>();
+    c.startup_timeout_s = j.at("startup_timeout_s").get<double>();
+    c.contact_speed = j.at("contact_speed").get<double>();
+    c.contact_dwell_s = j.at("contact_dwell_s").get<double>();
+    c.contact_min_step_s = j.at("contact_min_step_s").get<double>();
+    c.goal_from_odometry = j.at("goal_from_odometry").get<bool>();
+    const auto& s = j.at("servo");
+    c.servo.gain = s.at("gain").get<double>();
+    c.servo.focal_px = s.at("focal_px").get<double>();
+    c.servo.nominal_range_m = s.at("nominal_range_m").get<double>();
+    c.servo.min_range_m = s.at("min_range_m").get<double>();
+    c.servo.max_normal_speed = s.at("max_normal_speed").get<double>();
+    const auto& l = j.at("limits");
+    c.limits.max_speed = l.at("max_speed").get<double>();
+    c.limits.max_accel = l.at("max_accel").get<double>();
+    c.limits.bounds_margin = l.at("bounds_margin").get<double>();
+    return c;
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(source, "executor", std::string("bad controller configuration: ") + e.what());
+  }
+}
 
 void LogToStderr() {
   auto logger = spdlog::get("visco");
@@ -131,7 +247,31 @@ RunResult RunTask(const Task& task, const RunOptions& options, const std::atomic
   loop_config.realtime = o.realtime;
   loop_config.priority = o.priority;
   LoopSources sources{link.get(), &bridge.frames(), &bridge.estimates(), &bridge.estop()};
-  ControlLoop loop(executor, sources, loop_config, outbox);
+  // With an event log, every period's record leaves the loop through an SPSC queue; this thread writes them.
+  std::unique_ptr<CycleRecordQueue> records;
+  std::thread recorder;
+  std::atomic<bool> recording{false};
+  std::int64_t records_written = 0;
+  if (o.log != nullptr) {
+    records = std::make_unique<CycleRecordQueue>();
+    sources.records = records.get();
+  }
+  ControlLoop loop(executor, sources, loop_config, outbox);  // may throw: before any thread starts
+  if (o.log != nullptr) {
+    recording = true;
+    recorder = std::thread([&] {
+      CycleRecord r;
+      for (;;) {
+        const bool last = !recording.load(std::memory_order_acquire);
+        while (records->TryPop(r)) {
+          WriteToLog(*o.log, kCycleChannel, r.input.now_utime, ToMessage(r));
+          ++records_written;
+        }
+        if (last) break;
+        std::this_thread::sleep_for(std::chrono::milliseconds(5));
+      }
+    });
+  }
 
   spdlog::info("run: {} step(s), {} CVC ray(s), {:.0f} Hz, robot node {} on {}", task.steps.size(), task.rays.size(),
                o.rate_hz, o.node_id, o.can_interface.empty() ? "LCM" : "CAN " + o.can_interface);
@@ -142,6 +282,7 @@ RunResult RunTask(const Task& task, const RunOptions& options, const std::atomic
   // The loop thread owns the executor: this thread learns that the run is over from this flag, never by reading the
   // executor while the loop writes it (a data race, found by ThreadSanitizer).
   std::atomic<bool> loop_done{false};
+  std::atomic<std::int64_t> start_ns{0};
   std::thread rt([&] {
     if (o.realtime) {
       result.realtime_setup = ConfigureRealtime(o.priority, true).message;
@@ -149,7 +290,8 @@ RunResult RunTask(const Task& task, const RunOptions& options, const std::atomic
       result.realtime_setup = "real-time setup: disabled (--no-realtime): default scheduler, memory not locked";
     }
     setup_done.store(true, std::memory_order_release);
-    executor.Start(MonotonicNs());
+    start_ns.store(MonotonicNs(), std::memory_order_relaxed);
+    executor.Start(start_ns.load(std::memory_order_relaxed));
     loop.Run(loop_stop);
     loop_done.store(true, std::memory_order_release);
   });
@@ -180,6 +322,31 @@ RunResult RunTask(const Task& task, const RunOptions& options, const std::atomic
   rt.join();  // the loop lingers a few cycles after the end so the final zero command goes out
   std::this_thread::sleep_for(std::chrono::milliseconds(20));
   bridge.Stop();
+  if (o.log != nullptr) {
+    recording.store(false, std::memory_order_release);
+    recorder.join();
+    // The run's configuration, for `visco replay` to run the same executor (docs/replay.md).
+    nlohmann::json note;
+    note["executor"] = nlohmann::json::parse(ExecutorConfigToJson(o.executor));
+    note["start_ns"] = start_ns.load();
+    auto absolute = [](const std::string& p) { return p.empty() ? p : std::filesystem::absolute(p).string(); };
+    note["strategy"] = absolute(o.strategy_path);
+    note["scene"] = absolute(o.scene_path);
+    note["rays"] = absolute(o.rays_path);
+    note["cycles"] = loop.cycles();
+    note["records_written"] = records_written;
+    note["records_dropped"] = records->dropped();
+    log_annotation_t a;
+    a.utime = WallUtime();
+    a.source = "run";
+    a.kind = "controller_config";
+    a.text = note.dump();
+    WriteToLog(*o.log, kAnnotationChannel, a.utime, a);
+    if (records->dropped() > 0) {
+      spdlog::warn("run: {} of {} period records dropped from the event log (queue full)", records->dropped(),
+                   loop.cycles());
+    }
+  }
 
   result.mode = executor.mode();
   result.stop_code = executor.stop_code();

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <string>
 
+#include "common/event_log.h"
 #include "control/executor.h"
 #include "control/task.h"
 
@@ -26,7 +27,17 @@ struct RunOptions {
   double telemetry_hz = 50;
   double max_duration_s = 0;  // 0: until the strategy ends
   ExecutorConfig executor;
+  EventLogTap* log = nullptr;  // optional: every period's inputs and command go into this log (docs/replay.md)
 };
+
+/// The channel of the per-period records (controller_cycle_t) and of the run's configuration (log_annotation_t,
+/// kind "controller_config") in an event log. Neither is published on the bus.
+inline constexpr char kCycleChannel[] = "VISCO_CONTROLLER_CYCLE";
+inline constexpr char kAnnotationChannel[] = "VISCO_LOG_ANNOTATION";
+
+/// The executor's configuration as JSON and back (for the event log's annotation). FromJson @throws InputError.
+std::string ExecutorConfigToJson(const ExecutorConfig& config);
+ExecutorConfig ExecutorConfigFromJson(const std::string& json, const std::string& source);
 
 struct RunResult {
   Mode mode = Mode::kIdle;

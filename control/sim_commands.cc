@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "common/error.h"
+#include "common/event_log.h"
 #include "control/run.h"
 #include "control/sim_session.h"
 
@@ -34,6 +35,7 @@ struct SimCli {
   double duration_s = 0;
   std::vector<double> occlude, blackout, stale;
   double stale_ms = 500;
+  std::string log;
 };
 
 FaultWindow Window(const std::vector<double>& v, const char* option) {
@@ -65,6 +67,7 @@ void RunSim(SimCli& cli) {
   }
   if (!(cli.watchdog_ms > 0)) throw InputError("command line", "--watchdog-ms", "must be positive");
   o.driver.watchdog_us = static_cast<std::int64_t>(cli.watchdog_ms * 1000);
+  std::unique_ptr<EventLogTap> log = OpenEventLog(cli.log, o.lcm_url);
   SimSession session(o);
   struct sigaction action {};
   action.sa_handler = OnSignal;
@@ -89,6 +92,7 @@ void RunSim(SimCli& cli) {
   session.Stop();
   std::printf("%s\n", session.Summary().ToJson().c_str());
   std::fflush(stdout);
+  if (log) std::fprintf(stderr, "sim: %s\n", log->Close().c_str());
 }
 
 }  // namespace
@@ -119,6 +123,9 @@ void RegisterSimCommands(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--max-acceleration", o.max_acceleration, "robot acceleration limit, m/s^2")->capture_default_str();
   cmd->add_option("--lcm-url", o.lcm_url, "LCM provider URL (LCM's default when empty)");
+  cmd->add_option("--log", cli->log,
+                  "write an LCM event log (lcm-logger format) of the bus: every channel it publishes and receives "
+                  "(needs a udpm:// bus; docs/replay.md)");
   cmd->add_option("--can", o.can_interface, "the driver listens on this SocketCAN interface instead of LCM");
   cmd->add_option("--node", o.node_id, "robot node id")->check(CLI::Range(1, 127))->capture_default_str();
   cmd->add_option("--watchdog-ms", cli->watchdog_ms, "driver command watchdog, ms")->capture_default_str();

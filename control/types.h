@@ -72,6 +72,7 @@ struct RobotCommand {
 /// Vision's position estimate of the reference point (robot_estimate_t).
 struct PositionEstimate {
   std::int64_t capture_ns = 0;  // monotonic time of the frame's capture (converted from its utime)
+  std::int64_t frame_seq = -1;  // image_t.seq of that frame (-1: unknown)
   bool valid = false;
   Vec2 position;        // metres
   double stddev = 0.0;  // metres

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "common/error.h"
+#include "common/event_log.h"
 #include "drivers/driver.h"
 #include "drivers/driver_transport.h"
 #include "drivers/simulated_robot.h"
@@ -42,6 +43,7 @@ struct DriverOptions {
   std::vector<double> bounds;
   std::vector<double> workspace;
   double duration_s = 0.0;
+  std::string log;
 };
 
 std::int64_t Micros(double ms, const char* option) {
@@ -77,6 +79,7 @@ void RunDriver(const DriverOptions& o) {
     robot_config.workspace_max[1] = o.workspace[3];
   }
   SimulatedRobot robot(robot_config);
+  std::unique_ptr<EventLogTap> log = OpenEventLog(o.log, o.lcm_url);
 
   DriverTransportConfig transport_config;
   transport_config.node_id = o.node;
@@ -113,6 +116,7 @@ void RunDriver(const DriverOptions& o) {
   signal(SIGUSR1, SIG_IGN);
   g_driver.store(nullptr);
   if (timer.joinable()) timer.join();
+  if (log) spdlog::info("driver: {}", log->Close());
   const DriverStats& s = driver.stats();
   std::printf(
       "{\"commands_applied\": %llu, \"bad_commands\": %llu, \"out_of_sequence\": %llu, \"wrong_session\": %llu, "
@@ -148,6 +152,9 @@ void RegisterCommands(CLI::App& app) {
       "reset. Runs until SIGINT/SIGTERM or --duration; prints a JSON summary on exit.");
   cmd->add_option("--can", options->can_interface, "SocketCAN interface (e.g. vcan0); without it, LCM is used");
   cmd->add_option("--lcm-url", options->lcm_url, "LCM provider URL (LCM's default when empty)");
+  cmd->add_option("--log", options->log,
+                  "write an LCM event log (lcm-logger format) of the bus: every channel it publishes and receives "
+                  "(needs a udpm:// bus; docs/replay.md)");
   cmd->add_option("--node", options->node, "CAN node id of the robot, 1..127")->check(CLI::Range(1, 127));
   cmd->add_option("--watchdog-ms", options->watchdog_ms, "command watchdog period, ms")->capture_default_str();
   cmd->add_option("--period-us", options->period_us, "robot update period, microseconds")

@@ -12,12 +12,14 @@
 #include <thread>
 
 #include "common/error.h"
+#include "common/event_log.h"
 #include "lcmtypes/channels.h"
 #include "vision/camera.h"
 #include "vision/detect_json.h"
 #include "vision/image.h"
 #include "vision/multi_tag_pose.h"
 #include "vision/pipeline.h"
+#include "vision/pipeline_config.h"
 #include "vision/tag_detector.h"
 
 namespace visco::vision {
@@ -27,18 +29,15 @@ std::atomic<bool> g_interrupted{false};
 extern "C" void OnSignal(int) { g_interrupted = true; }
 
 struct TrackArgs {
-  std::string camera, camera_name, extrinsics, objects;
+  PipelineConfig pipeline;
   std::string images, video;
   bool lcm_input = false;
   std::string lcm_url;
   bool publish = true;
   double fps = 30;
-  std::string mode = "roi";
-  int full_every = 30;
   std::int64_t max_frames = 0;
   std::string out;
-  float quad_sigma = 0;
-  double corner_sigma = 0.3;
+  std::string log;
 };
 
 const char* StateName(std::int8_t s) {
@@ -57,24 +56,13 @@ const char* StateName(std::int8_t s) {
 void RunTrack(const TrackArgs& a) {
   const int inputs = (a.images.empty() ? 0 : 1) + (a.video.empty() ? 0 : 1) + (a.lcm_input ? 1 : 0);
   if (inputs != 1) throw InputError("command line", "--images/--video/--lcm", "give exactly one frame source");
-  const CameraModel camera = LoadCamera(a.camera, a.camera_name);
-  const Eigen::Isometry3d wMc = LoadExtrinsics(a.extrinsics);
-  const ObjectModels models = LoadObjectModels(a.objects);
-  PipelineOptions po;
-  po.camera_name = camera.name.empty() ? "camera" : camera.name;
-  po.detector.quad_sigma = a.quad_sigma;
-  po.noise.corner_sigma_px = a.corner_sigma;
-  po.tracker.full_detection_every = a.full_every;
-  if (a.mode == "roi") {
-    po.tracker.mode = TagTrackingMode::kRoiDetection;
-  } else if (a.mode == "klt") {
-    po.tracker.mode = TagTrackingMode::kKltCorners;
-  } else if (a.mode == "detect") {
-    po.tracker.mode = TagTrackingMode::kDetectEveryFrame;
-  } else {
-    throw InputError("command line", "--mode", "must be roi, klt or detect, not '" + a.mode + "'");
-  }
-  for (const auto& t : models.robot.tags) CheckFamilyName(t.family);
+  const LoadedPipeline loaded = LoadPipelineConfig(a.pipeline);
+  const CameraModel& camera = loaded.camera;
+  const Eigen::Isometry3d& wMc = loaded.wMc;
+  const ObjectModels& models = loaded.models;
+  const PipelineOptions& po = loaded.options;
+  // The event log records the bus from before the first frame (it is opened first).
+  std::unique_ptr<EventLogTap> log = OpenEventLog(a.log, a.lcm_url);
   std::unique_ptr<lcm::LCM> bus;
   if (a.publish || a.lcm_input) {
     bus = std::make_unique<lcm::LCM>(a.lcm_url);
@@ -163,6 +151,7 @@ void RunTrack(const TrackArgs& a) {
                   {"robot_lost_frames", lost}, {"crossings", crossings},
                   {"full_detections", full},   {"mean_latency_ms", frames > 0 ? latency_sum / frames * 1e3 : 0.0}};
   std::fprintf(out, "%s\n", s.dump().c_str());
+  if (log) std::fprintf(stderr, "track: %s\n", log->Close().c_str());
   if (frames == 0) throw JobFailed("no frame could be processed (" + std::to_string(bad) + " bad frames)");
 }
 
@@ -242,11 +231,7 @@ void RegisterCommands(CLI::App& app) {
       "objects with "
       "their pose decision, tags used and RMS error, events), faults as {\"fault\": ...} lines, and a final "
       "{\"summary\": ...} line.");
-  track->add_option("--camera", targs->camera, "calibration: ViSP XML or OpenCV YAML")->required();
-  track->add_option("--camera-name", targs->camera_name, "camera in a multi-camera ViSP XML file");
-  track->add_option("--extrinsics", targs->extrinsics, "camera pose in the world (JSON, wMc)")->required();
-  track->add_option("--objects", targs->objects, "object models: robot, obstacles, tags, event pairs (JSON)")
-      ->required();
+  AddPipelineConfigOptions(*track, targs->pipeline);
   track->add_option("--images", targs->images, "folder of image files, processed in name order");
   track->add_option("--video", targs->video, "video file (OpenCV)");
   track->add_flag("--lcm", targs->lcm_input, "read image_t frames from VISCO_CAMERA_IMAGE until interrupted");
@@ -256,15 +241,11 @@ void RegisterCommands(CLI::App& app) {
                     "the kernel's default receive buffer and frames are dropped without it");
   track->add_flag("!--no-publish", targs->publish, "do not publish on LCM (print only)");
   track->add_option("--fps", targs->fps, "frame rate of an image folder (timestamps)")->capture_default_str();
-  track->add_option("--mode", targs->mode, "tag tracking between full detections: roi, klt or detect")
-      ->capture_default_str();
-  track->add_option("--full-every", targs->full_every, "frames between full detections")->capture_default_str();
-  track->add_option("--quad-sigma", targs->quad_sigma, "AprilTag segmentation blur (0.8 for noisy images)")
-      ->capture_default_str();
-  track->add_option("--corner-sigma", targs->corner_sigma, "initial corner noise, pixels (then estimated online)")
-      ->capture_default_str();
   track->add_option("--max-frames", targs->max_frames, "stop after this many processed frames (0: no limit)");
   track->add_option("--out", targs->out, "write the JSON lines to this file instead of stdout");
+  track->add_option("--log", targs->log,
+                    "write an LCM event log (lcm-logger format) of the bus: every channel it publishes and receives, "
+                    "images included (needs a udpm:// bus; docs/replay.md)");
   track->callback([targs] { RunTrack(*targs); });
 }
 

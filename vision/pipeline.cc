@@ -295,7 +295,7 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
   const auto tags = tracker_.Process(frame.image.view(), &out.full_detection);
   const FrameFeatures& f = features_.Update(tags);
   const ObjectModels& models = features_.models();
-  const std::int64_t done = NowUtime();
+  const std::int64_t done = options_.clock ? options_.clock() : NowUtime();
 
   // Detections.
   auto& d = out.detections;
@@ -424,7 +424,7 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
     e.events.push_back(ve);
   }
   e.num_events = static_cast<std::int32_t>(e.events.size());
-  const std::int64_t end = NowUtime();
+  const std::int64_t end = options_.clock ? options_.clock() : NowUtime();
   e.utime = end;
   e.latency_s = static_cast<double>(end - arrival_utime) * 1e-6;
 
@@ -483,17 +483,11 @@ void PipelineThread::Run() {
     if (out.processed) {
       ++frames_;
       if (latest_ != nullptr) latest_->Publish(out.snapshot);
-      if (bus_ != nullptr) {
-        bus_->publish(channels::kTagDetections, &out.detections);
-        bus_->publish(channels::kObjectPoses, &out.poses);
-        bus_->publish(channels::kRobotEstimate, &out.robot);
-        bus_->publish(channels::kVisualEvents, &out.events);
-      }
     } else {
       ++bad_frames_;
     }
     if (bus_ != nullptr) {
-      for (const auto& f : out.faults) bus_->publish(channels::kFault, &f);
+      ForEachMessage(out, [this](const char* channel, const auto& message) { bus_->publish(channel, &message); });
     }
     if (on_output_) on_output_(out);
   }

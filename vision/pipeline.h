@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "common/latest_value.h"
+#include "lcmtypes/channels.h"
 #include "visco/fault_t.hpp"
 #include "visco/image_t.hpp"
 #include "visco/object_poses_t.hpp"
@@ -95,6 +96,9 @@ struct PipelineOptions {
   PoseOptions pose;
   ContactOptions contact;  ///< face-contact refinement of the object poses
   std::string camera_name = "camera";
+  /// Publication times (microseconds since the epoch) of the outputs; empty: the system clock. A replay sets the
+  /// log's clock here, so that nothing the pipeline produces depends on the wall clock.
+  std::function<std::int64_t()> clock;
 };
 
 /// Everything published for one processed frame, plus faults.
@@ -108,6 +112,19 @@ struct PipelineOutput {
   VisionSnapshot snapshot{};
   bool full_detection = false;
 };
+
+/// Calls `f(channel, message)` for each message of `out`, in the order the pipeline thread publishes them: detections,
+/// poses, robot estimate, visual events (processed frames only), then the faults. A replay uses the same order.
+template <class F>
+void ForEachMessage(const PipelineOutput& out, F&& f) {
+  if (out.processed) {
+    f(channels::kTagDetections, out.detections);
+    f(channels::kObjectPoses, out.poses);
+    f(channels::kRobotEstimate, out.robot);
+    f(channels::kVisualEvents, out.events);
+  }
+  for (const auto& fault : out.faults) f(channels::kFault, fault);
+}
 
 /// The per-frame work, without threads or I/O. Not thread-safe.
 class VisionPipeline {

@@ -182,4 +182,59 @@ inline void Fill(controller_telemetry_t& m) {
   for (int i = 0; i < 16; ++i) m.jitter_histogram[i] = i * 3;
 }
 
+inline void Fill(controller_cycle_t& m) {
+  m.utime = 1700000000000015;
+  m.now_ns = 123456789;
+  m.cycle = 77;
+  m.have_status = true;
+  m.status_receive_ns = 123000000;
+  m.status_utime = 1700000000000016;
+  m.status_seq = 5;
+  m.status_command_seq = 4;
+  m.status_position[0] = 1.5;
+  m.status_position[1] = 2.5;
+  m.status_velocity[0] = 0.1;
+  m.status_velocity[1] = -0.1;
+  m.status_contact = true;
+  m.status_contact_force[0] = 3;
+  m.status_contact_force[1] = -4;
+  m.status_state = 2;
+  m.status_fault_bits = 8;
+  m.heartbeat_ns = 122000000;
+  m.peer_lost = true;
+  m.link_fault_code = 4;
+  m.link_fault = "driver heartbeat lost";
+  m.have_frame = true;
+  m.frame_capture_ns = 120000000;
+  m.frame_seq = 31;
+  m.num_observations = 2;
+  m.ray = {0, 3};
+  m.state = {1, 3};
+  m.crossed = {false, true};
+  m.signed_distance_px = {-2.5, 7.25};
+  m.stddev_px = {0.3, 0.4};
+  m.have_estimate = true;
+  m.estimate_capture_ns = 119000000;
+  m.estimate_frame_seq = 31;
+  m.estimate_valid = true;
+  m.estimate_position[0] = 1.49;
+  m.estimate_position[1] = 2.51;
+  m.estimate_stddev = 0.002;
+  m.estop = true;
+  m.command_velocity[0] = 0.05;
+  m.command_velocity[1] = -0.02;
+  m.command_estop = true;
+  m.command_reset = true;
+  m.command_quick_stop = true;
+  m.mode = controller_telemetry_t::MODE_STOPPED;
+  m.step_index = 1;
+  m.holding = true;
+}
+inline void Fill(log_annotation_t& m) {
+  m.utime = 1700000000000017;
+  m.source = "run";
+  m.kind = "controller_config";
+  m.text = "{\"rate_hz\": 500}";
+}
+
 }  // namespace visco::testing

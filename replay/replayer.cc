@@ -1,0 +1,727 @@
+#include "replay/replayer.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <deque>
+#include <lcm/lcm-cpp.hpp>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <regex>
+#include <set>
+#include <thread>
+#include <utility>
+
+#include "common/error.h"
+#include "control/executor.h"
+#include "control/lcm_bridge.h"
+#include "control/run.h"
+#include "lcmtypes/channels.h"
+#include "replay/safe_decode.h"
+#include "visco/controller_cycle_t.hpp"
+#include "visco/fault_t.hpp"
+#include "visco/image_t.hpp"
+#include "visco/log_annotation_t.hpp"
+#include "visco/object_poses_t.hpp"
+#include "visco/robot_estimate_t.hpp"
+#include "visco/tag_detections_t.hpp"
+#include "visco/velocity_command_t.hpp"
+#include "visco/visual_events_t.hpp"
+#include "vision/pipeline.h"
+
+namespace visco::replay {
+namespace {
+
+// Seconds from `from` to `to` (microseconds); damaged timestamps can be anything, so no integer subtraction.
+double SecondsBetween(std::int64_t from, std::int64_t to) {
+  return (static_cast<double>(to) - static_cast<double>(from)) * 1e-6;
+}
+
+const std::set<std::string>& KnownChannels() {
+  static const std::set<std::string> known = {
+      channels::kCameraImage,     channels::kTagDetections,   channels::kObjectPoses, channels::kRobotEstimate,
+      channels::kVisualEvents,    channels::kStrategy,        channels::kCommand,     channels::kStatus,
+      channels::kTelemetry,       channels::kFault,           channels::kEstop,       channels::kHeartbeatController,
+      channels::kHeartbeatDriver, channels::kHeartbeatVision, control::kCycleChannel, control::kAnnotationChannel};
+  return known;
+}
+
+bool Known(const std::string& channel, const std::string& prefix) {
+  if (KnownChannels().count(channel) > 0) return true;
+  if (channel == "LCM_SELF_TEST") return true;  // LCM's own start-up check of a udpm:// bus (not replayed)
+  return !prefix.empty() && channel.rfind(prefix, 0) == 0 && KnownChannels().count(channel.substr(prefix.size())) > 0;
+}
+
+template <class M>
+bool DecodeAs(const LogEvent& e, M& m) {
+  return SafeDecode(e.data, m);
+}
+
+template <class M>
+std::vector<std::uint8_t> Encode(const M& m) {
+  std::vector<std::uint8_t> buffer(static_cast<std::size_t>(m.getEncodedSize()));
+  m.encode(buffer.data(), 0, static_cast<int>(buffer.size()));
+  return buffer;
+}
+
+// The frame (image_t.utime) a logged vision output belongs to, if it is one.
+bool VisionOutputFrame(const LogEvent& e, std::int64_t& frame_utime) {
+  const std::string_view c = e.channel;
+  if (c == channels::kTagDetections) {
+    tag_detections_t m;
+    if (!DecodeAs(e, m)) return false;
+    frame_utime = m.frame_utime;
+    return true;
+  }
+  if (c == channels::kObjectPoses) {
+    object_poses_t m;
+    if (!DecodeAs(e, m)) return false;
+    frame_utime = m.frame_utime;
+    return true;
+  }
+  if (c == channels::kRobotEstimate) {
+    robot_estimate_t m;
+    if (!DecodeAs(e, m)) return false;
+    frame_utime = m.utime;
+    return true;
+  }
+  if (c == channels::kVisualEvents) {
+    visual_events_t m;
+    if (!DecodeAs(e, m)) return false;
+    frame_utime = m.frame_utime;
+    return true;
+  }
+  if (c == channels::kFault) {
+    fault_t m;
+    if (!DecodeAs(e, m) || m.source != "vision") return false;
+    frame_utime = m.utime;
+    return true;
+  }
+  return false;
+}
+
+control::ExecutorInput FromMessage(const controller_cycle_t& m) {
+  control::ExecutorInput in;
+  in.now_ns = m.now_ns;
+  in.now_utime = m.utime;
+  in.have_status = m.have_status;
+  in.status.receive_ns = m.status_receive_ns;
+  in.status.utime = m.status_utime;
+  in.status.seq = m.status_seq;
+  in.status.command_seq = m.status_command_seq;
+  in.status.position = {m.status_position[0], m.status_position[1]};
+  in.status.velocity = {m.status_velocity[0], m.status_velocity[1]};
+  in.status.contact = m.status_contact;
+  in.status.contact_force = {m.status_contact_force[0], m.status_contact_force[1]};
+  in.status.state = m.status_state;
+  in.status.fault_bits = m.status_fault_bits;
+  in.heartbeat_ns = m.heartbeat_ns;
+  in.peer_lost = m.peer_lost;
+  in.link_fault_code = m.link_fault_code;
+  control::CopyText(in.link_fault, m.link_fault.c_str());
+  in.have_frame = m.have_frame;
+  in.frame.capture_ns = m.frame_capture_ns;
+  in.frame.frame_seq = m.frame_seq;
+  in.frame.count = std::min<std::int32_t>(m.num_observations, control::kMaxVisualObservations);
+  for (int i = 0; i < in.frame.count; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    control::VisualObservation& o = in.frame.items[i];
+    o.ray = m.ray[k];
+    o.state = m.state[k];
+    o.crossed = m.crossed[k];
+    o.signed_distance_px = m.signed_distance_px[k];
+    o.stddev_px = m.stddev_px[k];
+  }
+  in.have_estimate = m.have_estimate;
+  in.estimate.capture_ns = m.estimate_capture_ns;
+  in.estimate.frame_seq = m.estimate_frame_seq;
+  in.estimate.valid = m.estimate_valid;
+  in.estimate.position = {m.estimate_position[0], m.estimate_position[1]};
+  in.estimate.stddev = m.estimate_stddev;
+  in.estop = m.estop;
+  return in;
+}
+
+// Field-by-field differences of the controller's values, numbers bit for bit.
+class ControlDiffer {
+ public:
+  std::optional<FieldDifference> result;
+  void Field(const std::string& name, double a, double b) {
+    if (result || std::memcmp(&a, &b, sizeof a) == 0) return;
+    char x[64], y[64];
+    std::snprintf(x, sizeof x, "%.17g", a);
+    std::snprintf(y, sizeof y, "%.17g", b);
+    result = FieldDifference{name, x, y};
+  }
+  void Field(const std::string& name, std::int64_t a, std::int64_t b) {
+    if (result || a == b) return;
+    result = FieldDifference{name, std::to_string(a), std::to_string(b)};
+  }
+  void Field(const std::string& name, const std::string& a, const std::string& b) {
+    if (result || a == b) return;
+    result = FieldDifference{name, "\"" + a + "\"", "\"" + b + "\""};
+  }
+};
+
+void CompareFrames(ControlDiffer& d, const control::VisualFrame& a, const control::VisualFrame& b) {
+  d.Field("input.frame.capture_ns", a.capture_ns, b.capture_ns);
+  d.Field("input.frame.count", std::int64_t{a.count}, std::int64_t{b.count});
+  for (int i = 0; i < a.count && i < b.count; ++i) {
+    const std::string p = "input.frame.items[" + std::to_string(i) + "].";
+    const control::VisualObservation& x = a.items[i];
+    const control::VisualObservation& y = b.items[i];
+    d.Field(p + "ray", std::int64_t{x.ray}, std::int64_t{y.ray});
+    d.Field(p + "state", std::int64_t{x.state}, std::int64_t{y.state});
+    d.Field(p + "crossed", std::int64_t{x.crossed}, std::int64_t{y.crossed});
+    d.Field(p + "signed_distance_px", x.signed_distance_px, y.signed_distance_px);
+    d.Field(p + "stddev_px", x.stddev_px, y.stddev_px);
+  }
+}
+
+void CompareEstimates(ControlDiffer& d, const control::PositionEstimate& a, const control::PositionEstimate& b) {
+  d.Field("input.estimate.capture_ns", a.capture_ns, b.capture_ns);
+  d.Field("input.estimate.valid", std::int64_t{a.valid}, std::int64_t{b.valid});
+  d.Field("input.estimate.position[0]", a.position.x, b.position.x);
+  d.Field("input.estimate.position[1]", a.position.y, b.position.y);
+  d.Field("input.estimate.stddev", a.stddev, b.stddev);
+}
+
+}  // namespace
+
+namespace {
+
+// An image folder or a video file instead of a log: the frames go through vision as `visco track` would take them,
+// on the frames' own timestamps (from `start_utime`, so that two replays give the same bytes). Nothing to compare.
+ReplaySummary ReplaySource(const ReplayOptions& o, const vision::LoadedPipeline& loaded) {
+  ReplaySummary s;
+  const auto wall_start = std::chrono::steady_clock::now();
+  std::unique_ptr<vision::FrameSource> source = !o.images_dir.empty()
+                                                    ? vision::MakeFolderSource(o.images_dir, o.fps, o.start_utime)
+                                                    : vision::MakeVideoSource(o.video_path, o.start_utime);
+  std::unique_ptr<lcm::LCM> bus;
+  if (o.publish) {
+    bus = std::make_unique<lcm::LCM>(o.lcm_url);
+    if (!bus->good()) throw InputError("command line", "--lcm-url", "cannot open LCM bus '" + o.lcm_url + "'");
+  }
+  std::unique_ptr<EventLogWriter> out;
+  if (!o.out_path.empty()) {
+    WriterOptions wo;
+    wo.max_queue_bytes = std::size_t{1} << 30;
+    out = std::make_unique<EventLogWriter>(o.out_path, wo);
+  }
+  const std::string prefix = o.arm ? "" : o.prefix;
+  std::int64_t now = 0;
+  vision::PipelineOptions options = loaded.options;
+  options.clock = [&now] { return now; };
+  vision::VisionPipeline pipeline(loaded.camera, loaded.wMc, loaded.models, options);
+  vision::Frame frame;
+  std::string error;
+  bool first = true;
+  std::int64_t first_utime = 0;
+  auto pace_start = std::chrono::steady_clock::now();
+  for (;;) {
+    error.clear();
+    const vision::SourceStatus status = source->Next(frame, error, 0);
+    if (status == vision::SourceStatus::kEnd) break;
+    if (status == vision::SourceStatus::kNoFrameYet) continue;
+    if (first) {
+      first = false;
+      first_utime = frame.utime;
+      s.log_start_utime = frame.utime;
+    }
+    s.log_end_utime = frame.utime;
+    const double t = SecondsBetween(first_utime, frame.utime);
+    if (t > o.to_s) break;
+    ++s.images;
+    if (!o.fast) {
+      std::this_thread::sleep_until(pace_start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                                     std::chrono::duration<double>(t / o.speed)));
+    }
+    now = frame.utime;
+    vision::PipelineOutput result;
+    if (status == vision::SourceStatus::kBadFrame) {
+      result.faults.push_back(pipeline.BadFrame(frame, error));
+    } else {
+      result = pipeline.Process(frame, frame.utime);
+    }
+    if (result.processed) {
+      ++s.frames;
+    } else {
+      ++s.bad_frames;
+    }
+    if (t < o.from_s) {
+      ++s.warmup_frames;
+      continue;
+    }
+    vision::ForEachMessage(result, [&](const char* channel, const auto& message) {
+      const std::vector<std::uint8_t> bytes = Encode(message);
+      if (bus) bus->publish(prefix + channel, bytes.data(), static_cast<unsigned int>(bytes.size()));
+      if (out) out->Write(prefix + channel, frame.utime, bytes);
+      ++s.published;
+    });
+  }
+  if (out) out->Close();
+  if (s.images > 1 && s.log_end_utime > s.log_start_utime) {
+    s.log_frame_rate_hz = static_cast<double>(s.images - 1) / SecondsBetween(s.log_start_utime, s.log_end_utime);
+  }
+  s.control_note = "no controller records in an image folder or video";
+  s.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  return s;
+}
+
+}  // namespace
+
+ReplaySummary RunReplay(const ReplayOptions& o) {
+  const int sources = (o.log_path.empty() ? 0 : 1) + (o.images_dir.empty() ? 0 : 1) + (o.video_path.empty() ? 0 : 1);
+  if (sources != 1) throw InputError("command line", "LOG/--images/--video", "give exactly one of them");
+  if (o.check && o.log_path.empty()) {
+    throw InputError("command line", "--check", "compares with what a log holds: give a LOG, not --images/--video");
+  }
+  if (!o.can_interface.empty() && !o.arm) {
+    throw InputError("command line", "--can",
+                     "replay never commands hardware unless armed: give --arm to use a CAN interface");
+  }
+  if (!o.can_interface.empty()) {
+    throw InputError("command line", "--can",
+                     "replay feeds the logged images through vision and publishes its outputs on LCM; it has no "
+                     "robot commands to send on CAN");
+  }
+  if (!o.fast && !(o.speed > 0)) throw InputError("command line", "--speed", "must be positive");
+  if (!(o.from_s >= 0) || !(o.to_s >= o.from_s)) {
+    throw InputError("command line", "--from/--to", "need 0 <= FROM <= TO (seconds after the log's first event)");
+  }
+  std::regex channel_filter;
+  try {
+    channel_filter = std::regex(o.channels);
+  } catch (const std::regex_error& e) {
+    throw InputError("command line", "--channels", std::string("not a regular expression: ") + e.what());
+  }
+  const vision::LoadedPipeline loaded = vision::LoadPipelineConfig(o.pipeline);
+  if (o.log_path.empty()) return ReplaySource(o, loaded);
+
+  const auto wall_start = std::chrono::steady_clock::now();
+  EventLogReader reader(o.log_path);
+  std::vector<LogEvent> events;
+  LogEvent event;
+  while (reader.Next(event)) events.push_back(event);
+  ReplaySummary s;
+  s.log = reader.report();
+  if (events.empty()) throw InputError(o.log_path, "", "no usable event: " + s.log.Describe());
+  s.log_start_utime = events.front().timestamp;
+  s.log_end_utime = events.back().timestamp;
+
+  // What the live vision process published, per channel and frame, in log order.
+  std::map<std::pair<std::string, std::int64_t>, std::deque<std::size_t>> logged;
+  std::set<std::int64_t> logged_frames;
+  std::int64_t images_total = 0, first_image = 0, last_image = 0;
+  std::vector<std::size_t> cycle_events;                              // the controller's period records
+  std::int64_t annotation = -1;                                       // the run's configuration
+  std::map<std::int64_t, std::deque<std::size_t>> controller_faults;  // by utime (the period's), overruns aside
+  for (std::size_t i = 0; i < events.size(); ++i) {
+    const LogEvent& e = events[i];
+    const std::string channel(e.channel);
+    if (!Known(channel, o.prefix)) ++s.unknown_channels[channel];
+    if (channel == channels::kCameraImage) {
+      if (images_total++ == 0) first_image = e.timestamp;
+      last_image = e.timestamp;
+    }
+    if (channel == control::kCycleChannel) cycle_events.push_back(i);
+    if (channel == control::kAnnotationChannel) {
+      log_annotation_t a;
+      if (DecodeAs(e, a) && a.kind == "controller_config") annotation = static_cast<std::int64_t>(i);
+    }
+    if (channel == channels::kFault) {
+      fault_t f;
+      if (DecodeAs(e, f) && f.source == "controller" &&
+          f.code != static_cast<std::int32_t>(control::FaultCode::kOverrun)) {
+        controller_faults[f.utime].push_back(i);
+      }
+    }
+    std::int64_t frame_utime = 0;
+    if (VisionOutputFrame(e, frame_utime)) {
+      logged[{channel, frame_utime}].push_back(i);
+      logged_frames.insert(frame_utime);
+    }
+  }
+  if (images_total > 1 && last_image > first_image) {
+    s.log_frame_rate_hz = static_cast<double>(images_total - 1) / SecondsBetween(first_image, last_image);
+  }
+  const std::int64_t last_logged_frame = logged_frames.empty() ? 0 : *logged_frames.rbegin();
+  if (o.check && logged_frames.empty()) {
+    throw InputError(o.log_path, "",
+                     "holds no vision output (VISCO_ROBOT_ESTIMATE, VISCO_VISUAL_EVENTS, ...) to check against: record "
+                     "the live run with --log on a process of its bus");
+  }
+
+  std::unique_ptr<lcm::LCM> bus;
+  if (o.publish) {
+    bus = std::make_unique<lcm::LCM>(o.lcm_url);
+    if (!bus->good()) throw InputError("command line", "--lcm-url", "cannot open LCM bus '" + o.lcm_url + "'");
+  }
+  std::unique_ptr<EventLogWriter> out;
+  if (!o.out_path.empty()) {
+    WriterOptions wo;
+    wo.max_queue_bytes = std::size_t{1} << 30;
+    out = std::make_unique<EventLogWriter>(o.out_path, wo);
+  }
+  const std::string prefix = o.arm ? "" : o.prefix;
+
+  std::int64_t log_now = 0;
+  vision::PipelineOptions options = loaded.options;
+  options.clock = [&log_now] { return log_now; };
+  vision::VisionPipeline pipeline(loaded.camera, loaded.wMc, loaded.models, options);
+
+  // Pacing by the gaps between consecutive events, each at most 1 s (a damaged timestamp must not stall the replay);
+  // the results do not depend on it (the pipeline's clock is the log's).
+  bool paced = false;
+  std::int64_t previous_timestamp = 0;
+  auto next_wall = std::chrono::steady_clock::now();
+  auto pace = [&](std::int64_t timestamp) {
+    if (o.fast) return;
+    if (!paced) {
+      paced = true;
+      next_wall = std::chrono::steady_clock::now();
+    } else {
+      const double gap = std::clamp(SecondsBetween(previous_timestamp, timestamp), 0.0, 1.0) / o.speed;
+      next_wall += std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(gap));
+      std::this_thread::sleep_until(next_wall);
+    }
+    previous_timestamp = timestamp;
+  };
+  auto emit = [&](const std::string& channel, std::int64_t timestamp, const std::vector<std::uint8_t>& bytes) {
+    const std::string name = prefix + channel;
+    if (bus) bus->publish(name, bytes.data(), static_cast<unsigned int>(bytes.size()));
+    if (out) out->Write(name, timestamp, bytes);
+  };
+  auto note = [&](std::string text) {
+    if (s.notes.size() < 20) s.notes.push_back(std::move(text));
+  };
+
+  bool stopped = false;
+  bool cut_off = false;
+  std::map<std::int64_t, visual_events_t> replayed_events;      // by frame seq, for the controller
+  std::map<std::int64_t, robot_estimate_t> replayed_estimates;  // by frame seq
+  std::int64_t images_seen = 0;
+  for (const LogEvent& e : events) {
+    const double t = SecondsBetween(s.log_start_utime, e.timestamp);
+    if (t > o.to_s) break;
+    const std::string channel(e.channel);
+    if (!std::regex_match(channel, channel_filter)) continue;
+    if (channel != channels::kCameraImage) {
+      if (t < o.from_s || !Known(channel, o.prefix) || channel == "LCM_SELF_TEST") continue;
+      pace(e.timestamp);
+      emit(channel, e.timestamp, std::vector<std::uint8_t>(e.data.begin(), e.data.end()));
+      ++s.republished;
+      continue;
+    }
+    ++s.images;
+    ++images_seen;
+    if (o.progress && images_seen % 10 == 0) {
+      std::fprintf(stderr, "\rreplay: %lld/%lld images (%.0f%%), %zu difference(s)",
+                   static_cast<long long>(images_seen), static_cast<long long>(images_total),
+                   100.0 * static_cast<double>(images_seen) / static_cast<double>(images_total), s.differences.size());
+    }
+    image_t message;
+    if (!DecodeAs(e, message)) {
+      ++s.undecodable;
+      note("event " + std::to_string(e.number) + " at byte " + std::to_string(e.offset) + " on " + channel +
+           " does not decode as visco.image_t: skipped (a live subscriber drops it too)");
+      continue;
+    }
+    if (!logged_frames.empty() && logged_frames.count(message.utime) == 0) {
+      ++s.skipped_frames;  // the live pipeline never saw it (its queue dropped it, or it was killed first)
+      continue;
+    }
+    pace(e.timestamp);
+    log_now = e.timestamp;
+    vision::Frame frame;
+    std::string error;
+    vision::PipelineOutput result;
+    if (!vision::DecodeImageMessage(message, frame, error)) {
+      result.faults.push_back(pipeline.BadFrame(frame, error));
+    } else {
+      result = pipeline.Process(frame, e.timestamp);
+    }
+    if (result.processed) {
+      ++s.frames;
+      replayed_events[result.events.frame_seq] = result.events;
+      replayed_estimates[result.robot.frame_seq] = result.robot;
+    } else {
+      ++s.bad_frames;
+    }
+    if (t < o.from_s) {
+      ++s.warmup_frames;
+      for (const char* c : {channels::kTagDetections, channels::kObjectPoses, channels::kRobotEstimate,
+                            channels::kVisualEvents, channels::kFault}) {
+        logged.erase({c, message.utime});
+      }
+      continue;
+    }
+    vision::ForEachMessage(result, [&](const char* produced_channel, const auto& produced) {
+      const std::vector<std::uint8_t> bytes = Encode(produced);
+      emit(produced_channel, e.timestamp, bytes);
+      ++s.published;
+      if (!o.check || !s.differences.empty()) return;
+      Difference d{produced_channel, e.timestamp, message.seq, message.utime, -1, {}};
+      auto found = logged.find({produced_channel, message.utime});
+      if (found == logged.end() || found->second.empty()) {
+        if (message.utime == last_logged_frame) {
+          cut_off = true;  // the log ends inside the last frame's outputs (the process was stopped or killed)
+          return;
+        }
+        d.field = {"(message)", "absent", "produced"};
+        s.differences.push_back(d);
+        return;
+      }
+      const LogEvent& live = events[found->second.front()];
+      found->second.pop_front();
+      ++s.compared;
+      if (auto diff = CompareMessages(produced_channel, live.data, bytes)) {
+        d.field = *diff;
+        s.differences.push_back(d);
+      }
+    });
+    if (cut_off) {
+      note("the log ends inside the outputs of frame seq " + std::to_string(message.seq) +
+           " (the live process stopped): compared up to there");
+      break;
+    }
+    if (o.check && s.differences.empty()) {
+      // Whatever the live process published for this frame and the replay did not.
+      for (const char* c : {channels::kTagDetections, channels::kObjectPoses, channels::kRobotEstimate,
+                            channels::kVisualEvents, channels::kFault}) {
+        auto found = logged.find({c, message.utime});
+        if (found != logged.end() && !found->second.empty()) {
+          s.differences.push_back({c, e.timestamp, message.seq, message.utime, -1, {"(message)", "present", "absent"}});
+          break;
+        }
+      }
+    }
+    if (o.check && !s.differences.empty()) {
+      stopped = true;
+      break;
+    }
+  }
+  if (o.progress) std::fprintf(stderr, "\n");
+  if (o.check && !stopped) {
+    // Vision outputs in the replayed window whose image is not in the log (lost by the logger, or cut off).
+    for (const auto& [key, indices] : logged) {
+      for (std::size_t i : indices) {
+        const double t = SecondsBetween(s.log_start_utime, events[i].timestamp);
+        if (t < o.from_s || t > o.to_s) continue;
+        if (s.unmatched_logged++ == 0) {
+          s.differences.push_back({key.first,
+                                   events[i].timestamp,
+                                   -1,
+                                   key.second,
+                                   -1,
+                                   {"(message)", "present", "no image of this frame in the log"}});
+        }
+      }
+    }
+  }
+  // The controller, period by period on its recorded inputs, with the replayed vision in place of the recorded one.
+  if (!o.control) {
+    s.control_note = "not replayed (--no-control)";
+  } else if (cycle_events.empty()) {
+    s.control_note = "the log holds no controller records (they are written by visco run --log)";
+  } else if (annotation < 0) {
+    s.control_note = "the log holds controller records but not the run's configuration (the run did not end normally)";
+  } else if (stopped) {
+    s.control_note = "not replayed: vision already differs";
+  } else {
+    log_annotation_t a;
+    DecodeAs(events[static_cast<std::size_t>(annotation)], a);
+    nlohmann::json config;
+    try {
+      config = nlohmann::json::parse(a.text);
+    } catch (const nlohmann::json::exception& e) {
+      throw InputError(o.log_path, "controller_config", std::string("not JSON: ") + e.what());
+    }
+    control::RunOptions run;
+    run.strategy_path = !o.strategy_path.empty() ? o.strategy_path : config.value("strategy", std::string());
+    run.scene_path = !o.scene_path.empty() ? o.scene_path : config.value("scene", std::string());
+    run.rays_path = !o.rays_path.empty() ? o.rays_path : config.value("rays", std::string());
+    if (run.strategy_path.empty()) {
+      throw InputError(o.log_path, "controller_config",
+                       "the run's strategy came over LCM: give the strategy file with --strategy (or --no-control)");
+    }
+    const control::Task task = control::LoadTask(run);
+    const control::ExecutorConfig executor_config =
+        control::ExecutorConfigFromJson(config.value("executor", nlohmann::json()).dump(), o.log_path);
+    control::Executor executor(task, executor_config);
+    executor.Start(config.value("start_ns", std::int64_t{0}));
+    control::ExecutorOutput output;
+    std::int64_t previous_cycle = -1, last_utime = 0;
+    for (std::size_t index : cycle_events) {
+      const LogEvent& e = events[index];
+      controller_cycle_t m;
+      if (!DecodeAs(e, m)) {
+        ++s.undecodable;
+        note("event " + std::to_string(e.number) + " on " + control::kCycleChannel +
+             " does not decode as visco.controller_cycle_t: skipped");
+        continue;
+      }
+      const double t = SecondsBetween(s.log_start_utime, m.utime);
+      if (t > o.to_s) break;
+      if (m.cycle != previous_cycle + 1) {
+        s.control_note = "period records missing before cycle " + std::to_string(m.cycle) +
+                         " (dropped by the run's recorder or the log): the controller is compared up to there";
+        break;
+      }
+      previous_cycle = m.cycle;
+      last_utime = m.utime;
+      const control::ExecutorInput recorded = FromMessage(m);
+      control::ExecutorInput in = recorded;
+      ControlDiffer d;
+      if (in.have_frame) {
+        auto found = replayed_events.find(in.frame.frame_seq);
+        if (found != replayed_events.end()) {
+          in.frame = control::ToVisualFrame(found->second, task, recorded.frame.capture_ns, found->second.frame_utime);
+          CompareFrames(d, recorded.frame, in.frame);
+          ++s.control_frames_from_vision;
+        } else {
+          ++s.control_frames_recorded;
+        }
+      }
+      if (in.have_estimate) {
+        auto found = replayed_estimates.find(in.estimate.frame_seq);
+        if (found != replayed_estimates.end()) {
+          in.estimate = control::ToPositionEstimate(found->second, recorded.estimate.capture_ns, found->second.utime);
+          CompareEstimates(d, recorded.estimate, in.estimate);
+        }
+      }
+      executor.Update(in, output);
+      ++s.control_cycles;
+      velocity_command_t command{};
+      command.utime = in.now_utime;
+      command.seq = output.command.seq;
+      command.velocity[0] = output.command.velocity.x;
+      command.velocity[1] = output.command.velocity.y;
+      command.estop = output.command.estop;
+      command.reset = output.command.reset;
+      command.quick_stop = output.command.quick_stop;
+      emit(channels::kCommand, in.now_utime, Encode(command));
+      ++s.published;
+      for (int i = 0; i < output.num_faults; ++i) {
+        const control::FaultEvent& f = output.faults[i];
+        fault_t message{};
+        message.utime = f.utime;
+        message.source = "controller";
+        message.code = static_cast<std::int32_t>(f.code);
+        message.severity = f.severity;
+        message.robot_stopped = f.robot_stopped;
+        message.cleared = f.cleared;
+        message.message = f.message;
+        emit(channels::kFault, in.now_utime, Encode(message));
+        ++s.published;
+        if (!o.check || t < o.from_s || d.result) continue;
+        auto logged_fault = controller_faults.find(f.utime);
+        if (logged_fault == controller_faults.end() || logged_fault->second.empty()) {
+          d.result = FieldDifference{"fault (message)", "absent", "produced: " + std::string(f.message)};
+          continue;
+        }
+        fault_t live;
+        DecodeAs(events[logged_fault->second.front()], live);
+        logged_fault->second.pop_front();
+        ++s.control_faults_compared;
+        d.Field("fault.code", std::int64_t{live.code}, std::int64_t{message.code});
+        d.Field("fault.severity", std::int64_t{live.severity}, std::int64_t{message.severity});
+        d.Field("fault.robot_stopped", std::int64_t{live.robot_stopped}, std::int64_t{message.robot_stopped});
+        d.Field("fault.cleared", std::int64_t{live.cleared}, std::int64_t{message.cleared});
+        d.Field("fault.message", live.message, message.message);
+      }
+      if (!o.check || t < o.from_s) continue;
+      ++s.control_compared;
+      d.Field("command.velocity[0]", m.command_velocity[0], output.command.velocity.x);
+      d.Field("command.velocity[1]", m.command_velocity[1], output.command.velocity.y);
+      d.Field("command.estop", std::int64_t{m.command_estop}, std::int64_t{output.command.estop});
+      d.Field("command.reset", std::int64_t{m.command_reset}, std::int64_t{output.command.reset});
+      d.Field("command.quick_stop", std::int64_t{m.command_quick_stop}, std::int64_t{output.command.quick_stop});
+      d.Field("mode", std::int64_t{m.mode}, static_cast<std::int64_t>(output.mode));
+      d.Field("step_index", std::int64_t{m.step_index}, std::int64_t{output.step_index});
+      d.Field("holding", std::int64_t{m.holding}, std::int64_t{output.holding});
+      if (d.result) {
+        s.differences.push_back(
+            {control::kCycleChannel, m.utime, in.have_frame ? in.frame.frame_seq : -1, 0, m.cycle, *d.result});
+        break;
+      }
+    }
+    if (o.check && s.differences.empty()) {
+      for (const auto& [utime, indices] : controller_faults) {
+        if (indices.empty()) continue;
+        const double t = SecondsBetween(s.log_start_utime, utime);
+        if (t < o.from_s || t > o.to_s || utime > last_utime) continue;
+        fault_t live;
+        DecodeAs(events[indices.front()], live);
+        s.differences.push_back(
+            {channels::kFault, utime, -1, 0, -1, {"fault (message)", "present: " + live.message, "absent"}});
+        break;
+      }
+    }
+  }
+  if (out) {
+    const WriterStats ws = out->Close();
+    if (ws.events_dropped > 0 || !ws.error.empty()) {
+      note(o.out_path + ": " + std::to_string(ws.events_dropped) + " event(s) dropped " + ws.error);
+    }
+  }
+  s.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  if (s.frames == 0 && s.bad_frames == 0 && s.republished == 0 && s.skipped_frames == 0) {
+    throw InputError(o.log_path, "",
+                     "nothing usable to replay: " + std::to_string(s.images) + " image event(s), " +
+                         std::to_string(s.undecodable) + " undecodable; " + s.log.Describe());
+  }
+  return s;
+}
+
+std::string ReplaySummary::ToJson() const {
+  nlohmann::json j;
+  j["identical"] = identical();
+  j["images"] = images;
+  j["frames"] = frames;
+  j["bad_frames"] = bad_frames;
+  j["undecodable"] = undecodable;
+  j["skipped_frames"] = skipped_frames;
+  j["warmup_frames"] = warmup_frames;
+  j["published"] = published;
+  j["republished"] = republished;
+  j["compared"] = compared;
+  j["unmatched_logged"] = unmatched_logged;
+  j["differences"] = differences.size();
+  if (!differences.empty()) {
+    const Difference& d = differences.front();
+    j["first_difference"] = {{"channel", d.channel},         {"cycle", d.cycle},
+                             {"log_utime", d.log_utime},     {"frame_seq", d.frame_seq},
+                             {"frame_utime", d.frame_utime}, {"field", d.field.field},
+                             {"logged", d.field.logged},     {"replayed", d.field.replayed}};
+  }
+  nlohmann::json skipped = nlohmann::json::array();
+  for (const SkippedRange& r : log.skipped)
+    skipped.push_back({{"offset", r.offset}, {"bytes", r.bytes}, {"reason", r.reason}});
+  j["log"] = {{"bytes", log.file_bytes},
+              {"events", log.events},
+              {"skipped_bytes", log.skipped_bytes},
+              {"skipped_ranges", log.skipped_ranges},
+              {"skipped", skipped},
+              {"truncated_tail", log.truncated_tail},
+              {"number_gaps", log.number_gaps},
+              {"missing_events", log.missing_numbers},
+              {"duration_s", SecondsBetween(log_start_utime, log_end_utime)},
+              {"frame_rate_hz", log_frame_rate_hz}};
+  j["control"] = {{"cycles", control_cycles},
+                  {"compared", control_compared},
+                  {"frames_from_vision", control_frames_from_vision},
+                  {"frames_recorded", control_frames_recorded},
+                  {"faults_compared", control_faults_compared},
+                  {"note", control_note}};
+  j["unknown_channels"] = unknown_channels;
+  j["notes"] = notes;
+  j["wall_s"] = wall_s;
+  j["frames_per_s"] = wall_s > 0 ? static_cast<double>(frames + bad_frames) / wall_s : 0.0;
+  return j.dump();
+}
+
+}  // namespace visco::replay

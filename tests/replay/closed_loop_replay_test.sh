@@ -1,0 +1,151 @@
+#!/usr/bin/env bash
+# A closed-loop simulated run, logged and replayed (issue 14's proof):
+#   visco sim (robot + rendered camera) -> visco track --log (vision) -> visco run --log (the executor), over real LCM
+#   (UDP multicast, private port, ttl=0); then
+#   1. `visco replay TRACK_LOG --check`: the logged images through vision again: identical, field by field;
+#   2. the same on the controller's log (it records the same bus), and the executor again on every recorded period
+#      with the replayed vision: identical; one recorded command changed: found at its period;
+#   3. two replays write byte-identical logs (--out): the replay is deterministic;
+#   4. one image of the log corrupted: --check exits 1 naming that frame;
+#   5. lcm-logplayer plays the log and lcm-spy's type database decodes every channel.
+# usage: closed_loop_replay_test.sh VISCO SPY_CHECK_CLASSES_DIR [FIXTURE_OUT]
+#   FIXTURE_OUT: also write the small checked-in fixture (tests/replay/data/slot_run.lcmlog) from this run's log.
+set -uo pipefail
+visco="$1"
+spy_check="$2"
+fixture_out="${3:-}"
+cd "$(dirname "${BASH_SOURCE[0]}")/../.."
+here=tests/replay
+scene=tests/control/data/slot_e2e_scene.json
+plan=tests/control/data/slot_e2e_plan.json
+cam=(--camera data/sim/slot_camera.xml --extrinsics data/sim/slot_extrinsics.json --objects data/sim/slot_objects.json)
+port=$((22000 + $$ % 20000))
+url="udpm://239.255.76.67:$port?ttl=0"
+tmp=$(mktemp -d)
+pids=()
+cleanup() {
+  for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done
+  [[ -n "${KEEP_TMP:-}" ]] && echo "kept $tmp" || rm -rf "$tmp"
+}
+trap cleanup EXIT
+failures=0
+fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+
+noise=2
+[[ -n "$fixture_out" ]] && noise=0  # the fixture's images compress to PNG without noise
+"$visco" vcrays "$scene" >"$tmp/rays.json" || { echo "FAIL: visco vcrays"; exit 1; }
+"$visco" sim "$scene" "${cam[@]}" --camera-hz 15 --latency-ms 5 --supersample 2 --image-noise $noise --blur-px 0.5 \
+  --seed 7 --lcm-url "$url" --duration 90 --watchdog-ms 500 --log "$tmp/sim.lcmlog" >"$tmp/sim.json" 2>"$tmp/sim.log" &
+sim=$!
+"$visco" track --lcm --lcm-url "$url&recv_buf_size=4194304" "${cam[@]}" --log "$tmp/track.lcmlog" \
+  >"$tmp/track.jsonl" 2>"$tmp/track.log" &
+track=$!
+pids=($sim $track)
+"$visco" run "$plan" --scene "$scene" --rays "$tmp/rays.json" --lcm-url "$url" --max-speed 1 --max-accel 4 \
+  --focal-px 560 --max-vision-age-ms 400 --max-hold 4 --startup-timeout 30 --status-timeout-ms 500 \
+  --heartbeat-timeout-ms 1000 --no-realtime --log "$tmp/run.lcmlog" >"$tmp/run.json" 2>"$tmp/run.log"
+run_status=$?
+kill -INT $sim $track
+wait $sim $track
+pids=()
+echo "visco run exited $run_status"
+grep -h "event log" "$tmp/track.log" "$tmp/run.log" "$tmp/sim.log"
+[[ $run_status -eq 0 ]] || fail "the closed-loop run did not reach the goal (exit $run_status)"
+grep -q '"result":"done"' "$tmp/run.json" || fail "run summary is not done"
+grep -q "event log $tmp/track.lcmlog: [0-9]* event(s), [0-9]* bytes written; 0 dropped" "$tmp/track.log" ||
+  fail "track's log was not written without drops"
+grep -q "event log $tmp/run.lcmlog: [0-9]* event(s), [0-9]* bytes written; 0 dropped" "$tmp/run.log" ||
+  fail "run's log was not written without drops"
+grep -q "event log $tmp/sim.lcmlog: [0-9]* event(s), [0-9]* bytes written; 0 dropped" "$tmp/sim.log" ||
+  fail "sim's log was not written without drops"
+# The simulator's log holds the same bus: its images replay identically too.
+"$visco" replay "$tmp/sim.lcmlog" "${cam[@]}" --fast --check --no-publish --no-control >/dev/null 2>"$tmp/replay_sim.log" ||
+  { fail "replay --check of sim's log failed"; tail -n 2 "$tmp/replay_sim.log"; }
+
+# 1. Replay through vision with --check.
+"$visco" replay "$tmp/track.lcmlog" "${cam[@]}" --fast --check --no-publish --out "$tmp/replay1.lcmlog" \
+  >"$tmp/replay1.json" 2>"$tmp/replay1.log"
+status=$?
+cat "$tmp/replay1.json"
+tail -n 3 "$tmp/replay1.log"
+[[ $status -eq 0 ]] || fail "replay --check of track's log exited $status"
+python3 -S -c '
+import json, sys
+s = json.load(open(sys.argv[1]))
+ok = s["identical"] and s["frames"] >= 30 and s["compared"] >= 4 * s["frames"] and s["differences"] == 0
+print("replay: %d frames, %d messages compared, identical %s, %.1f frames/s against %.1f Hz logged" %
+      (s["frames"], s["compared"], s["identical"], s["frames_per_s"], s["log"]["frame_rate_hz"]))
+sys.exit(0 if ok else 1)' "$tmp/replay1.json" || fail "replay summary: not identical or too few frames"
+
+# 2. The controller's log holds the same bus and every period of the loop: vision and the executor replayed, the
+#    executor's visual input taken from the replayed vision, commands, modes and faults compared.
+"$visco" replay "$tmp/run.lcmlog" "${cam[@]}" --fast --check --no-publish >"$tmp/replay_run.json" 2>"$tmp/replay_run.log"
+status=$?
+tail -n 2 "$tmp/replay_run.log"
+[[ $status -eq 0 ]] || { fail "replay --check of run's log exited $status"; tail -n 3 "$tmp/replay_run.log"; }
+python3 -S -c '
+import json, sys
+s = json.load(open(sys.argv[1]))
+c = s["control"]
+print("controller: %d periods replayed and compared, %d with the replayed vision" % (c["compared"], c["frames_from_vision"]))
+sys.exit(0 if s["identical"] and c["compared"] >= 1000 and c["compared"] == c["cycles"] and
+         c["frames_from_vision"] >= c["cycles"] // 2 else 1)' "$tmp/replay_run.json" ||
+  fail "the controller was not replayed identically"
+# One recorded command changed by one bit: the difference is found at that period.
+cycle=$(python3 -S $here/logtool.py corrupt-cycle "$tmp/run.lcmlog" "$tmp/corrupt_cycle.lcmlog" 2000)
+"$visco" replay "$tmp/corrupt_cycle.lcmlog" "${cam[@]}" --fast --check --no-publish >/dev/null 2>"$tmp/corrupt_cycle.log"
+status=$?
+tail -n 1 "$tmp/corrupt_cycle.log"
+[[ $status -eq 1 ]] || fail "replay --check of a changed command exited $status, expected 1"
+grep -q "first difference on VISCO_CONTROLLER_CYCLE at log time [0-9]* (controller cycle $cycle, .*field command.velocity\[0\]" \
+  "$tmp/corrupt_cycle.log" || fail "the changed command is not reported at cycle $cycle"
+
+# 3. Deterministic: a second replay writes the same bytes.
+"$visco" replay "$tmp/track.lcmlog" "${cam[@]}" --fast --no-publish --out "$tmp/replay2.lcmlog" >/dev/null 2>&1 ||
+  fail "second replay failed"
+cmp "$tmp/replay1.lcmlog" "$tmp/replay2.lcmlog" || fail "two replays of the same log wrote different logs"
+[[ -s "$tmp/replay1.lcmlog" ]] || fail "the replay wrote an empty log"
+
+# 4. One corrupted image: the difference is reported at that frame.
+seq=$(python3 -S -c '
+import json, sys
+frames = [d["seq"] for d in map(json.loads, open(sys.argv[1])) if "seq" in d]
+print(frames[20])' "$tmp/track.jsonl")
+python3 -S $here/logtool.py corrupt-image "$tmp/track.lcmlog" "$tmp/corrupt.lcmlog" "$seq" || fail "logtool"
+"$visco" replay "$tmp/corrupt.lcmlog" "${cam[@]}" --fast --check --no-publish >"$tmp/corrupt.json" 2>"$tmp/corrupt.log"
+status=$?
+tail -n 1 "$tmp/corrupt.log"
+[[ $status -eq 1 ]] || fail "replay --check of the corrupted log exited $status, expected 1"
+grep -q "first difference on VISCO_[A-Z_]* at log time [0-9]* (frame seq $seq," "$tmp/corrupt.log" ||
+  fail "the difference is not reported at frame seq $seq"
+python3 -S -c '
+import json, sys
+s = json.load(open(sys.argv[1]))
+sys.exit(0 if s["first_difference"]["frame_seq"] == int(sys.argv[2]) else 1)' "$tmp/corrupt.json" "$seq" ||
+  fail "summary's first difference is not at frame $seq"
+
+# 5. lcm-logplayer plays the log; lcm-spy's type database (visco spy's class path) decodes every channel. The
+#    decoder listens on SPYTEST_.* channels, so the copy played has its channels prefixed.
+python3 -S $here/logtool.py rename "$tmp/track.lcmlog" "$tmp/spy.lcmlog" SPYTEST_ || fail "logtool rename"
+classpath=$("$visco" spy --print | sed -e 's/.* -cp \([^ ]*\) .*/\1/')
+spy_url="udpm://239.255.76.67:$((port + 1))?ttl=0&recv_buf_size=4194304"
+timeout 60 java -Djava.net.preferIPv4Stack=true -cp "$classpath:$spy_check" SpyDecodeCheck "$spy_url" 8 \
+  >"$tmp/decode.out" 2>&1 &
+checker=$!
+sleep 2
+timeout 30 lcm-logplayer -s 4 -l "$spy_url" "$tmp/spy.lcmlog" >/dev/null 2>&1 || fail "lcm-logplayer failed"
+wait $checker
+sort "$tmp/decode.out"
+for channel in CAMERA_IMAGE TAG_DETECTIONS OBJECT_POSES ROBOT_ESTIMATE VISUAL_EVENTS COMMAND STATUS TELEMETRY; do
+  grep -q "^decoded SPYTEST_VISCO_$channel visco\." "$tmp/decode.out" || fail "lcm-spy did not decode VISCO_$channel"
+done
+# LCM_SELF_TEST is LCM's own start-up check of a udpm:// bus, not a visco message.
+grep -E '^(undecodable|error)' "$tmp/decode.out" | grep -qv 'SPYTEST_LCM_SELF_TEST' &&
+  fail "lcm-spy could not decode some channel"
+
+if [[ -n "$fixture_out" && $failures -eq 0 ]]; then
+  cp "$tmp/rays.json" $here/data/slot_e2e_rays.json
+  python3 -S $here/logtool.py fixture "$tmp/run.lcmlog" "$fixture_out" 2000000 "$plan" "$scene" $here/data/slot_e2e_rays.json
+fi
+echo "$((failures == 0 ? 1 : 0)) passed, $((failures == 0 ? 0 : 1)) failed"
+exit $((failures == 0 ? 0 : 1))

@@ -1,0 +1,127 @@
+#!/usr/bin/env bash
+# `visco replay` on the small checked-in log of a rendered closed-loop run (tests/replay/data/slot_run.lcmlog: the
+# first seconds of `visco run --log`, images as PNG, written by closed_loop_replay_test.sh with FIXTURE_OUT): vision and
+# the controller identical with --check; a time window; damaged logs give
+# a report and the documented exit statuses (never a crash); replay refuses CAN without --arm.
+# Also: `visco driver --log` killed with SIGKILL leaves a log that replays; `visco-rt` refuses --log.
+# usage: replay_cli_test.sh VISCO VISCO_RT
+set -uo pipefail
+visco="$1"
+visco_rt="$2"
+cd "$(dirname "${BASH_SOURCE[0]}")/../.."
+here=tests/replay
+log=$here/data/slot_run.lcmlog
+cam=(--camera data/sim/slot_camera.xml --extrinsics data/sim/slot_extrinsics.json --objects data/sim/slot_objects.json)
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+failures=0
+fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+replay() { "$visco" replay "$@" "${cam[@]}" --fast --no-publish >"$tmp/out.json" 2>"$tmp/err.log"; echo $?; }
+
+size=$(stat -c %s "$log")
+(( size <= 2000000 )) || fail "the fixture is $size bytes (at most 2 MB)"
+
+# The fixture replays identically.
+status=$(replay "$log" --check)
+cat "$tmp/out.json"; tail -n 1 "$tmp/err.log"
+[[ $status -eq 0 ]] || { fail "replay --check of the fixture exited $status"; cat "$tmp/err.log"; }
+python3 -S -c '
+import json, sys
+s = json.load(open(sys.argv[1]))
+c = s["control"]
+print("fixture: %d frames, %d vision messages compared; controller: %d periods compared (%d with the replayed vision)" %
+      (s["frames"], s["compared"], c["compared"], c["frames_from_vision"]))
+sys.exit(0 if s["identical"] and s["frames"] >= 20 and s["compared"] >= 4 * s["frames"] and
+         c["compared"] >= 1000 and c["frames_from_vision"] > 0 else 1)' "$tmp/out.json" ||
+  fail "fixture: not identical or too few frames or periods compared"
+
+# A window (earlier frames go through vision silently): identical too, fewer messages compared.
+status=$(replay "$log" --check --from 1 --to 2)
+[[ $status -eq 0 ]] || { fail "windowed replay exited $status"; cat "$tmp/err.log"; }
+grep -q '"warmup_frames":[1-9]' "$tmp/out.json" || fail "the window had no warm-up frames"
+
+# At the log's pace (x4) and published on LCM (in-process provider): the same result.
+"$visco" replay "$log" "${cam[@]}" --check --speed 4 --to 1.5 --lcm-url memq:// >"$tmp/paced.json" 2>"$tmp/err.log" ||
+  fail "paced replay failed: $(tail -n 1 "$tmp/err.log")"
+
+# Two replays write the same bytes.
+"$visco" replay "$log" "${cam[@]}" --fast --no-publish --out "$tmp/a.lcmlog" >/dev/null 2>&1 || fail "replay --out"
+"$visco" replay "$log" "${cam[@]}" --fast --no-publish --out "$tmp/b.lcmlog" >/dev/null 2>&1 || fail "replay --out"
+cmp -s "$tmp/a.lcmlog" "$tmp/b.lcmlog" || fail "two replays wrote different logs"
+grep -q "REPLAY_VISCO_ROBOT_ESTIMATE" "$tmp/a.lcmlog" || fail "the replay's log has no REPLAY_ channels"
+
+# An image folder as the source (the fixture's frames as PNG files): vision as `visco track --images` takes them, on
+# the folder's deterministic timestamps; two replays write the same bytes; nothing to --check against.
+frames=$(python3 -S $here/logtool.py extract-images "$log" "$tmp/frames")
+for k in 1 2; do
+  "$visco" replay --images "$tmp/frames" --fps 15 "${cam[@]}" --fast --no-publish --out "$tmp/folder$k.lcmlog" \
+    >"$tmp/folder.json" 2>"$tmp/err.log" || fail "replay --images exited $?: $(tail -n 1 "$tmp/err.log")"
+done
+grep -q "\"frames\":$frames," "$tmp/folder.json" || fail "replay --images did not process the $frames frames"
+cmp -s "$tmp/folder1.lcmlog" "$tmp/folder2.lcmlog" || fail "two replays of an image folder wrote different logs"
+status=$(replay --images "$tmp/frames" --check)
+[[ $status -eq 2 ]] || fail "--check with --images: exit $status, expected 2"
+status=$(replay "$log" --images "$tmp/frames")
+[[ $status -eq 2 ]] || fail "a LOG and --images: exit $status, expected 2"
+
+# Damaged logs: a report of what was skipped, exit 0 without --check, never a crash.
+for kind in truncate flip-header bad-sync; do
+  python3 -S $here/logtool.py damage "$log" "$tmp/$kind.lcmlog" $kind
+  status=$(replay "$tmp/$kind.lcmlog")
+  [[ $status -eq 0 ]] || fail "$kind: exit $status, expected 0"
+  grep -q "replay: $tmp/$kind.lcmlog: .* skipped [0-9]* byte(s) in [0-9]* range(s)" "$tmp/err.log" ||
+    fail "$kind: no report of the skipped bytes"
+  status=$(replay "$tmp/$kind.lcmlog" --check)
+  (( status <= 1 )) || fail "$kind --check: exit $status"
+  echo "$kind: $(grep -m1 -A1 'skipped' "$tmp/err.log" | tail -n 1)"
+done
+grep -q "cut off by the end of the file" <("$visco" replay "$tmp/truncate.lcmlog" "${cam[@]}" --fast --no-publish 2>&1) ||
+  fail "truncate: the report does not say the file ends in a cut-off event"
+# An unknown channel and an undecodable image: reported, the rest replays identically.
+for kind in unknown-channel undecodable; do
+  python3 -S $here/logtool.py damage "$log" "$tmp/$kind.lcmlog" $kind
+  status=$(replay "$tmp/$kind.lcmlog" --check)
+  [[ $status -eq 0 ]] || { fail "$kind: exit $status, expected 0"; cat "$tmp/err.log"; }
+done
+grep -q '"SOMEONE_ELSES_CHANNEL":1' <("$visco" replay "$tmp/unknown-channel.lcmlog" "${cam[@]}" --fast --no-publish 2>/dev/null) ||
+  fail "the unknown channel is not in the summary"
+grep -q "does not decode as visco.image_t" "$tmp/err.log" || fail "the undecodable image is not reported"
+# Nothing usable: exit 2 with the reason.
+for kind in garbage empty only-undecodable; do
+  python3 -S $here/logtool.py damage "$log" "$tmp/$kind.lcmlog" $kind
+  status=$(replay "$tmp/$kind.lcmlog")
+  [[ $status -eq 2 ]] || fail "$kind: exit $status, expected 2"
+  grep -q "^visco: $tmp/$kind.lcmlog: " "$tmp/err.log" || fail "$kind: no one-line error naming the file"
+  echo "$kind: $(tail -c 300 "$tmp/err.log" | head -n 1)"
+done
+status=$(replay /nonexistent.lcmlog)
+[[ $status -eq 2 ]] || fail "a missing log: exit $status"
+
+# A process killed with SIGKILL leaves a readable log (flushed every 100 ms): the driver's statuses and heartbeats
+# replay (republished) with at most a cut-off event reported at the end.
+url="udpm://239.255.76.67:$((23000 + $$ % 20000))?ttl=0"
+"$visco" driver --lcm-url "$url" --log "$tmp/driver.lcmlog" >/dev/null 2>&1 &
+driver=$!
+sleep 1.5
+kill -9 $driver
+wait $driver 2>/dev/null
+status=$(replay "$tmp/driver.lcmlog" --channels 'VISCO_(STATUS|HEARTBEAT_DRIVER)')
+[[ $status -eq 0 ]] || { fail "the SIGKILLed driver's log: exit $status"; cat "$tmp/err.log"; }
+python3 -S -c '
+import json, sys
+s = json.load(open(sys.argv[1]))
+print("driver log after SIGKILL: %d events, %d republished, %d bytes skipped" %
+      (s["log"]["events"], s["republished"], s["log"]["skipped_bytes"]))
+sys.exit(0 if s["republished"] >= 50 and s["log"]["skipped_ranges"] <= 1 else 1)' "$tmp/out.json" ||
+  fail "the SIGKILLed driver's log holds too little or is damaged inside"
+status=$("$visco_rt" driver --lcm-url "$url" --log "$tmp/rt.lcmlog" --duration 0.1 >/dev/null 2>"$tmp/err.log"; echo $?)
+[[ $status -eq 2 ]] || fail "visco-rt driver --log: exit $status, expected 2"
+grep -q "cannot write event logs" "$tmp/err.log" || fail "visco-rt does not say why it refuses --log"
+
+# Never hardware unless armed.
+status=$(replay "$log" --can vcan0)
+[[ $status -eq 2 ]] || fail "--can without --arm: exit $status"
+grep -q -- "--arm" "$tmp/err.log" || fail "--can without --arm: the message does not name --arm"
+
+echo "$((failures == 0 ? 1 : 0)) passed, $((failures == 0 ? 0 : 1)) failed"
+exit $((failures == 0 ? 0 : 1))
