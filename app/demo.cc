@@ -374,7 +374,9 @@ int Run(const Args& a) {
                                     "500",
                                     "--heartbeat-timeout-ms",
                                     "1000",
-                                    "--no-realtime"};
+                                    "--no-realtime",
+                                    "--log",
+                                    (rd / "controller.lcmlog").string()};
     if (rendered) {
       run.push_back("--focal-px");
       run.push_back("560");
