@@ -147,6 +147,16 @@ struct Trace {
   int messages = 0;
 };
 
+// LCM's generated decoders store doubles through integer pointers; with a value-initialised message ({}) GCC at -O2
+// may keep the zeros it knows of (measured: every position read back as 0). Decode into a default-initialised one:
+// the decoder writes every field.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+template <typename Message>
+bool Decode(const lcm::LogEvent& e, Message* out) {
+  return out->decode(e.data, 0, e.datalen) >= 0;
+}
+
 Trace ReadTrace(const fs::path& log) {
   Trace t;
   lcm::LogFile file(log.string(), "r");
@@ -157,19 +167,19 @@ Trace ReadTrace(const fs::path& log) {
     ++t.messages;
     if (e->channel == channels::kRobotEstimate) {
       // The trajectory as vision saw it (the driver's status carries odometry, zero in the simulation).
-      robot_estimate_t s{};
-      if (s.decode(e->data, 0, e->datalen) < 0 || !s.valid) continue;
+      robot_estimate_t s;
+      if (!Decode(*e, &s) || !s.valid) continue;
       const Eigen::Vector2d p(s.position[0], s.position[1]);
       if (t.path.empty() || (p - t.path.back()).norm() > 0.01) t.path.push_back(p);
       last = p;
     } else if (e->channel == channels::kStatus) {
-      robot_status_t s{};
-      if (s.decode(e->data, 0, e->datalen) < 0) continue;
+      robot_status_t s;
+      if (!Decode(*e, &s)) continue;
       if (s.contact && !in_contact && std::isfinite(last.x())) t.contacts.push_back(last);
       in_contact = s.contact;
     } else if (e->channel == channels::kVisualEvents) {
-      visual_events_t v{};
-      if (v.decode(e->data, 0, e->datalen) < 0) continue;
+      visual_events_t v;
+      if (!Decode(*e, &v)) continue;
       for (const auto& ev : v.events) {
         if (ev.crossed && std::isfinite(last.x())) {
           ++t.events;
@@ -180,6 +190,7 @@ Trace ReadTrace(const fs::path& log) {
   }
   return t;
 }
+#pragma GCC diagnostic pop
 
 std::string RunSvg(const planning::Scene& scene, const planning::CSpace& cspace, const planning::Strategy& strategy,
                    const Trace& trace) {
@@ -251,7 +262,8 @@ int Run(const Args& a) {
   if (a.runs < 1) throw InputError("command line", "--runs", "must be at least 1");
   if (a.can && !fs::exists("/sys/class/net/vcan0")) {
     throw InputError("command line", "--can",
-                     "no vcan0 interface on this machine: run the demo over CAN inside the HIL VM (docs/hil.md)");
+                     "no vcan0 interface on this machine: create one (modprobe vcan; ip link add vcan0 type vcan; ip "
+                     "link set up vcan0) or use the HIL VM (README, \"Hardware-in-the-loop on virtual CAN\")");
   }
   const auto t0 = Clock::now();
   const fs::path dir = FreshDir(a.out);
