@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <random>
 #include <set>
 #include <string>
@@ -107,7 +108,12 @@ constexpr std::uint64_t kSeedStride = 1;
 constexpr int kSanitizerDivisor = 1;
 #endif
 
+// CI runs the first 10 seeds of each part (40 scenes); VISCO_FULL_PROPERTY=1 runs all 100 (the figures in
+// docs/planning_nondirectional.md come from the full run).
+bool FullProperty() { return std::getenv("VISCO_FULL_PROPERTY") != nullptr; }
+
 void StructureOnSeeds(std::uint64_t first, std::uint64_t last, Tally& t) {
+  if (!FullProperty()) last = std::min(last, first + 9);
   for (std::uint64_t seed = first; seed <= last; seed += kSeedStride) {
     Scene s;
     double theta = 0;
@@ -150,10 +156,11 @@ TEST(NondirectionalProperty, StructureIsConstantBetweenOrientationsSeeds76To100)
 TEST(NondirectionalExamples, StructureIsConstantBetweenConsecutiveOrientations) {
   Tally t;
 #if defined(__SANITIZE_ADDRESS__)
-  const std::vector<const char*> files = {"fig13"};  // the sanitizer build is several times slower
+  std::vector<const char*> files = {"fig13"};  // the sanitizer build is several times slower
 #else
-  const std::vector<const char*> files = {"slot", "fig5", "fig13", "ledge", "slot_pinhole"};
+  std::vector<const char*> files = {"fig13", "ledge"};  // VISCO_FULL_PROPERTY=1: every example scene
 #endif
+  if (FullProperty()) files = {"slot", "fig5", "fig13", "ledge", "slot_pinhole"};
   for (const char* file : files) {
     const Scene s = LoadScene(std::string("data/scenes/") + file + ".json");
     const CSpace cspace(s);

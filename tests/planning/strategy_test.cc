@@ -33,7 +33,7 @@ struct Planned {
 };
 
 // Plans with and without the camera and checks every feasible strategy in simulation.
-Planned PlanAndCheck(const Scene& s, const std::string& name, int samples = kSanitized ? 8 : 40) {
+Planned PlanAndCheck(const Scene& s, const std::string& name, int samples = kSanitized ? 8 : 24) {
   Planned p;
   const CSpace cspace(s);
   VcRays rays;
@@ -75,7 +75,7 @@ TEST(Strategy, ExampleScenesAreCheckedInSimulation) {
 #if defined(__SANITIZE_ADDRESS__)
   const std::vector<const char*> files = {"slot"};  // the sanitizer build is several times slower
 #else
-  const std::vector<const char*> files = {"slot", "fig5", "fig13", "ledge", "slot_pinhole"};
+  const std::vector<const char*> files = {"slot", "fig5", "ledge"};  // fig13: the test above
 #endif
   for (const char* file : files) {
     const Scene s = LoadScene(std::string("data/scenes/") + file + ".json");
