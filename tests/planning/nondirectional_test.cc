@@ -17,6 +17,8 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
+#include <optional>
 #include <random>
 #include <set>
 #include <string>
@@ -92,6 +94,23 @@ BackprojectionProblem SceneProblem(const Scene& s, const CSpace& cspace, const V
   return ProblemFromScene(s, cspace, &rays, 0.0, /*kernel=*/false);
 }
 
+// A whole random scene of 2 x 1 cells through the real pipeline (scene -> C-space -> VC rays -> problem).
+struct RandomCase {
+  Scene scene;
+  std::unique_ptr<CSpace> cspace;
+  BackprojectionProblem problem;
+};
+
+std::optional<RandomCase> MakeRandomCase(std::uint64_t seed) {
+  RandomCase c;
+  double theta = 0;
+  if (!testing::RandomWholeScene(seed, c.scene, theta, 2, 1)) return std::nullopt;
+  c.cspace = std::make_unique<CSpace>(c.scene);
+  const VcRays rays = ComputeVcRays(c.scene, *c.cspace);
+  c.problem = SceneProblem(c.scene, *c.cspace, rays);
+  return c;
+}
+
 NondirectionalOptions Options(int threads = 2) {
   NondirectionalOptions o;
   o.threads = threads;
@@ -115,12 +134,9 @@ bool FullProperty() { return std::getenv("VISCO_FULL_PROPERTY") != nullptr; }
 void StructureOnSeeds(std::uint64_t first, std::uint64_t last, Tally& t) {
   if (!FullProperty()) last = std::min(last, first + 9);
   for (std::uint64_t seed = first; seed <= last; seed += kSeedStride) {
-    Scene s;
-    double theta = 0;
-    if (!testing::RandomWholeScene(seed, s, theta, 2, 1)) continue;
-    const CSpace cspace(s);
-    const VcRays rays = ComputeVcRays(s, cspace);
-    const BackprojectionProblem pr = SceneProblem(s, cspace, rays);
+    const auto random = MakeRandomCase(seed);
+    if (!random) continue;
+    const BackprojectionProblem& pr = random->problem;
     const auto nd = ComputeNondirectional(pr, nullptr, Options());
     CheckStructure("seed " + std::to_string(seed), pr, nd, t);
   }
@@ -181,12 +197,9 @@ TEST(NondirectionalProperty, KineticAgreesWithTheCriticalSliceBaseline) {
   int compared = 0;
   const int to_compare = 4 / (kSanitizerDivisor > 1 ? 2 : 1);
   for (std::uint64_t seed = 1; compared < to_compare && seed <= 40; ++seed) {
-    Scene s;
-    double theta = 0;
-    if (!testing::RandomWholeScene(seed, s, theta, 2, 1)) continue;
-    const CSpace cspace(s);
-    const VcRays rays = ComputeVcRays(s, cspace);
-    const BackprojectionProblem pr = SceneProblem(s, cspace, rays);
+    const auto random = MakeRandomCase(seed);
+    if (!random) continue;
+    const BackprojectionProblem& pr = random->problem;
     if (CriticalCandidates(pr, nullptr).size() > 1500) continue;
     NondirectionalOptions base = Options();
     base.method = SliceMethod::kBaseline;
@@ -211,12 +224,9 @@ TEST(NondirectionalProperty, KineticAgreesWithTheCriticalSliceBaseline) {
 TEST(NondirectionalProperty, EverySliceIsSound) {
   int samples = 0, failures = 0, slices = 0;
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(12 / kSanitizerDivisor); ++seed) {
-    Scene s;
-    double theta = 0;
-    if (!testing::RandomWholeScene(seed, s, theta, 2, 1)) continue;
-    const CSpace cspace(s);
-    const VcRays rays = ComputeVcRays(s, cspace);
-    const BackprojectionProblem pr = SceneProblem(s, cspace, rays);
+    const auto random = MakeRandomCase(seed);
+    if (!random) continue;
+    const BackprojectionProblem& pr = random->problem;
     const auto nd = ComputeNondirectional(pr, nullptr, Options());
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> u(0, 1);
@@ -224,7 +234,7 @@ TEST(NondirectionalProperty, EverySliceIsSound) {
       ++slices;
       BackprojectionProblem p = pr;
       p.theta = sl.theta;
-      const MotionModel model(ToMotionWorld(cspace, p, sl.vc.active_rays));
+      const MotionModel model(ToMotionWorld(*random->cspace, p, sl.vc.active_rays));
       Vector2d lo(1e300, 1e300), hi = -lo;
       for (const auto& poly : sl.vc.region.polygons) {
         for (const auto& v : poly.outer.vertices) {
@@ -257,12 +267,9 @@ TEST(NondirectionalProperty, EverySliceIsSound) {
 TEST(NondirectionalProperty, IntervalsContainingARegionAreRight) {
   int checked = 0, inside = 0, wrong = 0;
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(10 / kSanitizerDivisor); ++seed) {
-    Scene s;
-    double theta = 0;
-    if (!testing::RandomWholeScene(seed, s, theta, 2, 1)) continue;
-    const CSpace cspace(s);
-    const VcRays rays = ComputeVcRays(s, cspace);
-    const BackprojectionProblem pr = SceneProblem(s, cspace, rays);
+    const auto random = MakeRandomCase(seed);
+    if (!random) continue;
+    const BackprojectionProblem& pr = random->problem;
     const auto nd = ComputeNondirectional(pr, nullptr, Options());
     std::mt19937_64 rng(seed * 31);
     std::uniform_real_distribution<double> u(0, 1);
