@@ -196,23 +196,7 @@ std::string RunSvg(const planning::Scene& scene, const planning::CSpace& cspace,
                    const Trace& trace) {
   // The plan's picture underneath, the executed trajectory over it.
   planning::SvgCanvas c(scene.bounds.min, scene.bounds.max, 700);
-  const Eigen::Vector2d lo = scene.bounds.min, hi = scene.bounds.max;
-  c.Polygon(planning::Polygon{{{lo.x(), lo.y()}, {hi.x(), lo.y()}, {hi.x(), hi.y()}, {lo.x(), hi.y()}}},
-            "fill=\"white\" stroke=\"#999\" stroke-width=\"1\"");
-  for (size_t k = strategy.steps.size(); k-- > 0;) {
-    for (const auto& poly : strategy.steps[k].preimage.polygons) {
-      planning::PolygonWithHoles pw;
-      pw.outer.vertices = poly.outer.vertices;
-      for (const auto& h : poly.holes) pw.holes.push_back(planning::Polygon{h.vertices});
-      c.PolygonWithHoles(pw, "fill=\"#cfe3ff\" fill-opacity=\"0.6\" stroke=\"#036\" stroke-dasharray=\"6,3\"");
-    }
-  }
-  for (const auto& o : scene.obstacles) c.Polygon(o.shape.polygon, "fill=\"#bbb\" stroke=\"#777\" stroke-width=\"1\"");
-  for (size_t i = 0; i < cspace.num_c_obstacles(); ++i) {
-    for (const auto& pw : cspace.c_obstacle(i)) c.Polygon(pw.outer, "fill=\"none\" stroke=\"#333\" stroke-width=\"1\"");
-  }
-  c.Polygon(scene.goal.polygon, "fill=\"black\" stroke=\"black\" fill-opacity=\"0.7\"");
-  if (scene.start) c.Polygon(scene.start->polygon, "fill=\"#7c7\" stroke=\"#060\" stroke-width=\"2\"");
+  planning::DrawStrategy(c, scene, cspace, strategy);
   for (size_t i = 1; i < trace.path.size(); ++i) {
     c.Line(trace.path[i - 1], trace.path[i], "class=\"trajectory\" stroke=\"#c00\" stroke-width=\"2.5\"");
   }

@@ -362,8 +362,7 @@ std::string StrategyToJson(const Scene& scene, const Strategy& strategy, double 
   return doc.dump();
 }
 
-std::string StrategyToSvg(const Scene& scene, const CSpace& cspace, const Strategy& strategy) {
-  SvgCanvas c(scene.bounds.min, scene.bounds.max, 700);
+void DrawStrategy(SvgCanvas& c, const Scene& scene, const CSpace& cspace, const Strategy& strategy) {
   const Vector2d lo = scene.bounds.min, hi = scene.bounds.max;
   c.Polygon(Polygon{{{lo.x(), lo.y()}, {hi.x(), lo.y()}, {hi.x(), hi.y()}, {lo.x(), hi.y()}}},
             "fill=\"white\" stroke=\"#999\" stroke-width=\"1\"");
@@ -413,6 +412,11 @@ std::string StrategyToSvg(const Scene& scene, const CSpace& cspace, const Strate
     c.Line(tip, tip - 0.3 * len * v - 0.15 * len * n, style);
     c.Text(centroid, fmt::format("step {}: θ = {:.1f}°", k + 1, Deg(s.theta)), 13, "fill=\"#070\"", 6, 14);
   }
+}
+
+std::string StrategyToSvg(const Scene& scene, const CSpace& cspace, const Strategy& strategy) {
+  SvgCanvas c(scene.bounds.min, scene.bounds.max, 700);
+  DrawStrategy(c, scene, cspace, strategy);
   c.TextPx(10, 18,
            strategy.feasible ? fmt::format("{}: {} step(s)", scene.name, strategy.steps.size())
                              : fmt::format("{}: no strategy", scene.name),

@@ -25,6 +25,7 @@
 namespace visco::planning {
 
 class CSpace;
+class SvgCanvas;
 struct VcRays;
 
 /// Half-width of the strip standing for "somewhere on the ray" (metres): the robot stops within this of the VC line
@@ -88,6 +89,9 @@ std::string StrategyToJson(const Scene& scene, const Strategy& strategy, double 
 /// The nested preimages of the steps (Fig. 13 style): the start region, each preimage, its commanded direction, the
 /// rays used and the goal.
 std::string StrategyToSvg(const Scene& scene, const CSpace& cspace, const Strategy& strategy);
+
+/// The same drawing onto a canvas of the scene's bounds (for pictures drawn over the plan, e.g. `visco demo`'s).
+void DrawStrategy(SvgCanvas& canvas, const Scene& scene, const CSpace& cspace, const Strategy& strategy);
 
 /// Result of simulating a strategy (the motion model of SEMANTICS.md with adversarial velocities).
 struct StrategyCheck {
