@@ -484,9 +484,12 @@ const Slice& SliceAt(const NondirectionalBackprojection& nd, double theta) {
 bool RegionContainsPolygon(const Region& region, const std::vector<Vector2d>& polygon, double tolerance,
                            double* clearance) {
   std::vector<std::array<Vector2d, 2>> edges;
+  std::vector<bool> obstacle;  // C-obstacle edges: walls, not a risk to be near (they do not count in the clearance)
   ForEachRing(region, [&](const RegionRing& r) {
-    for (size_t i = 0; i < r.vertices.size(); ++i)
+    for (size_t i = 0; i < r.vertices.size(); ++i) {
       edges.push_back({r.vertices[i], r.vertices[(i + 1) % r.vertices.size()]});
+      obstacle.push_back(i < r.edges.size() && r.edges[i].kind == EdgeKind::kObstacle);
+    }
   });
   auto inside = [&](const Vector2d& p) { return region.Contains(p) || region.BoundaryDistance(p) <= tolerance; };
   const size_t n = polygon.size();
@@ -497,10 +500,11 @@ bool RegionContainsPolygon(const Region& region, const std::vector<Vector2d>& po
     // Split the edge where it meets the region's boundary; every piece must be inside.
     std::vector<double> cuts = {0.0, 1.0};
     const Vector2d d = b - a;
-    for (const auto& e : edges) {
+    for (size_t k = 0; k < edges.size(); ++k) {
+      const auto& e = edges[k];
       const Vector2d f = e[1] - e[0];
       const double den = Cross(d, f);
-      clear = std::min(clear, SegmentsDistance(a, b, e[0], e[1]));
+      if (!obstacle[k]) clear = std::min(clear, SegmentsDistance(a, b, e[0], e[1]));
       if (std::abs(den) < 1e-300) continue;
       const double t = Cross(e[0] - a, f) / den, u = Cross(e[0] - a, d) / den;
       if (t > 0 && t < 1 && u >= 0 && u <= 1) cuts.push_back(t);

@@ -102,7 +102,8 @@ std::vector<ThetaInterval> IntervalsContaining(const NondirectionalBackprojectio
                                                bool vc);
 
 /// Whether the closed polygon R lies inside the region (every vertex inside or on the boundary within `tolerance`,
-/// no edge crossing the boundary properly) and its clearance (the least distance of R's boundary to the region's).
+/// no edge crossing the boundary properly) and its clearance (the least distance of R's boundary to the region's
+/// boundary other than C-obstacle edges: being near a wall is no risk, being near a free or bounds edge is).
 bool RegionContainsPolygon(const Region& region, const std::vector<Eigen::Vector2d>& polygon, double tolerance,
                            double* clearance = nullptr);
 

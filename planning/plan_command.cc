@@ -36,6 +36,7 @@ struct Args {
   int threads = 1;
   int check = 0;
   double speed = 0.25;
+  int max_backprojections = 60;
 };
 
 }  // namespace
@@ -69,6 +70,7 @@ void Run(const Args& a) {
   if (a.threads < 1) throw InputError("command line", "--threads", "must be at least 1");
   if (a.check < 0) throw InputError("command line", "--check", "must not be negative");
   if (!(a.speed > 0)) throw InputError("command line", "--speed", "must be positive");
+  if (a.max_backprojections < 1) throw InputError("command line", "--max-backprojections", "must be at least 1");
   const Scene scene = LoadScene(a.scene);
   if (!scene.start) throw InputError(a.scene, "start", "planning needs a start region");
   PlanOptions options;
@@ -76,6 +78,7 @@ void Run(const Args& a) {
   options.kernel_only = a.kernel_only;
   options.use_camera = !a.no_camera;
   options.threads = a.threads;
+  options.max_nondirectional = a.max_backprojections;
   const bool tty = isatty(fileno(stderr)) != 0;
   int last = -1;
   options.progress = [&](double f) {
@@ -120,8 +123,10 @@ void RegisterPlanCommand(CLI::App& app) {
       "plan",
       "Plan a motion strategy from the scene's start region to its goal by backchaining preimages (LMT; Fox & "
       "Hutchinson sections IV-A and VIII): the last step ends when the sensed position is recognisably in the goal "
-      "(the goal kernel), earlier steps end by visual guarded termination on a CVC ray whose free segments all lie in "
-      "the next step's preimage. Commanded directions come from the critical orientations (never sampled). Fewest "
+      "(the goal kernel), earlier steps end by visual guarded termination on a CVC ray whose piece lies in the next "
+      "step's preimage, or by contact termination (the motion sticks on a face or in a corner of the C-obstacles, "
+      "all of whose sticking places lie in the next step's preimage). Commanded directions come from the critical "
+      "orientations (never sampled). Fewest "
       "steps win, then the largest margin. Prints JSON {\"feasible\", \"steps\": [{\"theta_deg\", \"active_rays\", "
       "\"terminate\": {\"kind\", \"ref\"}, \"preimage\": REGION, \"guarantee\", \"interval_deg\", \"margin\"}]} in "
       "execution order (CONTRACT.md), which `visco run` executes as it is. Exit 1 when no strategy within "
@@ -135,6 +140,9 @@ void RegisterPlanCommand(CLI::App& app) {
   cmd->add_option("--svg", args->svg, "draw the nested preimages, commanded directions and rays into FILE (SVG)");
   cmd->add_option("--lcm-url", args->lcm_url, "also publish the strategy as visco.motion_strategy_t on VISCO_STRATEGY");
   cmd->add_option("--speed", args->speed, "commanded speed for `visco run` (JSON \"speed\" and the LCM message), m/s")
+      ->capture_default_str();
+  cmd->add_option("--max-backprojections", args->max_backprojections,
+                  "stop the search after this many nondirectional backprojections (a few seconds each)")
       ->capture_default_str();
   cmd->add_option("--threads", args->threads, "worker threads for the nondirectional backprojections")
       ->capture_default_str();

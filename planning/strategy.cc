@@ -90,9 +90,13 @@ const ThetaInterval* Best(const std::vector<ThetaInterval>& v) {
 // backprojection, and the steps that follow it to the goal.
 struct Node {
   Termination terminate = Termination::kGoal;
-  std::string ray;                     // vc: the ray whose strip this is
+  std::string ref;                     // vc: the ray whose strip this is; contact: the face or corner
   std::vector<NamedPolygon> triggers;  // vc: strips around all of the ray's free segments (reaching one stops it)
-  Vector2d end_a{0, 0}, end_b{0, 0};   // vc: the piece of the ray where the step must end
+  Vector2d end_a{0, 0}, end_b{0, 0};   // vc, contact: the piece where the step must end
+  double end_radius = 0.0;             // ... within this distance of it
+  // contact: the step into this target may only use θ in [range_lo, range_hi] (where the feature sticks).
+  bool restricted = false;
+  double range_lo = 0.0, range_hi = 0.0;
   BackprojectionProblem problem;
   NondirectionalBackprojection nd;
   bool vc = true;                  // the step into this target may comply to rays
@@ -108,11 +112,14 @@ StrategyStep MakeStep(const Node& node, const ThetaInterval& interval, const std
   p.theta = step.theta;
   step.preimage = node.vc ? BackprojectionWithActiveRays(p, step.active_rays) : ClassicBackprojection(p);
   step.terminate = node.terminate;
-  step.terminate_ref = node.ray;
+  step.terminate_ref = node.ref;
   step.target = node.problem.goal;
   step.triggers = node.triggers;
   step.end_a = node.end_a;
   step.end_b = node.end_b;
+  step.end_radius = node.end_radius;
+  step.sticks_lo = node.range_lo;
+  step.sticks_hi = node.range_hi;
   step.interval_lo = interval.lo;
   step.interval_hi = interval.hi;
   step.margin = interval.margin;
@@ -121,13 +128,27 @@ StrategyStep MakeStep(const Node& node, const ThetaInterval& interval, const std
         "from anywhere in the preimage (it contains {} for every θ in [{:.2f}°, {:.2f}°]), every motion the "
         "uncertainty allows reaches the goal kernel: the sensed position is then inside the goal and the step ends",
         what_fits, Deg(interval.lo), Deg(interval.hi));
+  } else if (node.terminate == Termination::kContact) {
+    const std::string where =
+        node.end_a == node.end_b
+            ? fmt::format("in the corner at ({:.4f}, {:.4f}) or on its faces within {:.4f} m of it", node.end_a.x(),
+                          node.end_a.y(), node.end_radius)
+            : fmt::format("on the face between ({:.4f}, {:.4f}) and ({:.4f}, {:.4f})", node.end_a.x(), node.end_a.y(),
+                          node.end_b.x(), node.end_b.y());
+    step.guarantee = fmt::format(
+        "from anywhere in the preimage (it contains {} for every θ in [{:.2f}°, {:.2f}°]), every motion the "
+        "uncertainty allows reaches CB's {} and sticks there, {} (for θ in [{:.2f}°, {:.2f}°] the whole velocity cone "
+        "lies in the friction cone there); the step ends when the robot stops in contact, and all of those places lie "
+        "inside the next step's preimage",
+        what_fits, Deg(interval.lo), Deg(interval.hi), node.end_a == node.end_b ? "corner" : "face", where,
+        Deg(node.range_lo), Deg(node.range_hi));
   } else {
     step.guarantee = fmt::format(
         "from anywhere in the preimage (it contains {} for every θ in [{:.2f}°, {:.2f}°]), every motion reaches "
         "CVC ray {} first between ({:.4f}, {:.4f}) and ({:.4f}, {:.4f}) (the rest of the ray is never reached first); "
         "the step ends when the CM vertex crosses the VC line there, and that piece of the ray, widened by {} m, lies "
         "inside the next step's preimage",
-        what_fits, Deg(interval.lo), Deg(interval.hi), node.ray, node.end_a.x(), node.end_a.y(), node.end_b.x(),
+        what_fits, Deg(interval.lo), Deg(interval.hi), node.ref, node.end_a.x(), node.end_a.y(), node.end_b.x(),
         node.end_b.y(), kVcStripHalfWidth);
   }
   return step;
@@ -152,6 +173,122 @@ double Coverage(const Region& region, const std::vector<Vector2d>& r) {
     }
   }
   return total ? static_cast<double>(in) / total : 0.0;
+}
+
+// θ unwrapped to [lo, lo + 2π): inside [lo, hi]?
+bool InRange(double theta, double lo, double hi) {
+  const double t = lo + std::fmod(std::fmod(theta - lo, 2 * M_PI) + 2 * M_PI, 2 * M_PI);
+  return t <= hi;
+}
+
+// The parts of the intervals inside [lo, hi] (hi - lo < 2π), each with its margin at its midpoint (containment does
+// not change inside an interval).
+std::vector<ThetaInterval> Restrict(const std::vector<ThetaInterval>& in, double lo, double hi, const Node& node,
+                                    const NamedPolygon& region) {
+  std::vector<ThetaInterval> out;
+  const double size = (node.problem.bounds_max - node.problem.bounds_min).norm();
+  for (const auto& i : in) {
+    for (int k = -2; k <= 2; ++k) {
+      const double a = std::max(i.lo, lo + 2 * M_PI * k), b = std::min(i.hi, hi + 2 * M_PI * k);
+      if (b - a <= 1e-9) continue;
+      const double mid = WrapAngle(0.5 * (a + b));
+      BackprojectionProblem p = node.problem;
+      p.theta = mid;
+      const Region reg =
+          node.vc ? BackprojectionWithActiveRays(p, SliceAt(node.nd, mid).vc.active_rays) : ClassicBackprojection(p);
+      double clear = 0;
+      if (!RegionContainsPolygon(reg, region.vertices, 1e-9 * size, &clear)) continue;
+      out.push_back({a, b, clear, mid});
+    }
+  }
+  return out;
+}
+
+// The θ-intervals where `region` lies inside the node's preimage (only where the node's own step may run).
+std::vector<ThetaInterval> Fits(const Node& node, const NamedPolygon& region) {
+  const auto intervals = IntervalsContaining(node.nd, node.problem, region, node.vc);
+  return node.restricted ? Restrict(intervals, node.range_lo, node.range_hi, node, region) : intervals;
+}
+
+// A place where a motion can stick: a face of CB (a maximal straight run of its boundary, CB on its left) or a
+// concave corner of CB (two faces meeting with free space inside an angle below π), and the θ where it sticks for
+// the whole velocity cone (the friction model of SEMANTICS.md).
+struct ContactFeature {
+  bool corner = false;
+  Vector2d a{0, 0}, b{0, 0};         // face: from a to b; corner: a = b = the corner
+  Vector2d u_in{0, 0}, u_out{0, 0};  // corner: unit directions along its two faces, away from it
+  double lo = 0.0, hi = 0.0;         // θ where it sticks, lo < hi
+  std::string ref;
+};
+
+Vector2d LeftNormal(const Vector2d& d) { return Vector2d(-d.y(), d.x()).normalized(); }
+
+// Turn at v (p -> v -> q): +1 left, -1 right, 0 straight (relative tolerance: the union's vertices are rounded, and a
+// face split where its generator changes must stay one face).
+int Turn(const Vector2d& p, const Vector2d& v, const Vector2d& q) {
+  const Vector2d d1 = v - p, d2 = q - v;
+  const double c = d1.x() * d2.y() - d1.y() * d2.x();
+  if (std::abs(c) <= 1e-12 * d1.norm() * d2.norm()) return d1.dot(d2) > 0 ? 0 : (c >= 0 ? 1 : -1);
+  return c > 0 ? 1 : -1;
+}
+
+std::vector<ContactFeature> ContactFeatures(const CSpace& cspace, double velocity_cone, double friction_cone) {
+  std::vector<ContactFeature> out;
+  const auto& polys = cspace.obstacle_union();
+  const auto& sources = cspace.obstacle_union_sources();
+  auto ring = [&](const Polygon& r, const RingSources* src) {
+    const size_t n = r.size();
+    if (n < 3) return;
+    size_t first = n;
+    for (size_t i = 0; i < n && first == n; ++i) {
+      if (Turn(r.Vertex(i + n - 1), r.Vertex(i), r.Vertex(i + 1)) != 0) first = i;
+    }
+    if (first == n) return;
+    for (size_t k = 0; k < n; ++k) {
+      const size_t i = (first + k) % n;
+      const Vector2d p = r.Vertex(i + n - 1), v = r.Vertex(i), q = r.Vertex(i + 1);
+      const int turn = Turn(p, v, q);
+      if (turn == 0) continue;
+      const std::string vref = src && i < src->vertex_refs.size() ? src->vertex_refs[i] : fmt::format("v({})", i);
+      // The face that starts at v runs to the next vertex where the boundary turns.
+      size_t j = i + 1;
+      while (j < i + n && Turn(r.Vertex(j - 1), r.Vertex(j), r.Vertex(j + 1)) == 0) ++j;
+      if (friction_cone > velocity_cone) {
+        ContactFeature f;
+        f.a = v;
+        f.b = r.Vertex(j);
+        const Vector2d m = LeftNormal(q - v);  // into CB
+        const double at = std::atan2(m.y(), m.x());
+        f.lo = at - (friction_cone - velocity_cone);
+        f.hi = at + (friction_cone - velocity_cone);
+        f.ref = "face:" + (src && i < src->edges.size() ? src->edges[i].ref : fmt::format("e({})", i));
+        out.push_back(std::move(f));
+      }
+      if (turn < 0) {
+        // Free space turns left at v: the reaction can be anything in the hull of the two faces' friction cones.
+        const Vector2d m1 = LeftNormal(v - p), m2 = LeftNormal(q - v);
+        const double a2 = std::atan2(m2.y(), m2.x());
+        double a1 = std::atan2(m1.y(), m1.x());
+        while (a1 < a2) a1 += 2 * M_PI;
+        ContactFeature f;
+        f.corner = true;
+        f.a = f.b = v;
+        f.u_in = (p - v).normalized();
+        f.u_out = (q - v).normalized();
+        f.lo = a2 - friction_cone + velocity_cone;
+        f.hi = a1 + friction_cone - velocity_cone;
+        f.ref = "corner:" + vref;
+        if (f.hi > f.lo && f.hi - f.lo < 2 * M_PI) out.push_back(std::move(f));
+      }
+    }
+  };
+  for (size_t k = 0; k < polys.size(); ++k) {
+    const PolygonSources* src = k < sources.size() ? &sources[k] : nullptr;
+    ring(polys[k].outer, src ? &src->outer : nullptr);
+    for (size_t h = 0; h < polys[k].holes.size(); ++h)
+      ring(polys[k].holes[h], src && h < src->holes.size() ? &src->holes[h] : nullptr);
+  }
+  return out;
 }
 
 NondirectionalOptions NdOptions(const PlanOptions& o) {
@@ -216,50 +353,83 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
     if (c > out.best_coverage) out.best_coverage = c, out.best_theta = s.theta;
   }
 
-  // Earlier steps: visual guarded termination on a ray whose free segments all fit the next preimage.
+  // Earlier steps: visual guarded termination on a ray whose free segments all fit the next preimage, or contact
+  // termination on a face or corner of CB whose sticking places all fit it.
+  const std::vector<ContactFeature> features = ContactFeatures(cspace, base.velocity_cone, base.friction_cone);
   std::vector<Node> frontier = {std::move(goal)};
   std::set<std::string> used;
+  bool budget_reached = false;
   struct Candidate {
     std::vector<StrategyStep> steps;
     double margin;
   };
-  for (int level = 2; level <= options.max_steps && !options.kernel_only && camera; ++level) {
+  const double size = (base.bounds_max - base.bounds_min).norm();
+  // The longest piece of segment [a, b] inside one of the node's slices (in its θ-range).
+  auto longest_piece = [&](const Node& node, const Vector2d& a, const Vector2d& b, Vector2d& pa, Vector2d& pb) {
+    double best_len = 0;
+    for (const Slice& sl : node.nd.slices) {
+      if (node.restricted && !InRange(sl.theta, node.range_lo, node.range_hi)) continue;
+      const Region& region = node.vc ? sl.vc.region : sl.vc.classic;
+      for (const auto& [t0, t1] : InsidePieces(region, a, b, 1e-9 * size)) {
+        const Vector2d x = a + t0 * (b - a), y = a + t1 * (b - a);
+        if ((y - x).norm() > best_len) best_len = (y - x).norm(), pa = x, pb = y;
+      }
+    }
+    return best_len;
+  };
+  for (int level = 2; level <= options.max_steps && !options.kernel_only && !budget_reached; ++level) {
     std::vector<Node> next;
     std::vector<Candidate> found;
-    for (size_t f = 0; f < frontier.size(); ++f) {
+    // A child target of `node`: its nondirectional backprojection, and whether the start region fits it.
+    auto expand = [&](Node child, const Node& node, const ThetaInterval& fit, const std::string& what) {
+      child.rest = node.rest;
+      child.rest.insert(child.rest.begin(), MakeStep(node, fit, what));
+      child.nd = ComputeNondirectional(child.problem, nullptr, NdOptions(options));
+      ++out.nondirectional;
+      const std::vector<ThetaInterval> start_fits = Fits(child, start);
+      if (const ThetaInterval* st = Best(start_fits)) {
+        Candidate c;
+        c.steps = child.rest;
+        c.steps.insert(c.steps.begin(), MakeStep(child, *st, "the start region"));
+        c.margin = st->margin;
+        found.push_back(std::move(c));
+      }
+      next.push_back(std::move(child));
+    };
+    for (size_t f = 0; f < frontier.size() && !budget_reached; ++f) {
       const Node& node = frontier[f];
       for (const CvcRayInput& ray : base.rays) {
-        if (used.count(ray.id) || ray.id == node.ray) continue;
+        if (!camera || used.count(ray.id) || ray.id == node.ref) continue;
         // The longest piece of the ray inside one of the node's slices, shrunk at its ends so that its strip fits;
         // then the θ-interval where that strip lies inside the node's preimage.
-        const double size = (base.bounds_max - base.bounds_min).norm();
         double best_len = 0;
         Vector2d pa{0, 0}, pb{0, 0};
-        for (const Slice& s : node.nd.slices) {
-          const Region& region = node.vc ? s.vc.region : s.vc.classic;
-          for (const auto& seg : ray.segments) {
-            for (const auto& [t0, t1] : InsidePieces(region, seg[0], seg[1], 1e-9 * size)) {
-              const Vector2d a = seg[0] + t0 * (seg[1] - seg[0]), b = seg[0] + t1 * (seg[1] - seg[0]);
-              if ((b - a).norm() > best_len) best_len = (b - a).norm(), pa = a, pb = b;
-            }
-          }
+        for (const auto& seg : ray.segments) {
+          Vector2d x, y;
+          const double len = longest_piece(node, seg[0], seg[1], x, y);
+          if (len > best_len) best_len = len, pa = x, pb = y;
         }
         const double shrink = 3 * kVcStripHalfWidth;
         if (best_len < 4 * shrink) continue;
         const Vector2d dir = (pb - pa) / best_len;
         const Vector2d ea = pa + shrink * dir, eb = pb - shrink * dir;
         const NamedPolygon end_strip = Strip(ea, eb, kVcStripHalfWidth, ray.id + ".end");
-        const std::vector<ThetaInterval> fits = IntervalsContaining(node.nd, node.problem, end_strip, node.vc);
+        const std::vector<ThetaInterval> fits = Fits(node, end_strip);
         const ThetaInterval* best = Best(fits);
         if (!best) continue;
+        if (out.nondirectional >= options.max_nondirectional) {
+          budget_reached = true;
+          break;
+        }
         used.insert(ray.id);
         Node child;
         child.terminate = Termination::kVisualGuarded;
-        child.ray = ray.id;
+        child.ref = ray.id;
         child.problem = base;
         child.problem.goal = {end_strip};
         child.end_a = ea;
         child.end_b = eb;
+        child.end_radius = kVcStripHalfWidth;
         // The rest of the ray (every free segment, outside the piece): reaching it first ends the step outside the
         // next preimage, so it is forbidden (a hair away from the piece, still inside the next preimage).
         const double gap = 0.5 * shrink;
@@ -288,25 +458,88 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
         // past the strip).
         child.problem.rays.clear();
         child.vc = false;
-        child.rest = node.rest;
-        child.rest.insert(child.rest.begin(),
-                          MakeStep(node, *best, "the piece of ray " + ray.id + " where the step before ends"));
-        child.nd = ComputeNondirectional(child.problem, nullptr, NdOptions(options));
-        ++out.nondirectional;
-        const auto start_fits = IntervalsContaining(child.nd, child.problem, start, false);
-        if (const ThetaInterval* s = Best(start_fits)) {
-          Candidate c;
-          c.steps = child.rest;
-          c.steps.insert(c.steps.begin(), MakeStep(child, *s, "the start region"));
-          c.margin = s->margin;
-          found.push_back(std::move(c));
+        expand(std::move(child), node, *best, "the piece of ray " + ray.id + " where the step before ends");
+      }
+      // Contact: corners first (they end the motion in the least room), then faces, longest piece first.
+      struct ContactCandidate {
+        const ContactFeature* feature;
+        Vector2d pa, pb;
+        double len;
+      };
+      std::vector<ContactCandidate> contacts;
+      const double w = kContactDepth, tan_phi = std::tan(base.friction_cone);
+      const double face_shrink = w * (2 + tan_phi);
+      for (const ContactFeature& feature : features) {
+        if (budget_reached || used.count(feature.ref)) continue;
+        Vector2d pa = feature.a, pb = feature.b;
+        if (feature.corner) {
+          bool inside = false;
+          for (const Slice& sl : node.nd.slices) {
+            if (node.restricted && !InRange(sl.theta, node.range_lo, node.range_hi)) continue;
+            const Region& region = node.vc ? sl.vc.region : sl.vc.classic;
+            inside = inside || region.Contains(feature.a) || region.BoundaryDistance(feature.a) <= 1e-9 * size;
+          }
+          if (inside) contacts.push_back({&feature, pa, pb, 0.0});
+        } else {
+          const double len = longest_piece(node, feature.a, feature.b, pa, pb);
+          if (len >= 2 * face_shrink + w) contacts.push_back({&feature, pa, pb, len});
         }
-        next.push_back(std::move(child));
+      }
+      std::stable_sort(contacts.begin(), contacts.end(), [](const ContactCandidate& x, const ContactCandidate& y) {
+        if (x.feature->corner != y.feature->corner) return x.feature->corner;
+        return x.len > y.len + 1e-12;
+      });
+      if (contacts.size() > static_cast<size_t>(std::max(0, options.max_contact_features)))
+        contacts.resize(static_cast<size_t>(std::max(0, options.max_contact_features)));
+      for (const ContactCandidate& cc : contacts) {
+        const ContactFeature& feature = *cc.feature;
+        NamedPolygon ends, target;
+        Node child;
+        if (feature.corner) {
+          // Entering the target square (half-width w), the motion sticks on a face within w√2 (1 + tan φ) of the
+          // corner: the parallelogram the two faces span to that length must fit.
+          const double reach = w * std::sqrt(2.0) * (1 + tan_phi) * 1.01;
+          const Vector2d c = feature.a;
+          ends.vertices = {c, c + reach * feature.u_out, c + reach * (feature.u_out + feature.u_in),
+                           c + reach * feature.u_in};
+          target.vertices = {c + Vector2d(-w, -w), c + Vector2d(w, -w), c + Vector2d(w, w), c + Vector2d(-w, w)};
+          child.end_a = child.end_b = c;
+          child.end_radius = reach;
+        } else {
+          // Entering the target strip (depth w), the motion sticks on the face within w tan φ of where it entered:
+          // the piece it can stick on, shrunk by that and more, stands for the target; the whole piece must fit.
+          const Vector2d dir = (cc.pb - cc.pa) / cc.len, free_side(dir.y(), -dir.x());
+          ends.vertices = {cc.pa, cc.pb, cc.pb + w * free_side, cc.pa + w * free_side};
+          target = Strip(cc.pa + face_shrink * dir, cc.pb - face_shrink * dir, w, feature.ref + ".target");
+          child.end_a = cc.pa;
+          child.end_b = cc.pb;
+          child.end_radius = 0.0;
+        }
+        const std::vector<ThetaInterval> fits = Fits(node, ends);
+        const ThetaInterval* best = Best(fits);
+        if (!best) continue;
+        if (out.nondirectional >= options.max_nondirectional) {
+          budget_reached = true;
+          break;
+        }
+        used.insert(feature.ref);
+        child.terminate = Termination::kContact;
+        child.ref = feature.ref;
+        child.problem = base;
+        child.problem.goal = {target};
+        child.problem.rays.clear();
+        child.vc = false;
+        child.restricted = true;
+        child.range_lo = feature.lo;
+        child.range_hi = feature.hi;
+        expand(std::move(child), node, *best,
+               std::string("the places where the step before sticks (") + feature.ref + ")");
       }
       progress(0.2 + 0.8 * (level - 2 + static_cast<double>(f + 1) / frontier.size()) / (options.max_steps - 1));
     }
     if (!found.empty()) {
-      // Fewest steps (this level), then the largest margin; the first found wins ties (rays in id order).
+      // Fewest steps (this level), then the largest margin; the first found wins ties (rays in id order, then
+      // contact features in the order above).
       const Candidate* best = &found[0];
       for (const auto& c : found) {
         if (c.margin > best->margin + 1e-12) best = &c;
@@ -322,10 +555,15 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
   out.reason = fmt::format(
       "no strategy within {} step(s): one step covers at most {:.0f}% of the start region (at θ = {:.1f}°){}",
       options.max_steps, 100 * out.best_coverage, Deg(out.best_theta),
-      !scene.camera         ? "; the scene has no camera: visual constraints (visco camera) may help"
+      !scene.camera
+          ? "; the scene has no camera: visual constraints (visco camera) or more steps (--max-steps) may help"
       : !camera             ? "; planned without the camera"
       : options.kernel_only ? "; only goal-terminated steps were allowed (--kernel-only)"
                             : "; more steps (--max-steps) or another camera position (visco camera) may help");
+  if (budget_reached) {
+    out.reason += fmt::format("; the search stopped after {} nondirectional backprojections (--max-backprojections)",
+                              out.nondirectional);
+  }
   progress(1.0);
   return out;
 }
@@ -348,9 +586,12 @@ std::string StrategyToJson(const Scene& scene, const Strategy& strategy, double 
     step["margin"] = s.margin;
     step["guarantee"] = s.guarantee;
     step["timeout_s"] = std::round(timeout);
-    if (s.terminate == Termination::kVisualGuarded) {
+    if (s.terminate != Termination::kGoal) {
+      // Where the step can end: within end_radius of the segment between the two ends.
       step["ends"] = {{s.end_a.x(), s.end_a.y()}, {s.end_b.x(), s.end_b.y()}};
+      step["end_radius"] = s.end_radius;
     }
+    if (s.terminate == Termination::kContact) step["sticks_deg"] = {Deg(s.sticks_lo), Deg(s.sticks_hi)};
     steps.push_back(step);
   }
   doc["steps"] = steps;
@@ -393,6 +634,15 @@ void DrawStrategy(SvgCanvas& c, const Scene& scene, const CSpace& cspace, const 
         c.Polygon(Polygon{t.vertices}, "class=\"terminate-ray\" fill=\"#c00\" stroke=\"#c00\" stroke-width=\"2\"");
         c.Text(t.vertices[2], s.terminate_ref, 12, "fill=\"#c00\"", 4, -4);
       }
+    } else if (s.terminate == Termination::kContact) {
+      // Where the contact step sticks: the face's piece (thick orange) or the corner (an orange disc).
+      const std::string style = "class=\"contact-target\" stroke=\"#e60\" stroke-width=\"5\" fill=\"#e60\"";
+      if (s.end_a == s.end_b) {
+        c.Circle(s.end_a, 7, style);
+      } else {
+        c.Line(s.end_a, s.end_b, style);
+      }
+      c.Text(s.end_a, fmt::format("step {} sticks here", k + 1), 12, "fill=\"#e60\"", 8, 16);
     }
   }
   // Commanded directions: an arrow per step from the centroid of its preimage's first polygon.
@@ -437,8 +687,11 @@ StrategyCheck CheckStrategy(const Scene& scene, const CSpace& cspace, const VcRa
       for (const PolygonWithHoles& part : cspace.c_obstacle(i)) w.obstacles.push_back(part.outer.vertices);
     }
     // A guarded step stops wherever the ray is reached first (the executor's event); only its target piece succeeds.
-    for (const auto& g : s.terminate == Termination::kVisualGuarded ? s.triggers : s.target)
-      w.goal.push_back(g.vertices);
+    // A contact step has no goal region: it ends where the motion stops (and succeeds only at its feature).
+    if (s.terminate != Termination::kContact) {
+      for (const auto& g : s.terminate == Termination::kVisualGuarded ? s.triggers : s.target)
+        w.goal.push_back(g.vertices);
+    }
     w.bounds_min = base.bounds_min;
     w.bounds_max = base.bounds_max;
     w.friction_cone = base.friction_cone;
@@ -477,7 +730,15 @@ StrategyCheck CheckStrategy(const Scene& scene, const CSpace& cspace, const VcRa
       const SimulationResult res = SimulateAdversarially(models[k], pos, s.theta, scene.uncertainty.velocity_cone_rad,
                                                          seed * 7919 + i * 31 + k, /*greedy=*/i % 3 == 0);
       bool reached = res.outcome == Outcome::kReachedGoal;
-      if (reached && s.terminate == Termination::kVisualGuarded) {
+      const char* why = OutcomeName(res.outcome);
+      if (s.terminate == Termination::kContact) {
+        // Stuck where the step may end: on the face's piece, or near the corner.
+        const Vector2d d = s.end_b - s.end_a, p = res.final_state.position;
+        const double t = d.squaredNorm() > 0 ? std::clamp((p - s.end_a).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
+        reached = res.outcome == Outcome::kStopped &&
+                  (s.end_a + t * d - p).norm() <= s.end_radius + 1e-9 * (base.bounds_max - base.bounds_min).norm();
+        why = res.outcome == Outcome::kStopped ? "stuck outside the feature's places" : why;
+      } else if (reached && s.terminate == Termination::kVisualGuarded) {
         // Where on the ray it stopped: inside the target piece's strip (a hair of slack for the stop's rounding)?
         const Vector2d d = s.end_b - s.end_a;
         const double t = std::clamp((res.final_state.position - s.end_a).dot(d) / d.squaredNorm(), 0.0, 1.0);
@@ -486,10 +747,12 @@ StrategyCheck CheckStrategy(const Scene& scene, const CSpace& cspace, const VcRa
       if (!reached) {
         ok = false;
         if (out.failures.size() < 20) {
-          out.failures.push_back(fmt::format("start ({:.4f}, {:.4f}): step {}: {}", q.x(), q.y(), k + 1,
-                                             res.outcome == Outcome::kReachedGoal
-                                                 ? "reached the ray outside the target piece"
-                                                 : OutcomeName(res.outcome)));
+          out.failures.push_back(
+              fmt::format("start ({:.4f}, {:.4f}): step {}: {} at ({:.4f}, {:.4f})", q.x(), q.y(), k + 1,
+                          res.outcome == Outcome::kReachedGoal && s.terminate == Termination::kVisualGuarded
+                              ? "reached the ray outside the target piece"
+                              : why,
+                          res.final_state.position.x(), res.final_state.position.y()));
         }
       }
       pos = res.final_state.position;

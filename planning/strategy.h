@@ -8,7 +8,12 @@
 //     vertex crosses the VC line. The position along the ray is not observed, so the step's target is a piece of r
 //     (a thin strip around it, `kVcStripHalfWidth`) that lies inside the next step's preimage, and the rest of r is
 //     forbidden (BackprojectionProblem::forbidden: reaching it first would end the step outside): the step's
-//     preimage is the set from which every motion reaches r first on that piece.
+//     preimage is the set from which every motion reaches r first on that piece;
+//   * an earlier step ends by contact termination (`contact`): the motion sticks on a face of CB (an edge where the
+//     whole velocity cone lies inside the friction cone) or in a concave corner of CB (inside the convex hull of the
+//     two faces' friction cones). θ is restricted to the interval where the feature sticks; the target is a thin
+//     region at the feature (`kContactDepth`), and every place where the motion can stick after entering it (the
+//     piece of the face, or the corner's faces within `end_radius`) lies inside the next step's preimage.
 // θ is never sampled: each preimage comes from the nondirectional backprojection of its target (nondirectional.h),
 // and the θ-intervals where the previous target fits come from IntervalsContaining (bounded by critical and
 // R-critical orientations). Strategies with fewer steps win, then the larger margin (the distance of the start
@@ -32,6 +37,10 @@ struct VcRays;
 /// (the servo's tracking error and the event's latency at the commanded speed must stay below it).
 inline constexpr double kVcStripHalfWidth = 0.01;
 
+/// Depth of the target region at a contact feature (metres): a motion that enters it sticks within the feature's piece
+/// (the piece is shrunk by the lateral drift the friction cone allows over this depth).
+inline constexpr double kContactDepth = 0.01;
+
 enum class Termination : std::uint8_t { kGoal, kVisualGuarded, kContact };
 /// "goal", "vc", "contact" (CONTRACT.md).
 const char* TerminationName(Termination t);
@@ -40,15 +49,21 @@ struct StrategyStep {
   double theta = 0.0;  ///< commanded direction (radians)
   std::vector<std::string> active_rays;
   Termination terminate = Termination::kGoal;
-  std::string terminate_ref;  ///< vc: the CVC ray id
+  std::string terminate_ref;  ///< vc: the CVC ray id; contact: the CB face's or corner's provenance
   /// Where the step is guaranteed to succeed from (B_vcθ of its target with the active rays).
   Region preimage;
   /// Where it ends: the goal kernel (goal), or a strip around the piece of the ray where it must end (vc).
   std::vector<NamedPolygon> target;
   /// vc: strips around all of the ray's free segments (reaching any stops the step; only `target` succeeds).
   std::vector<NamedPolygon> triggers;
-  /// vc: the ends of that piece of the ray.
+  /// vc: the ends of that piece of the ray; contact: of the piece of the face where it sticks (a corner: both are the
+  /// corner).
   Eigen::Vector2d end_a{0, 0}, end_b{0, 0};
+  /// Where the step can end: within this distance of the segment [end_a, end_b] (vc: the strip's half-width; contact
+  /// on a face: 0, on the face itself; in a corner: on its faces within this of the corner).
+  double end_radius = 0.0;
+  /// contact: the θ-interval where the feature sticks (the step's interval lies inside it).
+  double sticks_lo = 0.0, sticks_hi = 0.0;
   /// The θ-interval in which this step's θ was chosen (every θ in it works) and the margin there: the least distance
   /// from the boundary of what must fit (the start region, or the previous step's target) to the preimage's.
   double interval_lo = 0.0, interval_hi = 0.0;
@@ -73,6 +88,10 @@ struct PlanOptions {
   bool kernel_only = false;  ///< goal-terminated steps only (no visual guarded subgoals): one step or none
   bool use_camera = true;    ///< false: plan as if the scene had no camera (no CVC rays)
   int threads = 1;
+  /// Contact features (faces and corners of CB) tried per target, the longest pieces first.
+  int max_contact_features = 8;
+  /// At most this many nondirectional backprojections (each a few seconds); the reason says when it was reached.
+  int max_nondirectional = 60;
   std::function<void(double)> progress;
 };
 

@@ -33,6 +33,23 @@ kill -INT $sim_pid; wait $sim_pid; sim_pid=
 grep -q '"result":"done"' "$tmp/run.json" || fail "run summary is not done: $(cat "$tmp/run.json")"
 grep -q 'goal recognised' "$tmp/run.log" || fail "the run log does not say the goal was recognised"
 
+# Two steps with contact termination (corner.json, no camera): the first motion sticks in the corner, the second
+# goes from there to the goal; the executor ends the first step on contact and the second on the goal.
+corner=data/scenes/corner.json
+"$visco" plan "$corner" --speed 0.5 --threads 2 --out "$tmp/corner.json" --check 10 2>"$tmp/corner.log" ||
+  fail "visco plan corner exited $?: $(cat "$tmp/corner.log")"
+grep -q '"kind":"contact"' "$tmp/corner.json" || fail "the corner plan has no contact step: $(head -c 400 "$tmp/corner.json")"
+grep -q "10 of 10 start configurations reach the goal" "$tmp/corner.log" || fail "corner check: $(cat "$tmp/corner.log")"
+"$visco" sim "$corner" --start 7.5 4.5 --seed 3 --lcm-url "$url" --duration 90 >"$tmp/csim.json" 2>"$tmp/csim.log" &
+sim_pid=$!
+"$visco" run "$tmp/corner.json" --scene "$corner" --lcm-url "$url" --max-speed 0.5 --max-accel 4 --no-realtime \
+  >"$tmp/crun.json" 2>"$tmp/crun.log"
+status=$?
+kill -INT $sim_pid; wait $sim_pid; sim_pid=
+[[ $status -eq 0 ]] || fail "visco run corner exited $status: $(tail -5 "$tmp/crun.log")"
+grep -q 'stopped in contact' "$tmp/crun.log" || fail "the corner run did not end its first step in contact"
+grep -q 'goal recognised' "$tmp/crun.log" || fail "the corner run did not recognise the goal: $(tail -5 "$tmp/crun.log")"
+
 # No strategy within one step without the camera: exit 1, the reason on stderr.
 out=$("$visco" plan "$scene" --no-camera --max-steps 1 --out "$tmp/none.json" 2>&1); status=$?
 [[ $status -eq 1 ]] || fail "infeasible plan exited $status, expected 1"

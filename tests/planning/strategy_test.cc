@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <random>
 #include <string>
@@ -70,11 +71,45 @@ TEST(Strategy, OneStepOnlyWithVisualConstraints) {
   EXPECT_FALSE(PlanStrategy(s, one).feasible);
 }
 
+// corner.json: the start region is far wider than the goal kernel, no single motion reaches it recognisably, and
+// there is no camera. Two steps: a motion that sticks in the corner of the floor and the wall (contact termination:
+// wherever it starts, it ends in the corner), then one from the corner to the goal.
+TEST(Strategy, TwoStepsThroughAContactCorner) {
+  const Scene s = LoadScene("data/scenes/corner.json");
+  PlanOptions one;
+  one.max_steps = 1;
+  one.threads = 2;
+  const Strategy single = PlanStrategy(s, one);
+  EXPECT_FALSE(single.feasible);
+  EXPECT_NE(single.reason.find("more steps (--max-steps) may help"), std::string::npos) << single.reason;
+  const Planned p = PlanAndCheck(s, "corner");
+  ASSERT_TRUE(p.with_camera.feasible) << p.with_camera.reason;
+  ASSERT_EQ(p.with_camera.steps.size(), 2u);
+  const StrategyStep& first = p.with_camera.steps[0];
+  EXPECT_EQ(first.terminate, Termination::kContact);
+  EXPECT_EQ(first.terminate_ref.rfind("corner:", 0), 0u) << first.terminate_ref;
+  // The corner of the C-obstacles: the floor's top (y = 0.5) meets the wall's side (x = 0.5).
+  EXPECT_NEAR(first.end_a.x(), 0.5, 1e-9);
+  EXPECT_NEAR(first.end_a.y(), 0.5, 1e-9);
+  EXPECT_GT(first.end_radius, 0.0);
+  EXPECT_LT(first.end_radius, 0.05);
+  // θ points into the corner, inside the interval where it sticks: [180° - 10° + 5°, 270° + 10° - 5°].
+  EXPECT_NEAR(first.sticks_lo, (180.0 - 10 + 5) * M_PI / 180, 1e-9);
+  EXPECT_NEAR(first.sticks_hi, (270.0 + 10 - 5) * M_PI / 180, 1e-9);
+  double t = first.theta;
+  while (t < first.sticks_lo) t += 2 * M_PI;
+  EXPECT_LE(t, first.sticks_hi);
+  EXPECT_EQ(p.with_camera.steps[1].terminate, Termination::kGoal);
+  const std::string json = StrategyToJson(s, p.with_camera);
+  EXPECT_NE(json.find("\"kind\":\"contact\""), std::string::npos);
+  EXPECT_NE(json.find("\"sticks_deg\""), std::string::npos);
+}
+
 // Every example scene with a start region: each strategy found reaches the goal in simulation.
 TEST(Strategy, ExampleScenesAreCheckedInSimulation) {
   // Under ASan the test above (fig13, plan and simulation) covers the same code; the examples take minutes there.
   if (kSanitized) GTEST_SKIP() << "the example scenes are planned and checked in the normal build";
-  const std::vector<const char*> files = {"slot", "fig5", "ledge"};  // fig13: the test above
+  const std::vector<const char*> files = {"slot", "fig5", "ledge"};  // fig13, corner: the tests above
   for (const char* file : files) {
     const Scene s = LoadScene(std::string("data/scenes/") + file + ".json");
     if (!s.start) continue;
@@ -104,6 +139,8 @@ TEST(Strategy, NoStrategyWithinTheStepsSaysWhy) {
   const Eigen::Vector2d lo = glo - Eigen::Vector2d::Constant(reach + 0.3),
                         hi = ghi + Eigen::Vector2d::Constant(reach + 0.3);
   const double t = 0.2;
+  s.obstacles.clear();  // the box alone decides it (fig13's own obstacles and camera only make the test slower)
+  s.camera.reset();
   auto wall = [&](const std::string& id, Eigen::Vector2d a, Eigen::Vector2d b) {
     ScenePolygon p;
     p.polygon.vertices = {a, {b.x(), a.y()}, b, {a.x(), b.y()}};
@@ -124,6 +161,19 @@ TEST(Strategy, NoStrategyWithinTheStepsSaysWhy) {
   EXPECT_NE(st.reason.find(fmt::format("no strategy within {} step(s)", o.max_steps)), std::string::npos) << st.reason;
   EXPECT_NE(st.reason.find("% of the start region"), std::string::npos) << st.reason;
   EXPECT_EQ(st.best_coverage, 0.0);
+}
+
+// A search cut short by its budget says so (and how to raise it).
+TEST(Strategy, BudgetOfBackprojectionsIsReported) {
+  const Scene s = LoadScene("data/scenes/corner.json");
+  PlanOptions o;
+  o.max_nondirectional = 1;  // the goal kernel's; the corner's would be the second
+  const Strategy st = PlanStrategy(s, o);
+  EXPECT_FALSE(st.feasible);
+  EXPECT_EQ(st.nondirectional, 1);
+  EXPECT_NE(st.reason.find("the search stopped after 1 nondirectional backprojections (--max-backprojections)"),
+            std::string::npos)
+      << st.reason;
 }
 
 // Seeded random scenes with a start region: every strategy found is checked; the share that has a strategy with and
