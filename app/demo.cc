@@ -18,6 +18,7 @@
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -27,6 +28,7 @@
 #include <fstream>
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <sstream>
@@ -45,6 +47,7 @@
 #include "planning/vc_rays.h"
 #include "visco/robot_estimate_t.hpp"
 #include "visco/robot_status_t.hpp"
+#include "visco/velocity_command_t.hpp"
 #include "visco/visual_events_t.hpp"
 
 #ifndef VISCO_SOURCE_DATA_DIR
@@ -66,6 +69,8 @@ struct Args {
   std::uint64_t seed = 1;
   bool can = false;
   int runs = 1;
+  int jobs = 1;
+  bool keep_logs = false;
   double timeout_s = 120;
 };
 
@@ -145,6 +150,7 @@ struct Trace {
   std::vector<Eigen::Vector2d> contacts;   // where contact started
   int events = 0;
   int messages = 0;
+  double motion_s = NAN;  // first to last non-zero velocity command (the log's receive times)
 };
 
 // LCM's generated decoders store doubles through integer pointers; with a value-initialised message ({}) GCC at -O2
@@ -163,9 +169,15 @@ Trace ReadTrace(const fs::path& log) {
   if (!file.good()) return t;
   bool in_contact = false;
   Eigen::Vector2d last(NAN, NAN);
+  std::int64_t first_move = -1, last_move = -1;
   while (const lcm::LogEvent* e = file.readNextEvent()) {
     ++t.messages;
-    if (e->channel == channels::kRobotEstimate) {
+    if (e->channel == channels::kCommand) {
+      velocity_command_t c;
+      if (!Decode(*e, &c) || (c.velocity[0] == 0 && c.velocity[1] == 0)) continue;
+      if (first_move < 0) first_move = e->timestamp;
+      last_move = e->timestamp;
+    } else if (e->channel == channels::kRobotEstimate) {
       // The trajectory as vision saw it (the driver's status carries odometry, zero in the simulation).
       robot_estimate_t s;
       if (!Decode(*e, &s) || !s.valid) continue;
@@ -188,6 +200,7 @@ Trace ReadTrace(const fs::path& log) {
       }
     }
   }
+  if (first_move >= 0) t.motion_s = static_cast<double>(last_move - first_move) * 1e-6;
   return t;
 }
 #pragma GCC diagnostic pop
@@ -242,13 +255,295 @@ void Progress(const char* what) {
   std::fflush(stderr);
 }
 
+// What every run of one demo shares.
+struct Setup {
+  const Args* args = nullptr;
+  const planning::Scene* scene = nullptr;
+  const planning::CSpace* cspace = nullptr;
+  const planning::Strategy* strategy = nullptr;
+  fs::path dir;
+  std::string self;  // this visco executable
+  bool rendered = false;
+  std::vector<std::string> cam;  // camera files of the rendered default scene
+};
+
+struct RunOutcome {
+  nlohmann::json item;
+  Trace trace;
+  bool ok = false;
+};
+
+// The starts: the start region's centroid for one run; for Monte Carlo, seeded points of the start region, every
+// fourth on its boundary (the strategy is guaranteed for the closed region, its boundary included).
+std::vector<Eigen::Vector2d> SampleStarts(const planning::Polygon& region, int runs, std::uint64_t seed) {
+  const auto& sv = region.vertices;
+  Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
+  for (const auto& v : sv) centroid += v / static_cast<double>(sv.size());
+  if (runs == 1) return {centroid};
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0, 1);
+  Eigen::Vector2d lo = sv[0], hi = sv[0];
+  for (const auto& v : sv) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+  double perimeter = 0;
+  for (size_t i = 0; i < sv.size(); ++i) perimeter += (sv[(i + 1) % sv.size()] - sv[i]).norm();
+  std::vector<Eigen::Vector2d> starts;
+  for (int r = 0; r < runs; ++r) {
+    Eigen::Vector2d q = centroid;
+    if (r % 4 == 3) {
+      double along = u(rng) * perimeter;
+      for (size_t i = 0; i < sv.size(); ++i) {
+        const Eigen::Vector2d a = sv[i], b = sv[(i + 1) % sv.size()];
+        const double len = (b - a).norm();
+        if (along <= len || i + 1 == sv.size()) {
+          q = a + (b - a) * std::clamp(along / len, 0.0, 1.0);
+          break;
+        }
+        along -= len;
+      }
+    } else {
+      for (int k = 0; k < 1000; ++k) {
+        const Eigen::Vector2d p(lo.x() + u(rng) * (hi.x() - lo.x()), lo.y() + u(rng) * (hi.y() - lo.y()));
+        if (planning::InsideEvenOdd(sv, p)) {
+          q = p;
+          break;
+        }
+      }
+    }
+    starts.push_back(q);
+  }
+  return starts;
+}
+
+// One closed-loop run: the processes, supervised until the controller ends, the run's timeout, a process that ends
+// early, or Ctrl-C; then the outcome from their outputs and the log.
+RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::Vector2d& start, const fs::path& rd,
+                      const std::string& url, std::mutex& print) {
+  const Args& a = *su.args;
+  const fs::path& dir = su.dir;
+  fs::create_directories(rd);
+  std::vector<Child> children;
+  children.push_back(Spawn("lcm-logger",
+                           {"lcm-logger", "--lcm-url=" + url, "--quiet", "--force", (rd / "run.lcmlog").string()},
+                           rd / "logger.out", rd / "logger.log"));
+  std::vector<std::string> sim = {su.self,
+                                  "sim",
+                                  (dir / "scene.json").string(),
+                                  "--rays",
+                                  (dir / "rays.json").string(),
+                                  "--start",
+                                  fmt::format("{}", start.x()),
+                                  fmt::format("{}", start.y()),
+                                  "--seed",
+                                  std::to_string(seed),
+                                  "--lcm-url",
+                                  url,
+                                  "--duration",
+                                  fmt::format("{}", a.timeout_s + 30),
+                                  "--watchdog-ms",
+                                  "500"};
+  if (su.rendered) {
+    sim.insert(sim.end(), su.cam.begin(), su.cam.end());
+    for (const char* o :
+         {"--camera-hz", "15", "--latency-ms", "5", "--supersample", "2", "--image-noise", "2", "--blur-px", "0.5"}) {
+      sim.push_back(o);
+    }
+  }
+  if (a.can) {
+    sim.push_back("--can");
+    sim.push_back("vcan0");
+  }
+  children.push_back(Spawn("sim", sim, rd / "sim.json", rd / "sim.log"));
+  if (su.rendered) {
+    std::vector<std::string> track = {su.self, "track", "--lcm", "--lcm-url", url + "&recv_buf_size=4194304"};
+    track.insert(track.end(), su.cam.begin(), su.cam.end());
+    children.push_back(Spawn("track", track, rd / "track.jsonl", rd / "track.log"));
+  }
+  std::vector<std::string> run = {su.self,
+                                  "run",
+                                  (dir / "plan.json").string(),
+                                  "--scene",
+                                  (dir / "scene.json").string(),
+                                  "--rays",
+                                  (dir / "rays.json").string(),
+                                  "--lcm-url",
+                                  url,
+                                  "--max-speed",
+                                  "1.0",
+                                  "--max-accel",
+                                  "4",
+                                  "--max-vision-age-ms",
+                                  "400",
+                                  "--max-hold",
+                                  "4",
+                                  "--startup-timeout",
+                                  "30",
+                                  "--status-timeout-ms",
+                                  "500",
+                                  "--heartbeat-timeout-ms",
+                                  "1000",
+                                  "--no-realtime",
+                                  "--log",
+                                  (rd / "controller.lcmlog").string()};
+  if (su.rendered) {
+    run.push_back("--focal-px");
+    run.push_back("560");
+  }
+  if (a.can) {
+    run.push_back("--can");
+    run.push_back("vcan0");
+  }
+  Child controller = Spawn("run", run, rd / "run.json", rd / "run.log");
+  const auto started = Clock::now();
+  int last_report = -1;
+  bool failed_early = false;
+  while (!Poll(controller) && g_signal == 0) {
+    const double elapsed = std::chrono::duration<double>(Clock::now() - started).count();
+    if (elapsed > a.timeout_s) break;
+    for (auto& c : children) {
+      if (Poll(c) && c.name != "lcm-logger") failed_early = true;
+    }
+    if (failed_early) break;
+    if (a.runs == 1 && static_cast<int>(elapsed) / 5 != last_report) {
+      last_report = static_cast<int>(elapsed) / 5;
+      std::lock_guard<std::mutex> lock(print);
+      std::fprintf(stderr, "visco demo: executing, %.0f s\n", elapsed);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  std::vector<Child> all = children;
+  all.push_back(controller);
+  Stop(all);
+  const double run_s = std::chrono::duration<double>(Clock::now() - started).count();
+  const nlohmann::json run_json = ReadJson(rd / "run.json");
+  const nlohmann::json sim_json = ReadJson(rd / "sim.json");
+  RunOutcome out;
+  out.trace = ReadTrace(rd / "run.lcmlog");
+  const Trace& trace = out.trace;
+  if (a.runs == 1) WriteTextOutput(RunSvg(*su.scene, *su.cspace, *su.strategy, trace), (rd / "run.svg").string());
+  Eigen::Vector2d final_pos(NAN, NAN);
+  if (sim_json.contains("position")) {
+    final_pos = Eigen::Vector2d(sim_json["position"][0].get<double>(), sim_json["position"][1].get<double>());
+  }
+  const double error = std::isfinite(final_pos.x()) ? DistanceToPolygon(su.scene->goal.polygon, final_pos) : INFINITY;
+  const bool done = run_json.value("result", "") == "done";
+  out.ok = done && error == 0.0;
+  auto number_or_null = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
+  out.item = {{"run", r},
+              {"seed", seed},
+              {"start", {start.x(), start.y()}},
+              {"result", run_json.value("result", "no result")},
+              {"reason", run_json.value("reason", "")},
+              {"steps_completed", run_json.value("steps_completed", 0)},
+              {"commands_sent", run_json.value("commands_sent", 0)},
+              {"faults_published", run_json.value("faults_published", 0)},
+              {"visual_events", trace.events},
+              {"contacts", trace.contacts.size()},
+              {"logged_messages", trace.messages},
+              {"time_s", run_s},
+              {"motion_s", number_or_null(trace.motion_s)},
+              {"final_position",
+               std::isfinite(final_pos.x()) ? nlohmann::json({final_pos.x(), final_pos.y()}) : nlohmann::json()},
+              {"goal_error_m", number_or_null(error)},
+              {"success", out.ok}};
+  if (failed_early) out.item["reason"] = "a process ended early (see its log in " + rd.string() + ")";
+  // Monte Carlo keeps the logs of the runs to debug (failures), not of every success (tens of MB each, images).
+  if (a.runs > 1 && out.ok && !a.keep_logs) {
+    fs::remove(rd / "run.lcmlog");
+    fs::remove(rd / "controller.lcmlog");
+  }
+  out.item["logs_kept"] = fs::exists(rd / "run.lcmlog");
+  return out;
+}
+
+double Quantile(std::vector<double> v, double q) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const double at = q * static_cast<double>(v.size() - 1);
+  const size_t i = static_cast<size_t>(std::floor(at));
+  const size_t j = std::min(i + 1, v.size() - 1);
+  return v[i] + (v[j] - v[i]) * (at - static_cast<double>(i));
+}
+
+// A histogram panel: `values` in `bins` bins over [min, max] of the values; bars, axis, ticks, the median.
+planning::SvgCanvas HistogramPanel(const std::vector<double>& values, const std::string& title, const std::string& unit,
+                                   int bins = 20) {
+  // World frame of the panel: x in [0, 1] along the values, y in [0, 0.75] along the counts.
+  planning::SvgCanvas c({-0.08, -0.12}, {1.04, 0.85}, 380);
+  c.TextPx(10, 18, title, 13, "fill=\"black\"");
+  if (values.empty()) {
+    c.Text({0.5, 0.4}, "no values", 12, "fill=\"#666\" text-anchor=\"middle\"");
+    return c;
+  }
+  const double lo = *std::min_element(values.begin(), values.end());
+  double hi = *std::max_element(values.begin(), values.end());
+  if (hi - lo < 1e-9) hi = lo + 1;
+  std::vector<int> count(static_cast<size_t>(bins), 0);
+  for (double v : values) {
+    const int b = std::clamp(static_cast<int>((v - lo) / (hi - lo) * bins), 0, bins - 1);
+    ++count[static_cast<size_t>(b)];
+  }
+  const int top = *std::max_element(count.begin(), count.end());
+  for (int b = 0; b < bins; ++b) {
+    if (count[static_cast<size_t>(b)] == 0) continue;
+    const double x0 = static_cast<double>(b) / bins, x1 = static_cast<double>(b + 1) / bins;
+    const double h = 0.75 * count[static_cast<size_t>(b)] / top;
+    planning::Polygon bar;
+    bar.vertices = {{x0, 0}, {x1, 0}, {x1, h}, {x0, h}};
+    c.Polygon(bar, "class=\"bar\" fill=\"#4a7\" stroke=\"white\" stroke-width=\"1\"");
+  }
+  c.Line({0, 0}, {1, 0}, "stroke=\"black\" stroke-width=\"1\"");
+  c.Line({0, 0}, {0, 0.75}, "stroke=\"black\" stroke-width=\"1\"");
+  for (int k = 0; k <= 4; ++k) {
+    const double x = k / 4.0;
+    c.Line({x, 0}, {x, -0.015}, "stroke=\"black\" stroke-width=\"1\"");
+    c.Text({x, -0.015}, fmt::format("{:.3g}", lo + x * (hi - lo)), 11, "fill=\"black\" text-anchor=\"middle\"", 0, 13);
+  }
+  c.Text({1.0, -0.015}, unit, 11, "fill=\"black\" text-anchor=\"end\"", 0, 27);
+  c.Text({0, 0.75}, std::to_string(top), 11, "fill=\"black\" text-anchor=\"end\"", -4, 4);
+  const double median = Quantile(values, 0.5);
+  const double mx = (median - lo) / (hi - lo);
+  c.Line({mx, 0}, {mx, 0.78}, "class=\"median\" stroke=\"#c00\" stroke-width=\"1.5\" stroke-dasharray=\"4 3\"");
+  c.Text({mx, 0.78}, fmt::format("median {:.3g}", median), 11, "fill=\"#c00\" text-anchor=\"middle\"", 0, -4);
+  return c;
+}
+
+// The Monte Carlo figure: every run's trajectory over the plan (green: reached the goal, red: did not; dots: starts),
+// and histograms of the motion time and the commands sent.
+std::string MonteCarloSvg(const Setup& su, const std::vector<RunOutcome>& outcomes) {
+  planning::SvgCanvas plan(su.scene->bounds.min, su.scene->bounds.max, 520);
+  planning::DrawStrategy(plan, *su.scene, *su.cspace, *su.strategy);
+  std::vector<double> times, commands;
+  int ok = 0;
+  for (const auto& o : outcomes) {
+    const std::string colour = o.ok ? "#2a2" : "#d00";
+    for (size_t i = 1; i < o.trace.path.size(); ++i) {
+      plan.Line(o.trace.path[i - 1], o.trace.path[i],
+                "class=\"trajectory\" stroke=\"" + colour + "\" stroke-width=\"1\" stroke-opacity=\"0.5\"");
+    }
+    const Eigen::Vector2d s(o.item["start"][0].get<double>(), o.item["start"][1].get<double>());
+    plan.Circle(s, 2.5, "class=\"start\" fill=\"" + colour + "\" stroke=\"none\"");
+    ok += o.ok;
+    if (o.ok && o.item["motion_s"].is_number()) times.push_back(o.item["motion_s"].get<double>());
+    if (o.ok) commands.push_back(o.item["commands_sent"].get<double>());
+  }
+  plan.TextPx(10, 18,
+              fmt::format("{}: {} of {} runs reached the goal ({:.1f} %)", su.scene->name, ok, outcomes.size(),
+                          100.0 * ok / static_cast<double>(outcomes.size())),
+              13, "fill=\"black\"");
+  const planning::SvgCanvas time_panel = HistogramPanel(times, "time in motion (successful runs)", "s");
+  const planning::SvgCanvas command_panel = HistogramPanel(commands, "velocity commands sent", "commands");
+  return planning::SideBySide({{"runs", &plan}, {"motion-time", &time_panel}, {"commands", &command_panel}});
+}
+
 int Run(const Args& a) {
   if (a.runs < 1) throw InputError("command line", "--runs", "must be at least 1");
+  if (a.jobs < 1 || a.jobs > 8) throw InputError("command line", "--jobs", "must be between 1 and 8");
   if (a.can && !fs::exists("/sys/class/net/vcan0")) {
     throw InputError("command line", "--can",
                      "no vcan0 interface on this machine: create one (modprobe vcan; ip link add vcan0 type vcan; ip "
                      "link set up vcan0) or use the HIL VM (README, \"Hardware-in-the-loop on virtual CAN\")");
   }
+  if (a.can && a.jobs > 1) throw InputError("command line", "--jobs", "runs over --can share vcan0: use --jobs 1");
   const auto t0 = Clock::now();
   const fs::path dir = FreshDir(a.out);
   // The scene: the embedded default (no file needed) or the user's.
@@ -273,179 +568,91 @@ int Run(const Args& a) {
   const double plan_s = std::chrono::duration<double>(Clock::now() - t0).count();
   std::fprintf(stderr, "visco demo: %zu step(s), planned in %.1f s\n", strategy.steps.size(), plan_s);
 
+  Setup su;
+  su.args = &a;
+  su.scene = &scene;
+  su.cspace = &cspace;
+  su.strategy = &strategy;
+  su.dir = dir;
+  su.self = (ExecutableDir() / "visco").string();
   // The rendered camera for the default scene; other scenes get the synthetic camera (visual events without images).
   const fs::path data = VISCO_SOURCE_DATA_DIR;
-  const bool rendered = a.scene.empty() && fs::exists(data / "sim" / "slot_camera.xml");
-  std::vector<std::string> cam;
-  if (rendered) {
-    cam = {"--camera",     (data / "sim" / "slot_camera.xml").string(),
-           "--extrinsics", (data / "sim" / "slot_extrinsics.json").string(),
-           "--objects",    (data / "sim" / "slot_objects.json").string()};
+  su.rendered = a.scene.empty() && fs::exists(data / "sim" / "slot_camera.xml");
+  if (su.rendered) {
+    su.cam = {"--camera",     (data / "sim" / "slot_camera.xml").string(),
+              "--extrinsics", (data / "sim" / "slot_extrinsics.json").string(),
+              "--objects",    (data / "sim" / "slot_objects.json").string()};
   }
-  const std::string self = (ExecutableDir() / "visco").string();
-  const std::string url = fmt::format("udpm://239.255.76.67:{}?ttl=0", 20000 + getpid() % 20000);
   signal(SIGINT, OnSignal);
   signal(SIGTERM, OnSignal);
 
+  // Starts are drawn before any run, so the outcome of run k does not depend on --jobs.
+  const std::vector<Eigen::Vector2d> starts = SampleStarts(scene.start->polygon, a.runs, a.seed);
+  std::vector<RunOutcome> outcomes(static_cast<size_t>(a.runs));
+  std::vector<bool> finished(static_cast<size_t>(a.runs), false);
+  std::atomic<int> next{0};
+  std::mutex print;
+  int completed = 0, successes = 0;
+  auto worker = [&](int job) {
+    // Each job talks on its own multicast port, so simultaneous runs do not hear each other.
+    const std::string url = fmt::format("udpm://239.255.76.67:{}?ttl=0", 20000 + (getpid() % 5000) * 8 + job);
+    for (int r = next++; r < a.runs && g_signal == 0; r = next++) {
+      const std::uint64_t seed = a.seed + static_cast<std::uint64_t>(r);
+      const fs::path rd = a.runs == 1 ? dir : dir / fmt::format("run{:03d}", r);
+      RunOutcome o = ExecuteRun(su, r, seed, starts[static_cast<size_t>(r)], rd, url, print);
+      std::lock_guard<std::mutex> lock(print);
+      ++completed;
+      successes += o.ok;
+      if (a.runs > 1) {
+        std::fprintf(stderr, "visco demo: run %d/%d (seed %llu): %s in %.1f s; %d of %d reached the goal so far\n",
+                     completed, a.runs, static_cast<unsigned long long>(seed), o.ok ? "goal reached" : "FAILED",
+                     o.item["time_s"].get<double>(), successes, completed);
+      }
+      outcomes[static_cast<size_t>(r)] = std::move(o);
+      finished[static_cast<size_t>(r)] = true;
+    }
+  };
+  std::vector<std::thread> jobs;
+  for (int j = 0; j < std::min(a.jobs, a.runs); ++j) jobs.emplace_back(worker, j);
+  for (auto& t : jobs) t.join();
+
+  std::vector<RunOutcome> done_runs;
   nlohmann::json runs = nlohmann::json::array();
-  int successes = 0;
-  std::mt19937_64 rng(a.seed);
-  for (int r = 0; r < a.runs && g_signal == 0; ++r) {
-    const std::uint64_t seed = a.seed + static_cast<std::uint64_t>(r);
-    const fs::path rd = a.runs == 1 ? dir : dir / fmt::format("run{:03d}", r);
-    fs::create_directories(rd);
-    // The start: the start region's centroid for one run, seeded random points in it for Monte Carlo.
-    const auto& sv = scene.start->polygon.vertices;
-    Eigen::Vector2d start = Eigen::Vector2d::Zero();
-    for (const auto& v : sv) start += v / static_cast<double>(sv.size());
-    if (a.runs > 1) {
-      Eigen::Vector2d lo = sv[0], hi = sv[0];
-      for (const auto& v : sv) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
-      std::uniform_real_distribution<double> u(0, 1);
-      for (int k = 0; k < 1000; ++k) {
-        const Eigen::Vector2d q(lo.x() + u(rng) * (hi.x() - lo.x()), lo.y() + u(rng) * (hi.y() - lo.y()));
-        if (planning::InsideEvenOdd(sv, q)) {
-          start = q;
-          break;
-        }
-      }
-    }
-    std::vector<Child> children;
-    children.push_back(Spawn("lcm-logger",
-                             {"lcm-logger", "--lcm-url=" + url, "--quiet", "--force", (rd / "run.lcmlog").string()},
-                             rd / "logger.out", rd / "logger.log"));
-    std::vector<std::string> sim = {self,
-                                    "sim",
-                                    (dir / "scene.json").string(),
-                                    "--rays",
-                                    (dir / "rays.json").string(),
-                                    "--start",
-                                    fmt::format("{}", start.x()),
-                                    fmt::format("{}", start.y()),
-                                    "--seed",
-                                    std::to_string(seed),
-                                    "--lcm-url",
-                                    url,
-                                    "--duration",
-                                    fmt::format("{}", a.timeout_s + 30),
-                                    "--watchdog-ms",
-                                    "500"};
-    if (rendered) {
-      sim.insert(sim.end(), cam.begin(), cam.end());
-      for (const char* o :
-           {"--camera-hz", "15", "--latency-ms", "5", "--supersample", "2", "--image-noise", "2", "--blur-px", "0.5"}) {
-        sim.push_back(o);
-      }
-    }
-    if (a.can) {
-      sim.push_back("--can");
-      sim.push_back("vcan0");
-    }
-    children.push_back(Spawn("sim", sim, rd / "sim.json", rd / "sim.log"));
-    if (rendered) {
-      std::vector<std::string> track = {self, "track", "--lcm", "--lcm-url", url + "&recv_buf_size=4194304"};
-      track.insert(track.end(), cam.begin(), cam.end());
-      children.push_back(Spawn("track", track, rd / "track.jsonl", rd / "track.log"));
-    }
-    std::vector<std::string> run = {self,
-                                    "run",
-                                    (dir / "plan.json").string(),
-                                    "--scene",
-                                    (dir / "scene.json").string(),
-                                    "--rays",
-                                    (dir / "rays.json").string(),
-                                    "--lcm-url",
-                                    url,
-                                    "--max-speed",
-                                    "1.0",
-                                    "--max-accel",
-                                    "4",
-                                    "--max-vision-age-ms",
-                                    "400",
-                                    "--max-hold",
-                                    "4",
-                                    "--startup-timeout",
-                                    "30",
-                                    "--status-timeout-ms",
-                                    "500",
-                                    "--heartbeat-timeout-ms",
-                                    "1000",
-                                    "--no-realtime",
-                                    "--log",
-                                    (rd / "controller.lcmlog").string()};
-    if (rendered) {
-      run.push_back("--focal-px");
-      run.push_back("560");
-    }
-    if (a.can) {
-      run.push_back("--can");
-      run.push_back("vcan0");
-    }
-    Child controller = Spawn("run", run, rd / "run.json", rd / "run.log");
-    const auto started = Clock::now();
-    int last_report = -1;
-    bool failed_early = false;
-    while (!Poll(controller) && g_signal == 0) {
-      const double elapsed = std::chrono::duration<double>(Clock::now() - started).count();
-      if (elapsed > a.timeout_s) break;
-      for (auto& c : children) {
-        if (Poll(c) && c.name != "lcm-logger") failed_early = true;
-      }
-      if (failed_early) break;
-      if (static_cast<int>(elapsed) / 5 != last_report) {
-        last_report = static_cast<int>(elapsed) / 5;
-        std::fprintf(stderr, "visco demo: run %d/%d: executing, %.0f s\n", r + 1, a.runs, elapsed);
-      }
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    std::vector<Child> all = children;
-    all.push_back(controller);
-    Stop(all);
-    const double run_s = std::chrono::duration<double>(Clock::now() - started).count();
-    const nlohmann::json run_json = ReadJson(rd / "run.json");
-    const nlohmann::json sim_json = ReadJson(rd / "sim.json");
-    const Trace trace = ReadTrace(rd / "run.lcmlog");
-    if (a.runs == 1) WriteTextOutput(RunSvg(scene, cspace, strategy, trace), (rd / "run.svg").string());
-    Eigen::Vector2d final_pos(NAN, NAN);
-    if (sim_json.contains("position")) {
-      final_pos = Eigen::Vector2d(sim_json["position"][0].get<double>(), sim_json["position"][1].get<double>());
-    }
-    const double error = std::isfinite(final_pos.x()) ? DistanceToPolygon(scene.goal.polygon, final_pos) : INFINITY;
-    const bool done = run_json.value("result", "") == "done";
-    const bool in_goal = error == 0.0;
-    const bool ok = done && in_goal;
-    successes += ok;
-    nlohmann::json item = {
-        {"seed", seed},
-        {"start", {start.x(), start.y()}},
-        {"result", run_json.value("result", "no result")},
-        {"reason", run_json.value("reason", "")},
-        {"steps_completed", run_json.value("steps_completed", 0)},
-        {"commands_sent", run_json.value("commands_sent", 0)},
-        {"faults_published", run_json.value("faults_published", 0)},
-        {"visual_events", trace.events},
-        {"contacts", trace.contacts.size()},
-        {"logged_messages", trace.messages},
-        {"time_s", run_s},
-        {"final_position",
-         std::isfinite(final_pos.x()) ? nlohmann::json({final_pos.x(), final_pos.y()}) : nlohmann::json()},
-        {"goal_error_m", std::isfinite(error) ? nlohmann::json(error) : nlohmann::json()},
-        {"success", ok}};
-    if (failed_early) item["reason"] = "a process ended early (see its log in " + rd.string() + ")";
-    runs.push_back(item);
+  for (int r = 0; r < a.runs; ++r) {
+    if (!finished[static_cast<size_t>(r)]) continue;
+    runs.push_back(outcomes[static_cast<size_t>(r)].item);
+    done_runs.push_back(outcomes[static_cast<size_t>(r)]);
   }
   const double total_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  std::vector<double> motion, commands, events;
+  for (const auto& o : done_runs) {
+    if (!o.ok) continue;
+    if (o.item["motion_s"].is_number()) motion.push_back(o.item["motion_s"].get<double>());
+    commands.push_back(o.item["commands_sent"].get<double>());
+    events.push_back(o.item["visual_events"].get<double>());
+  }
+  auto quantiles = [](const std::vector<double>& v) {
+    auto q = [&](double p) { return v.empty() ? nlohmann::json() : nlohmann::json(Quantile(v, p)); };
+    return nlohmann::json{{"min", q(0)}, {"p05", q(0.05)}, {"median", q(0.5)}, {"p95", q(0.95)}, {"max", q(1)}};
+  };
   nlohmann::json summary = {{"scene", scene.name},
                             {"steps", strategy.steps.size()},
                             {"plan_s", plan_s},
                             {"total_s", total_s},
                             {"runs", runs},
                             {"successes", successes},
-                            {"camera", rendered ? "rendered" : "events"},
+                            {"success_rate", runs.empty() ? 0.0 : successes / static_cast<double>(runs.size())},
+                            {"motion_s", quantiles(motion)},
+                            {"commands_sent", quantiles(commands)},
+                            {"visual_events", quantiles(events)},
+                            {"jobs", a.jobs},
+                            {"camera", su.rendered ? "rendered" : "events"},
                             {"transport", a.can ? "can" : "lcm"},
                             {"interrupted", g_signal != 0}};
   WriteTextOutput(summary.dump(2) + "\n", (dir / "summary.json").string());
+  if (a.runs > 1) WriteTextOutput(MonteCarloSvg(su, done_runs), (dir / "montecarlo.svg").string());
   for (const auto& item : runs) {
+    if (a.runs > 1 && item["success"].get<bool>()) continue;  // Monte Carlo: the failures one by one, then the figures
     std::printf(
         "run seed %llu: %s (%s), %d/%zu steps, %d visual events, %d commands, %d faults, %.1f s, final error "
         "%s m\n",
@@ -455,10 +662,17 @@ int Run(const Args& a) {
         item["commands_sent"].get<int>(), item["faults_published"].get<int>(), item["time_s"].get<double>(),
         item["goal_error_m"].is_null() ? "?" : fmt::format("{:.3f}", item["goal_error_m"].get<double>()).c_str());
   }
+  if (a.runs > 1 && !motion.empty()) {
+    std::printf(
+        "visco demo: time in motion median %.2f s (5-95 %%: %.2f-%.2f s), commands median %.0f, visual events "
+        "median %.0f; figure: %s\n",
+        Quantile(motion, 0.5), Quantile(motion, 0.05), Quantile(motion, 0.95), Quantile(commands, 0.5),
+        Quantile(events, 0.5), (dir / "montecarlo.svg").c_str());
+  }
   std::printf("visco demo: %d of %zu run(s) reached the goal recognisably; %.1f s in all; outputs in %s\n", successes,
               runs.size(), total_s, dir.c_str());
   if (g_signal != 0) return 130;
-  return successes == static_cast<int>(runs.size()) ? 0 : 1;
+  return successes == static_cast<int>(runs.size()) && static_cast<int>(runs.size()) == a.runs ? 0 : 1;
 }
 
 }  // namespace
@@ -478,6 +692,10 @@ void RegisterDemoCommand(CLI::App& app) {
   cmd->add_flag("--can", args->can, "the controller talks to the driver over SocketCAN vcan0 instead of LCM");
   cmd->add_option("--runs", args->runs, "Monte Carlo: runs from seeded random starts in the start region")
       ->capture_default_str();
+  cmd->add_option("--jobs", args->jobs, "Monte Carlo: runs at the same time (each on its own LCM port), 1-8")
+      ->capture_default_str();
+  cmd->add_flag("--keep-logs", args->keep_logs,
+                "Monte Carlo: keep every run's LCM logs (default: only the failed runs' logs)");
   cmd->add_option("--timeout", args->timeout_s, "give up a run after this many seconds")->capture_default_str();
   cmd->callback([args] {
     const int status = Run(*args);
