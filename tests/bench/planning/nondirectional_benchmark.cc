@@ -1,0 +1,81 @@
+// Cost of the nondirectional backprojection (planning/nondirectional.h) and of the planner built on it.
+//
+// BM_Candidates/n: the candidate critical orientations of the pentagon grid with n obstacle vertices (closed forms
+//   over the static arrangement: the number grows with the pairs of visible features). Scaling exponent: compare two
+//   sizes, log(t2 / t1) / log(n2 / n1); the counter `candidates` gives the count next to the time.
+// BM_Nondirectional/method/n: the whole nondirectional backprojection, kinetic (method 0, the default: a sweep only
+//   where an event involves the regions' free edges) against the critical-slice baseline (method 1: a sweep in every
+//   interval between candidates), same problem, same run: the ratio of the two is the kinetic method's gain; the
+//   counters give the sweeps (backprojections) and the orientations found (equal for both).
+// BM_Plan/scene: `visco plan` on the example scenes (one thread), with the nondirectional backprojections it needed.
+
+#include <benchmark/benchmark.h>
+
+#include <string>
+#include <vector>
+
+#include "planning/critical.h"
+#include "planning/nondirectional.h"
+#include "planning/scene.h"
+#include "planning/strategy.h"
+#include "tests/bench/planning/pentagon_grid.h"
+
+#ifndef VISCO_SOURCE_DIR
+#define VISCO_SOURCE_DIR "."
+#endif
+
+namespace visco::planning {
+namespace {
+
+void BM_Candidates(benchmark::State& state) {
+  const BackprojectionProblem pr = bench::PentagonGrid(static_cast<int>(state.range(0)) / 5);
+  size_t n = 0;
+  for (auto _ : state) {
+    const auto c = CriticalCandidates(pr, nullptr);
+    n = c.size();
+    benchmark::DoNotOptimize(c.data());
+  }
+  state.counters["vertices"] = bench::Vertices(pr);
+  state.counters["candidates"] = static_cast<double>(n);
+}
+BENCHMARK(BM_Candidates)->Arg(20)->Arg(40)->Arg(80)->Arg(160)->Arg(320)->Unit(benchmark::kMillisecond);
+
+void BM_Nondirectional(benchmark::State& state) {
+  const BackprojectionProblem pr = bench::PentagonGrid(static_cast<int>(state.range(1)) / 5);
+  NondirectionalOptions o;
+  o.method = state.range(0) == 0 ? SliceMethod::kKinetic : SliceMethod::kBaseline;
+  NondirectionalStats stats;
+  size_t orientations = 0;
+  for (auto _ : state) {
+    const auto nd = ComputeNondirectional(pr, nullptr, o);
+    stats = nd.stats;
+    orientations = nd.orientations.size();
+    benchmark::DoNotOptimize(nd.slices.data());
+  }
+  state.SetLabel(state.range(0) == 0 ? "kinetic" : "baseline");
+  state.counters["vertices"] = bench::Vertices(pr);
+  state.counters["candidates"] = static_cast<double>(stats.candidates);
+  state.counters["backprojections"] = static_cast<double>(stats.backprojections);
+  state.counters["orientations"] = static_cast<double>(orientations);
+}
+BENCHMARK(BM_Nondirectional)->ArgsProduct({{0, 1}, {10, 20, 40}})->Unit(benchmark::kMillisecond)->Iterations(1);
+
+void BM_Plan(benchmark::State& state) {
+  static const char* const kScenes[] = {"slot", "fig13", "corner"};
+  const char* name = kScenes[state.range(0)];
+  const Scene scene = LoadScene(std::string(VISCO_SOURCE_DIR) + "/data/scenes/" + name + ".json");
+  Strategy st;
+  for (auto _ : state) {
+    st = PlanStrategy(scene, {});
+    benchmark::DoNotOptimize(st.steps.data());
+  }
+  state.SetLabel(name);
+  state.counters["steps"] = static_cast<double>(st.steps.size());
+  state.counters["nondirectional"] = static_cast<double>(st.nondirectional);
+}
+BENCHMARK(BM_Plan)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+}  // namespace
+}  // namespace visco::planning
+
+BENCHMARK_MAIN();
