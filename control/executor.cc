@@ -132,6 +132,26 @@ const VisualObservation* Executor::Find(const VisualFrame& frame, int ray) const
   return nullptr;
 }
 
+double Executor::ApproachSpeed(const ExecutorInput& in, const Step& step, Vec2 estimate) const {
+  if (!(config_.approach_tolerance_m > 0) || !in.have_frame) return speed_;
+  // The event of a crossing is seen up to one frame interval plus the frame's age after it happens.
+  const double late = std::max(1e-3, Seconds(in.now_ns - in.frame.capture_ns) + frame_interval_s_);
+  double speed = speed_;
+  auto consider = [&](int ray) {
+    if (ray < 0 || ray == engaged_ray_ || rays_[static_cast<std::size_t>(ray)].reached) return;
+    const VisualObservation* obs = Find(in.frame, ray);
+    if (!obs || static_cast<Side>(obs->state) == Side::kUnknown) return;
+    const CvcRay& r = task_.rays[static_cast<std::size_t>(ray)];
+    const double range = std::max(r.has_cm_offset ? Norm(estimate + r.cm_offset - r.to) : config_.servo.nominal_range_m,
+                                  config_.servo.min_range_m);
+    const double distance = std::abs(obs->signed_distance_px) * range / config_.servo.focal_px;
+    speed = std::min(speed, std::max(config_.approach_tolerance_m, distance) / late);
+  };
+  for (int ray : step.active_rays) consider(ray);
+  consider(step.terminate_ray);
+  return speed;
+}
+
 bool Executor::TrackRay(int ray, const VisualObservation& obs) {
   RayState& state = rays_[static_cast<std::size_t>(ray)];
   const Side side = static_cast<Side>(obs.state);
@@ -349,6 +369,9 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
   int reached_ray = -1;
   if (need_events && in.frame.frame_seq != last_frame_seq_ && in.frame.capture_ns >= step_start_ns_) {
     last_frame_seq_ = in.frame.frame_seq;
+    if (last_capture_ns_ >= 0 && in.frame.capture_ns > last_capture_ns_)
+      frame_interval_s_ = Seconds(in.frame.capture_ns - last_capture_ns_);
+    last_capture_ns_ = in.frame.capture_ns;
     for (int ray : step.active_rays) {
       const VisualObservation* obs = Find(in.frame, ray);
       if (TrackRay(ray, *obs) && ray != engaged_ray_ && !contact_latched_) engaged_ray_ = ray;
@@ -405,7 +428,7 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
     contact_latched_ = false;
   }
   const Vec2 direction = FromAngle(step.theta);
-  Vec2 nominal = speed_ * direction;
+  Vec2 nominal = (engaged_ray_ >= 0 ? speed_ : ApproachSpeed(in, step, out.estimate)) * direction;
   if (engaged_ray_ >= 0) {
     const CvcRay& ray = task_.rays[static_cast<std::size_t>(engaged_ray_)];
     const VisualObservation* obs = Find(in.frame, engaged_ray_);

@@ -70,6 +70,10 @@ struct ExecutorConfig {
   double contact_dwell_s = 0.02;       // s, ... for at least this long (contact termination)
   double contact_min_step_s = 0.1;     // s, a contact step cannot end before it had time to start moving
   bool goal_from_odometry = false;     // recognise the goal from the driver's odometry instead of vision
+  /// m, > 0: near a VC line not yet reached, the speed is cut so that the motion goes past the line by at most this
+  /// before the event is seen (one frame interval plus the frame's age late): the planner's strip half-width
+  /// (planning::kVcStripHalfWidth). 0: full speed up to the line.
+  double approach_tolerance_m = 0.01;
   ServoConfig servo;
   SafetyLimits limits;
 };
@@ -140,6 +144,8 @@ class Executor {
   const VisualObservation* Find(const VisualFrame& frame, int ray) const;
   // Updates the per-ray side tracking with `obs`; returns true if the ray has just been reached.
   bool TrackRay(int ray, const VisualObservation& obs);
+  // The speed that keeps the overshoot past the step's VC lines not yet reached within approach_tolerance_m.
+  double ApproachSpeed(const ExecutorInput& in, const Step& step, Vec2 estimate) const;
   void Finish(ExecutorOutput& out, const ExecutorInput& in, Vec2 nominal, bool zero);
 
   Task task_;
@@ -151,8 +157,10 @@ class Executor {
   std::int64_t start_ns_ = 0;
   int step_ = -1;
   std::int64_t step_start_ns_ = 0;
-  std::int64_t last_frame_seq_ = -1;  // newest frame already processed
-  std::vector<RayState> rays_;        // per ray, for the current step (sized at construction)
+  std::int64_t last_frame_seq_ = -1;   // newest frame already processed
+  std::int64_t last_capture_ns_ = -1;  // its capture time
+  double frame_interval_s_ = 0.0;      // between the last two frames' captures
+  std::vector<RayState> rays_;         // per ray, for the current step (sized at construction)
   int engaged_ray_ = -1;
   bool contact_latched_ = false;  // contact ended the compliant motion; re-engage only after it clears
   std::int64_t contact_since_ns_ = -1;

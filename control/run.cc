@@ -127,6 +127,7 @@ std::string ExecutorConfigToJson(const ExecutorConfig& c) {
   j["contact_dwell_s"] = c.contact_dwell_s;
   j["contact_min_step_s"] = c.contact_min_step_s;
   j["goal_from_odometry"] = c.goal_from_odometry;
+  j["approach_tolerance_m"] = c.approach_tolerance_m;
   j["servo"] = {{"gain", c.servo.gain},
                 {"focal_px", c.servo.focal_px},
                 {"nominal_range_m", c.servo.nominal_range_m},
@@ -153,6 +154,7 @@ ExecutorConfig ExecutorConfigFromJson(const std::string& text, const std::string
     c.contact_dwell_s = j.at("contact_dwell_s").get<double>();
     c.contact_min_step_s = j.at("contact_min_step_s").get<double>();
     c.goal_from_odometry = j.at("goal_from_odometry").get<bool>();
+    c.approach_tolerance_m = j.value("approach_tolerance_m", 0.0);  // logs from before it existed: full speed
     const auto& s = j.at("servo");
     c.servo.gain = s.at("gain").get<double>();
     c.servo.focal_px = s.at("focal_px").get<double>();

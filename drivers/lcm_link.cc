@@ -82,12 +82,18 @@ class LcmIo {
   std::function<void()> on_wake_;
 };
 
+// Undelivered messages LCM keeps per subscription of the 500 Hz channels (its default is 30).
+constexpr int kLcmQueueCapacity = 512;
+
 // ---------------------------------------------------------------------------------------------------------------
 class LcmRobotLink final : public RobotLink {
  public:
   explicit LcmRobotLink(const RobotLinkConfig& config)
       : node_(config.node_id), heartbeat_timeout_us_(config.heartbeat_timeout_us), io_(config.lcm_url) {
-    io_.lcm().subscribe(channels::kStatus, &LcmRobotLink::OnStatus, this);
+    // LCM keeps 30 undelivered messages per subscription and drops the rest: at 500 Hz a thread held off for 60 ms
+    // (a loaded machine, an image-rendering neighbour) lost a run of statuses or commands, which the session rules
+    // then treat as a fault. Room for one watchdog period of them.
+    io_.lcm().subscribe(channels::kStatus, &LcmRobotLink::OnStatus, this)->setQueueCapacity(kLcmQueueCapacity);
     io_.lcm().subscribe(channels::kHeartbeatDriver, &LcmRobotLink::OnHeartbeat, this);
     io_.lcm().subscribe(channels::kFault, &LcmRobotLink::OnFault, this);
     io_.Start([this] { Flush(); });
@@ -319,7 +325,7 @@ class LcmDriverTransport final : public DriverTransport {
   explicit LcmDriverTransport(const DriverTransportConfig& config) : node_(config.node_id), io_(config.lcm_url) {
     rx_ready_ = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
     if (rx_ready_ < 0) throw JobFailed("LCM: eventfd failed");
-    io_.lcm().subscribe(channels::kCommand, &LcmDriverTransport::OnCommand, this);
+    io_.lcm().subscribe(channels::kCommand, &LcmDriverTransport::OnCommand, this)->setQueueCapacity(kLcmQueueCapacity);
     io_.Start([this] { Flush(); });
   }
   ~LcmDriverTransport() override {
