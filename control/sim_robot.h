@@ -43,6 +43,8 @@ struct SimTruth {
 /// compliance is the controller's job, not physics). Not real-time safe.
 planning::MotionWorld MakeMotionWorld(const planning::Scene& scene);
 
+/// Threads: the driver's thread owns it (SetVelocity, QuickStop, Step, Read through drivers::Driver). Other threads
+/// see the robot through truth() (one consumer: the simulated camera) or the driver's Snapshot(), never Read().
 class SimRobot final : public drivers::RobotInterface {
  public:
   /// @throws InputError if the start is outside the bounds or inside a C-obstacle.

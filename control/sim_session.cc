@@ -146,16 +146,18 @@ void SimSession::Stop() {
 
 SimSummary SimSession::Summary() const {
   SimSummary s;
-  const drivers::RobotFeedback f = impl_->robot->Read();
-  s.position = {f.position[0], f.position[1]};
-  s.contact = f.contact;
+  // The driver's thread steps the robot and updates the driver while the session runs: read both through the
+  // driver's snapshot (lock-free), never the robot or the driver's own variables.
+  const drivers::DriverSnapshot d = impl_->driver->Snapshot();
+  s.position = {d.robot.position[0], d.robot.position[1]};
+  s.contact = d.robot.contact;
   s.frames = frames_.load();
   s.dropped_frames = dropped_.load();
   s.rendered = impl_->rendered != nullptr;
   const std::uint64_t rendered_frames = s.frames;
   s.mean_render_ms = rendered_frames > 0 ? static_cast<double>(render_us_.load()) / 1e3 / rendered_frames : 0.0;
-  s.driver = impl_->driver->stats();
-  s.driver_state = drivers::ToString(impl_->driver->state());
+  s.driver = d.stats;
+  s.driver_state = drivers::ToString(d.state);
   return s;
 }
 

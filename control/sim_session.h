@@ -87,6 +87,8 @@ class SimSession {
   /// Turns the camera off (no frames at all) or on.
   void SetCameraOn(bool on) { camera_on_.store(on); }
 
+  /// Where the robot is and what the driver did, as of the driver's last update. Any thread, also while the session
+  /// runs (through drivers::Driver::Snapshot; the driver's thread is never blocked).
   SimSummary Summary() const;
   const Task& rays() const { return rays_; }
 

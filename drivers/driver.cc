@@ -27,6 +27,7 @@ Driver::Driver(const DriverConfig& config, DriverTransport& transport, RobotInte
     clock_gettime(CLOCK_REALTIME, &ts);  // no entropy yet (early boot): the clock still differs per start
     rng_ = static_cast<std::uint64_t>(ts.tv_sec) * 1'000'000'000ULL + static_cast<std::uint64_t>(ts.tv_nsec);
   }
+  PublishSnapshot(robot_.Read());
 }
 
 std::uint32_t Driver::NextNonce() {
@@ -58,6 +59,7 @@ void Driver::Start(std::int64_t now_us) {
   next_heartbeat_us_ = now_us + config_.heartbeat_period_us;
   state_ = RobotState::kDisabled;
   NewSession(now_us);
+  PublishSnapshot(robot_.Read());
 }
 
 void Driver::Update(std::int64_t now_us) {
@@ -169,6 +171,7 @@ void Driver::Update(std::int64_t now_us) {
     session_announced_ = transport_.SendSession(session_, status_seq_) == LinkResult::kOk || session_announced_;
     next_heartbeat_us_ = now_us + config_.heartbeat_period_us;
   }
+  PublishSnapshot(feedback);
 }
 
 void Driver::OnCommand(const DriverEvent& event, std::int64_t now_us) {
@@ -391,6 +394,16 @@ void Driver::SendStatus(std::int64_t now_us) {
     ++stats_.send_failures;
   }
   next_status_us_ = now_us + config_.status_period_us;
+}
+
+void Driver::PublishSnapshot(const RobotFeedback& robot) {
+  DriverSnapshot s;
+  s.state = state_;
+  s.fault_bits = fault_bits_;
+  s.session = session_;
+  s.stats = stats_;
+  s.robot = robot;
+  snapshot_.Publish(s);
 }
 
 void Driver::Run(const std::atomic<bool>& stop) {

@@ -24,6 +24,7 @@
 #include <atomic>
 #include <cstdint>
 
+#include "common/shared_snapshot.h"
 #include "drivers/driver_transport.h"
 #include "drivers/robot_interface.h"
 #include "drivers/robot_link.h"
@@ -62,6 +63,20 @@ struct DriverStats {
   std::uint64_t faults_sent = 0;
 };
 
+/// The driver as other threads may see it: a whole copy of its state, published by the driver's thread at the end of
+/// every Start() and Update() (and by the constructor).
+struct DriverSnapshot {
+  RobotState state = RobotState::kDisabled;
+  std::uint16_t fault_bits = 0;
+  std::uint32_t session = 0;
+  DriverStats stats;
+  RobotFeedback robot;  // the robot's feedback as the driver last read it (after its last Step)
+};
+
+/// Threads: Start(), Update() and Run() belong to one thread, the driver's (Run() is that thread's loop); state(),
+/// fault_bits(), session() and stats() read the driver's own variables and are for that thread, or for any thread
+/// once it has been joined. Other threads (a summary, a test, a monitor) read Snapshot(), and may call
+/// RequestOperatorRelease() (an atomic flag); nothing else. The driver's thread never takes a lock for them.
 class Driver {
  public:
   /// Not real-time safe. @throws visco::InputError for a non-positive period, watchdog or speed limit.
@@ -80,10 +95,15 @@ class Driver {
   /// a latched e-stop and leaves the driver DISABLED in a new session. Async-signal-safe (one atomic store).
   void RequestOperatorRelease() { operator_release_.store(true, std::memory_order_relaxed); }
 
+  /// The driver's thread only (or after it was joined); other threads: Snapshot().
   RobotState state() const { return state_; }
   std::uint16_t fault_bits() const { return fault_bits_; }
   std::uint32_t session() const { return session_; }
   const DriverStats& stats() const { return stats_; }
+
+  /// State, fault bits, session, counts and robot feedback as of the end of the last Start() or Update(). Any
+  /// thread; lock-free (a sequence lock: the driver's thread publishes wait-free and is never blocked by readers).
+  DriverSnapshot Snapshot() const { return snapshot_.Read(); }
 
  private:
   void OnCommand(const DriverEvent& event, std::int64_t now_us);
@@ -102,6 +122,7 @@ class Driver {
   void ClearFault(std::uint16_t bit);
   void Announce(std::uint16_t emcy, std::int32_t code, bool stopped, bool cleared, const char* message);
   void SendStatus(std::int64_t now_us);
+  void PublishSnapshot(const RobotFeedback& robot);
 
   const DriverConfig config_;
   DriverTransport& transport_;
@@ -125,6 +146,7 @@ class Driver {
   std::int64_t next_heartbeat_us_ = 0;
   std::uint32_t status_seq_ = 0;
   DriverStats stats_;
+  SharedSnapshot<DriverSnapshot> snapshot_;  // written by the driver's thread, read by any
 };
 
 }  // namespace visco::drivers

@@ -7,10 +7,12 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cmath>
 #include <deque>
 #include <set>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "common/error.h"
@@ -717,6 +719,82 @@ TEST(Driver, LeavingTheWorkspaceStopsAndReportsOncePerEpisode) {
   run(0.4, 600);
   EXPECT_EQ(driver.state(), RobotState::kStopped);
   EXPECT_EQ(driver.stats().bounds_stops, 2U);
+}
+
+// Other threads see the driver through its snapshot: the state at the end of the last Start() or Update().
+TEST(Driver, SnapshotIsTheStateAtTheEndOfTheLastUpdate) {
+  Rig rig;
+  DriverSnapshot s = rig.driver.Snapshot();
+  EXPECT_EQ(s.state, RobotState::kDisabled);
+  EXPECT_EQ(s.session, rig.driver.session());
+  EXPECT_EQ(s.stats.sessions, 1U);
+  EXPECT_EQ(s.stats.statuses_sent, rig.driver.stats().statuses_sent);
+  rig.Enable();
+  for (int i = 0; i < 50; ++i) {
+    rig.transport.Command(0.2, 0.1);
+    rig.Run(2);
+  }
+  s = rig.driver.Snapshot();
+  EXPECT_EQ(s.state, RobotState::kMoving);
+  EXPECT_EQ(s.state, rig.driver.state());
+  EXPECT_EQ(s.fault_bits, rig.driver.fault_bits());
+  EXPECT_EQ(s.session, rig.driver.session());
+  EXPECT_EQ(s.stats.commands_applied, 50U);
+  EXPECT_EQ(s.stats.resets, rig.driver.stats().resets);
+  const RobotFeedback f = rig.robot.Read();
+  EXPECT_GT(f.position[0], 0.0);
+  EXPECT_EQ(s.robot.position[0], f.position[0]);
+  EXPECT_EQ(s.robot.position[1], f.position[1]);
+  EXPECT_EQ(s.robot.velocity[0], f.velocity[0]);
+  // A stop shows in the next snapshot.
+  rig.transport.Command(0.0, 0.0, true);
+  rig.Run(1);
+  EXPECT_EQ(rig.driver.Snapshot().state, RobotState::kEStop);
+  EXPECT_EQ(rig.driver.Snapshot().stats.estops, 1U);
+}
+
+// The driver's thread updates while another thread reads snapshots (a summary, a monitor): every snapshot is whole
+// and its counts never go back. Under ThreadSanitizer (`scripts/test-tsan`) this is also the proof that the two
+// threads share nothing else.
+TEST(Driver, SnapshotsReadWhileTheDriverThreadRunsAreWholeAndMonotonic) {
+  FakeTransport transport;
+  SimulatedRobot robot(SimulatedRobotConfig{});
+  Driver driver(Config(5), transport, robot);
+  std::int64_t now = 1'000'000;
+  driver.Start(now);
+  // Every event is queued before the driver's thread starts: only that thread touches the transport afterwards.
+  transport.Command(0.0, 0.0, false, true);
+  constexpr int kCommands = 3000;
+  for (int i = 0; i < kCommands; ++i) transport.Command(0.1, 0.0);
+  std::atomic<bool> done{false};
+  std::thread driver_thread([&] {
+    for (int i = 0; i < 2 * kCommands; ++i) {
+      now += 1000;
+      driver.Update(now);
+    }
+    done = true;
+  });
+  std::uint64_t last_applied = 0, last_statuses = 0, reads = 0;
+  bool whole = true, monotonic = true;
+  for (;;) {
+    const bool finished = done.load();
+    const DriverSnapshot s = driver.Snapshot();
+    whole &= s.session != 0 && s.stats.sessions >= 1 && s.stats.commands_applied <= s.stats.statuses_sent;
+    monotonic &= s.stats.commands_applied >= last_applied && s.stats.statuses_sent >= last_statuses;
+    last_applied = s.stats.commands_applied;
+    last_statuses = s.stats.statuses_sent;
+    ++reads;
+    if (finished) break;
+  }
+  driver_thread.join();
+  EXPECT_TRUE(whole);
+  EXPECT_TRUE(monotonic);
+  EXPECT_GT(reads, 0U);
+  const DriverSnapshot s = driver.Snapshot();
+  EXPECT_EQ(s.stats.commands_applied, static_cast<std::uint64_t>(kCommands));
+  EXPECT_EQ(s.stats.commands_applied, driver.stats().commands_applied);
+  EXPECT_EQ(s.state, driver.state());
+  EXPECT_EQ(s.robot.position[0], robot.Read().position[0]);
 }
 
 TEST(SimulatedRobot, WallsGiveContactAndForce) {

@@ -6,8 +6,17 @@
 #   2. a run interrupted with SIGINT: e-stop (exit 1, "e-stop requested");
 #   3. the next run is refused (exit 1) and says the operator must release the e-stop; the robot does not move;
 #   4. after SIGUSR1 to the driver, the next run reaches its goal (exit 0).
+# usage: estop_release_cli_test.sh VISCO_RT [--sanitized]   (--sanitized: the HIL test's longer driver watchdog and
+# controller time-outs, 300 ms / 300 ms / 500 ms: under ThreadSanitizer a loaded machine delays the controller's
+# commands by more than the default 100 ms watchdog, which then rightly stops the robot in the middle of a run)
 set -uo pipefail
 rt="$1"
+driver_timing=()
+run_timing=()
+if [[ "${2:-}" == "--sanitized" ]]; then
+  driver_timing=(--watchdog-ms 300)
+  run_timing=(--status-timeout-ms 300 --heartbeat-timeout-ms 500)
+fi
 url="udpm://239.255.76.67:$((44000 + $$ % 20000))?ttl=0"
 tmp=$(mktemp -d)
 trap 'kill $driver 2>/dev/null; rm -rf "$tmp"' EXIT
@@ -24,19 +33,19 @@ cat >"$tmp/plan.json" <<'JSON'
 {"feasible": true, "speed": 0.3, "steps": [{"theta_deg": 0, "active_rays": [], "terminate": {"kind": "goal", "ref": null},
  "timeout_s": 30}]}
 JSON
-"$rt" driver --lcm-url "$url" --start 1 1 >"$tmp/driver.out" 2>&1 &
+"$rt" driver --lcm-url "$url" --start 1 1 "${driver_timing[@]}" >"$tmp/driver.out" 2>&1 &
 driver=$!
 run() {  # run NAME SCENE [extra]: visco run against the driver; its JSON summary in $tmp/NAME.json
   local name="$1" scene="$2"
   shift 2
   timeout 40 "$rt" run "$tmp/plan.json" --scene "$tmp/$scene.json" --lcm-url "$url" --goal-from-odometry \
-    --no-realtime "$@" >"$tmp/$name.json" 2>"$tmp/$name.log"
+    --no-realtime "${run_timing[@]}" "$@" >"$tmp/$name.json" 2>"$tmp/$name.log"
 }
 run first near
 status=$?
 [[ $status -eq 0 ]] || { fail "first run exited $status"; cat "$tmp/first.json" "$tmp/first.log"; }
 "$rt" run "$tmp/plan.json" --scene "$tmp/far.json" --lcm-url "$url" --goal-from-odometry --no-realtime \
-  >"$tmp/second.json" 2>"$tmp/second.log" &
+  "${run_timing[@]}" >"$tmp/second.json" 2>"$tmp/second.log" &
 second=$!
 sleep 2
 kill -INT $second

@@ -181,7 +181,7 @@ TEST_F(LcmLink, ANewControllerWaitsForAFreshSession) {
         return last_.state == RobotState::kReady && last_.session != old_session && last_.command_seq >= 1;
       },
       true));
-  EXPECT_TRUE(stopped_between || driver_->stats().watchdog_stops > 0);
+  EXPECT_TRUE(stopped_between || driver_->Snapshot().stats.watchdog_stops > 0);  // (the driver thread runs)
   EXPECT_NE(link_->session(), old_session);
   EXPECT_LT(link_->last_command_seq(), 1000U);  // numbered from 1 in the new session
   command_ = VelocityCommand{};
@@ -224,7 +224,7 @@ TEST_F(LcmLink, ADriverRestartDuringARunIsAFaultThatSaysWhy) {
       2'000'000,
       [&] { return link_->session() != 0 && link_->session() != before && last_.session == link_->session(); }, true));
   EXPECT_EQ(last_.state, RobotState::kDisabled);
-  EXPECT_EQ(driver_->stats().commands_applied, 0U);
+  EXPECT_EQ(driver_->Snapshot().stats.commands_applied, 0U);  // the driver thread runs: its snapshot
 }
 
 // Replayed statuses (an lcm-logplayer of an earlier run, or a duplicate) do not refresh the view of the driver: an

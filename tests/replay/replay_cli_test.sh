@@ -102,7 +102,13 @@ status=$(replay /nonexistent.lcmlog)
 url="udpm://239.255.76.67:$((23000 + $$ % 20000))?ttl=0"
 "$visco" driver --lcm-url "$url" --log "$tmp/driver.lcmlog" >/dev/null 2>&1 &
 driver=$!
+# Killed once its log holds about 100 events (statuses every 10 ms; 12 kB), or after 20 s: a fixed 1.5 s was too
+# short under ThreadSanitizer, where the whole `visco` takes seconds to start.
 sleep 1.5
+for _ in $(seq 1 185); do
+  (( $(stat -c %s "$tmp/driver.lcmlog" 2>/dev/null || echo 0) >= 12000 )) && break
+  sleep 0.1
+done
 kill -9 $driver
 wait $driver 2>/dev/null
 status=$(replay "$tmp/driver.lcmlog" --channels 'VISCO_(STATUS|HEARTBEAT_DRIVER)')
