@@ -364,24 +364,35 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
     double margin;
   };
   const double size = (base.bounds_max - base.bounds_min).norm();
-  // The longest piece of segment [a, b] inside one of the node's slices (in its θ-range).
-  auto longest_piece = [&](const Node& node, const Vector2d& a, const Vector2d& b, Vector2d& pa, Vector2d& pb) {
-    double best_len = 0;
+  // f(region) for the preimage of each of the node's slices where its step may run (its θ-range).
+  auto for_each_preimage = [](const Node& node, const auto& f) {
     for (const Slice& sl : node.nd.slices) {
       if (node.restricted && !InRange(sl.theta, node.range_lo, node.range_hi)) continue;
-      const Region& region = node.vc ? sl.vc.region : sl.vc.classic;
+      f(node.vc ? sl.vc.region : sl.vc.classic);
+    }
+  };
+  // The longest piece of segment [a, b] inside one of the node's slices.
+  auto longest_piece = [&](const Node& node, const Vector2d& a, const Vector2d& b, Vector2d& pa, Vector2d& pb) {
+    double best_len = 0;
+    for_each_preimage(node, [&](const Region& region) {
       for (const auto& [t0, t1] : InsidePieces(region, a, b, 1e-9 * size)) {
         const Vector2d x = a + t0 * (b - a), y = a + t1 * (b - a);
         if ((y - x).norm() > best_len) best_len = (y - x).norm(), pa = x, pb = y;
       }
-    }
+    });
     return best_len;
   };
   for (int level = 2; level <= options.max_steps && !options.kernel_only && !budget_reached; ++level) {
     std::vector<Node> next;
     std::vector<Candidate> found;
-    // A child target of `node`: its nondirectional backprojection, and whether the start region fits it.
+    // A child target of `node` (its target `child.ref` used up): its nondirectional backprojection, and whether the
+    // start region fits it. False, and nothing computed, when the budget of backprojections is spent.
     auto expand = [&](Node child, const Node& node, const ThetaInterval& fit, const std::string& what) {
+      if (out.nondirectional >= options.max_nondirectional) {
+        budget_reached = true;
+        return false;
+      }
+      used.insert(child.ref);
       child.rest = node.rest;
       child.rest.insert(child.rest.begin(), MakeStep(node, fit, what));
       child.nd = ComputeNondirectional(child.problem, nullptr, NdOptions(options));
@@ -395,6 +406,7 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
         found.push_back(std::move(c));
       }
       next.push_back(std::move(child));
+      return true;
     };
     for (size_t f = 0; f < frontier.size() && !budget_reached; ++f) {
       const Node& node = frontier[f];
@@ -417,11 +429,6 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
         const std::vector<ThetaInterval> fits = Fits(node, end_strip);
         const ThetaInterval* best = Best(fits);
         if (!best) continue;
-        if (out.nondirectional >= options.max_nondirectional) {
-          budget_reached = true;
-          break;
-        }
-        used.insert(ray.id);
         Node child;
         child.terminate = Termination::kVisualGuarded;
         child.ref = ray.id;
@@ -458,7 +465,7 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
         // past the strip).
         child.problem.rays.clear();
         child.vc = false;
-        expand(std::move(child), node, *best, "the piece of ray " + ray.id + " where the step before ends");
+        if (!expand(std::move(child), node, *best, "the piece of ray " + ray.id + " where the step before ends")) break;
       }
       // Contact: corners first (they end the motion in the least room), then faces, longest piece first.
       struct ContactCandidate {
@@ -474,11 +481,9 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
         Vector2d pa = feature.a, pb = feature.b;
         if (feature.corner) {
           bool inside = false;
-          for (const Slice& sl : node.nd.slices) {
-            if (node.restricted && !InRange(sl.theta, node.range_lo, node.range_hi)) continue;
-            const Region& region = node.vc ? sl.vc.region : sl.vc.classic;
+          for_each_preimage(node, [&](const Region& region) {
             inside = inside || region.Contains(feature.a) || region.BoundaryDistance(feature.a) <= 1e-9 * size;
-          }
+          });
           if (inside) contacts.push_back({&feature, pa, pb, 0.0});
         } else {
           const double len = longest_piece(node, feature.a, feature.b, pa, pb);
@@ -518,11 +523,6 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
         const std::vector<ThetaInterval> fits = Fits(node, ends);
         const ThetaInterval* best = Best(fits);
         if (!best) continue;
-        if (out.nondirectional >= options.max_nondirectional) {
-          budget_reached = true;
-          break;
-        }
-        used.insert(feature.ref);
         child.terminate = Termination::kContact;
         child.ref = feature.ref;
         child.problem = base;
@@ -532,8 +532,9 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
         child.restricted = true;
         child.range_lo = feature.lo;
         child.range_hi = feature.hi;
-        expand(std::move(child), node, *best,
-               std::string("the places where the step before sticks (") + feature.ref + ")");
+        if (!expand(std::move(child), node, *best,
+                    std::string("the places where the step before sticks (") + feature.ref + ")"))
+          break;
       }
       progress(0.2 + 0.8 * (level - 2 + static_cast<double>(f + 1) / frontier.size()) / (options.max_steps - 1));
     }
