@@ -75,8 +75,14 @@ bool IsGood(Label l) { return l == Label::kGoal || l == Label::kGood; }
 bool IsFree(Label l) { return l == Label::kGood || l == Label::kBad; }
 Label Status(bool good) { return good ? Label::kGood : Label::kBad; }
 
+// Point equality that skips the exact evaluation when both are one shared point (the common case in the sweep: an
+// equality of equal points is never decided by the interval filter, and each undecided filter costs an exception).
+bool Same(const P2& a, const P2& b) { return CGAL::identical(a, b) || a == b; }
+
 struct LessYX {
-  bool operator()(const P2& a, const P2& b) const { return CGAL::compare_yx(a, b) == CGAL::SMALLER; }
+  bool operator()(const P2& a, const P2& b) const {
+    return !CGAL::identical(a, b) && CGAL::compare_yx(a, b) == CGAL::SMALLER;
+  }
 };
 
 // An input edge in the sweep frame, directed with its polygon's interior on the left (bounds: the inside).
@@ -90,21 +96,50 @@ struct Source {
 };
 
 struct Rotation {
+  using ET = FT::ET;  // the exact rational type behind the lazy kernel
   double c = 1, s = 0;
+  ET ec = 1, es = 0, det = 1;  // c, s and c² + s² exactly
+  Rotation() = default;
+  Rotation(double c_in, double s_in) : c(c_in), s(s_in), ec(c_in), es(s_in), det(ec * ec + es * es) {}
   Vector2d Apply(const Vector2d& p) const { return {c * p.x() - s * p.y(), s * p.x() + c * p.y()}; }
   // The sweep frame is the similarity [[c, -s], [s, c]] applied exactly (not rounded): collinear and touching input
-  // edges stay collinear and touching.
+  // edges stay collinear and touching. Computed in plain rationals, so the lazy point carries its exact value from
+  // the start (no construction DAG for each predicate that the interval filter cannot decide to re-evaluate).
   P2 ApplyExact(const Vector2d& p) const {
-    const FT x(p.x()), y(p.y()), fc(c), fs(s);
-    return P2(fc * x - fs * y, fs * x + fc * y);
+    const ET x(p.x()), y(p.y());
+    return P2(FT(ET(ec * x - es * y)), FT(ET(es * x + ec * y)));
   }
   // The exact inverse, converted to double once (CGAL::to_double of the exact value).
   Vector2d InvertExact(const P2& p) const {
-    const FT fc(c), fs(s), det = fc * fc + fs * fs;
-    return {CGAL::to_double((fc * p.x() + fs * p.y()) / det), CGAL::to_double((fc * p.y() - fs * p.x()) / det)};
+    const FT px = p.x(), py = p.y();  // kept alive: exact() refers into them
+    const ET& x = CGAL::exact(px);
+    const ET& y = CGAL::exact(py);
+    return {CGAL::to_double(ET((ec * x + es * y) / det)), CGAL::to_double(ET((ec * y - es * x) / det))};
   }
-  FT Scale2() const { return FT(c) * FT(c) + FT(s) * FT(s); }  // the similarity's area factor
+  FT Scale2() const { return FT(det); }  // the similarity's area factor
 };
+
+}  // namespace
+
+// The sweep frame of one θ, shared by every sweep at that θ (the ray choice runs up to 3k + 1 of them): each world
+// point is mapped once, so equal world points are one exact point in every sweep and their comparisons, which the
+// interval filter cannot decide, reuse one exact value instead of rebuilding it.
+class SweepFrame {
+ public:
+  explicit SweepFrame(double theta) : rot_(std::cos(-M_PI / 2 - theta), std::sin(-M_PI / 2 - theta)) {}
+  const Rotation& rotation() const { return rot_; }
+  const P2& Map(const Vector2d& w) {
+    auto [it, inserted] = points_.try_emplace({w.x(), w.y()});
+    if (inserted) it->second = rot_.ApplyExact(w);
+    return it->second;
+  }
+
+ private:
+  Rotation rot_;
+  std::map<std::pair<double, double>, P2> points_;
+};
+
+namespace {
 
 // Where direction d lies going clockwise from reference r, as a key ordered like the clockwise angle in (0, 2π]:
 // 0 strictly clockwise of r within a half turn, 1 opposite to r, 2 the other half turn, 3 along r (a full turn).
@@ -178,7 +213,7 @@ struct ExactRing {
 
 class Sweep {
  public:
-  Sweep(const BackprojectionProblem& problem, const std::vector<int>& active_rays);
+  Sweep(const BackprojectionProblem& problem, const std::vector<int>& active_rays, SweepFrame& frame);
   void Run();
   std::vector<ExactRing> Assemble() const;
   Region ToRegion(const std::vector<ExactRing>& rings) const;
@@ -201,8 +236,8 @@ class Sweep {
       }
     }
     bool operator()(const Curve* a, const Curve* b) const {
-      const bool as = a->lo == *p;
-      const bool bs = b->lo == *p;
+      const bool as = Same(a->lo, *p);
+      const bool bs = Same(b->lo, *p);
       if (as && bs) {
         const auto o = CGAL::orientation(b->dir, a->dir);
         if (o != CGAL::COLLINEAR) return o == CGAL::LEFT_TURN;  // a counter-clockwise of b: a is left
@@ -251,7 +286,7 @@ class Sweep {
   std::set<int> bad_track_rays_;
   std::vector<std::pair<P2, std::vector<StaticCurve>>> static_events_;
   std::priority_queue<P2, std::vector<P2>, std::function<bool(const P2&, const P2&)>> dynamic_{
-      [](const P2& a, const P2& b) { return CGAL::compare_yx(a, b) == CGAL::LARGER; }};
+      [](const P2& a, const P2& b) { return !CGAL::identical(a, b) && CGAL::compare_yx(a, b) == CGAL::LARGER; }};
   StatusLess less_;
   std::set<Curve*, StatusLess> status_{less_};
   std::vector<std::unique_ptr<Curve>> curves_;
@@ -264,7 +299,8 @@ int Sweep::AddName(std::string name) {
   return static_cast<int>(names_.size()) - 1;
 }
 
-Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_rays) : problem_(pr) {
+Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_rays, SweepFrame& frame)
+    : problem_(pr), rot_(frame.rotation()) {
   if (!(pr.bounds_max.x() > pr.bounds_min.x() && pr.bounds_max.y() > pr.bounds_min.y())) {
     throw std::invalid_argument("backprojection: bounds are empty");
   }
@@ -276,9 +312,6 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
   }
   eps_ = std::max(pr.velocity_cone, 1e-9);  // a cone of zero width is planned as a hair wider: a subset
   phi_ = pr.friction_cone;
-  const double rot = -M_PI / 2 - pr.theta;
-  rot_.c = std::cos(rot);
-  rot_.s = std::sin(rot);
   free_right_ = V2(std::sin(eps_), std::cos(eps_));
   free_left_ = V2(-std::sin(eps_), std::cos(eps_));
   cone_cw_ = -free_right_;
@@ -286,7 +319,7 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
   less_.p = &current_;
   status_ = std::set<Curve*, StatusLess>(less_);
 
-  auto to_exact = [&](const Vector2d& w) { return rot_.ApplyExact(w); };
+  auto to_exact = [&](const Vector2d& w) { return frame.Map(w); };
   auto add_polygon = [&](const NamedPolygon& poly, EdgeKind kind, const std::string& prefix, size_t index) {
     std::vector<Vector2d> v = poly.vertices;
     std::vector<std::string> vref = poly.vertex_refs, eref = poly.edge_refs;
@@ -581,7 +614,7 @@ void Sweep::Run() {
       from_static = CGAL::compare_yx(static_events_[si].first, dynamic_.top()) != CGAL::LARGER;
     }
     const P2 p = from_static ? static_events_[si].first : dynamic_.top();
-    while (!dynamic_.empty() && dynamic_.top() == p) dynamic_.pop();
+    while (!dynamic_.empty() && Same(dynamic_.top(), p)) dynamic_.pop();
     if (from_static) {
       Process(p, static_events_[si].second);
       ++si;
@@ -760,7 +793,7 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
   if (through.empty() && static_uppers.empty()) return;
   if (static_uppers.empty()) {
     int ending = 0;
-    for (const Curve* c : through) ending += c->hi == p;
+    for (const Curve* c : through) ending += Same(c->hi, p);
     if (ending == 0 && through.size() < 2) return;  // a stale intersection event
   }
   Curve* left_neighbour = first == status_.begin() ? nullptr : *std::prev(first);
@@ -771,7 +804,7 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
   // Upper static rays: new ones and continuations of static curves passing through p.
   std::vector<StaticCurve> uppers = static_uppers;
   for (const Curve* c : through) {
-    if (c->hi == p || c->kind == EdgeKind::kFree) continue;
+    if (Same(c->hi, p) || c->kind == EdgeKind::kFree) continue;
     const Label sl = IsFree(c->left) ? Label::kGood : c->left;
     const Label sr = IsFree(c->right) ? Label::kGood : c->right;
     uppers.push_back({p, c->hi, c->kind, c->src, sl, sr, c->n_free, c->sticking});
@@ -1113,8 +1146,8 @@ struct SweepResult {
   std::set<int> bad_track_rays;
 };
 
-SweepResult RunSweep(const BackprojectionProblem& problem, const std::vector<int>& active) {
-  Sweep sweep(problem, active);
+SweepResult RunSweep(const BackprojectionProblem& problem, const std::vector<int>& active, SweepFrame& frame) {
+  Sweep sweep(problem, active, frame);
   sweep.Run();
   SweepResult r;
   r.rings = sweep.Assemble();
@@ -1196,7 +1229,10 @@ bool IsReliableRay(const CvcRayInput& ray, double theta, double velocity_cone) {
   });
 }
 
-Region ClassicBackprojection(const BackprojectionProblem& problem) { return RunSweep(problem, {}).region; }
+Region ClassicBackprojection(const BackprojectionProblem& problem) {
+  SweepFrame frame(problem.theta);
+  return RunSweep(problem, {}, frame).region;
+}
 
 Region BackprojectionWithActiveRays(const BackprojectionProblem& problem, const std::vector<std::string>& active) {
   std::vector<int> idx;
@@ -1205,7 +1241,8 @@ Region BackprojectionWithActiveRays(const BackprojectionProblem& problem, const 
     if (it == problem.rays.end()) throw std::invalid_argument("backprojection: unknown CVC ray '" + id + "'");
     idx.push_back(static_cast<int>(it - problem.rays.begin()));
   }
-  return RunSweep(problem, idx).region;
+  SweepFrame frame(problem.theta);
+  return RunSweep(problem, idx, frame).region;
 }
 
 const char* RaySelectionName(RaySelection selection) {
@@ -1237,9 +1274,9 @@ bool ContainsSet(const PolygonSet& set, const std::vector<ExactRing>& rings) {
 
 // Sweeps `set`; adopts its region as the current one if it is strictly larger and contains the current one (B_θ ⊆
 // B_vcθ, and every earlier claim stays valid). True if adopted.
-bool AdoptIfLarger(const BackprojectionProblem& problem, const std::vector<int>& set, SweepResult& current,
-                   PolygonSet& current_set, int& sweeps) {
-  SweepResult trial = RunSweep(problem, set);
+bool AdoptIfLarger(const BackprojectionProblem& problem, SweepFrame& frame, const std::vector<int>& set,
+                   SweepResult& current, PolygonSet& current_set, int& sweeps) {
+  SweepResult trial = RunSweep(problem, set, frame);
   ++sweeps;
   if (!LargerArea(trial, current) || !ContainsSet(current_set, trial.rings)) return false;
   current = std::move(trial);
@@ -1249,14 +1286,14 @@ bool AdoptIfLarger(const BackprojectionProblem& problem, const std::vector<int>&
 
 // Greedy choice: single candidates in order, then pairs of rejected ones; a set is kept only if its region contains
 // the current region and is strictly larger.
-std::vector<int> GreedySelection(const BackprojectionProblem& problem, const std::vector<int>& candidates,
-                                 SweepResult& current, int& sweeps) {
+std::vector<int> GreedySelection(const BackprojectionProblem& problem, SweepFrame& frame,
+                                 const std::vector<int>& candidates, SweepResult& current, int& sweeps) {
   std::vector<int> active;
   PolygonSet current_set = ToPolygonSet(current.rings);
   auto try_add = [&](const std::vector<int>& add) {
     std::vector<int> trial_set = active;
     trial_set.insert(trial_set.end(), add.begin(), add.end());
-    if (!AdoptIfLarger(problem, trial_set, current, current_set, sweeps)) return false;
+    if (!AdoptIfLarger(problem, frame, trial_set, current, current_set, sweeps)) return false;
     active = std::move(trial_set);
     return true;
   };
@@ -1284,13 +1321,13 @@ std::vector<int> GreedySelection(const BackprojectionProblem& problem, const std
 // is tried once more on its own, in id order, and kept if the region grows and still contains the current one.
 // Last, every active ray the region does not need is dropped. At most 3k + 1 sweeps in all, against 2^k for the exact
 // search.
-std::vector<int> TrackSelection(const BackprojectionProblem& problem, const std::vector<int>& candidates,
-                                SweepResult& current, int& sweeps) {
+std::vector<int> TrackSelection(const BackprojectionProblem& problem, SweepFrame& frame,
+                                const std::vector<int>& candidates, SweepResult& current, int& sweeps) {
   const PolygonSet base_set = ToPolygonSet(current.rings);
   std::vector<int> active = candidates;
   SweepResult trial;
   while (!active.empty()) {
-    trial = RunSweep(problem, active);
+    trial = RunSweep(problem, active, frame);
     ++sweeps;
     if (trial.bad_track_rays.empty()) break;
     std::vector<int> kept;
@@ -1309,7 +1346,7 @@ std::vector<int> TrackSelection(const BackprojectionProblem& problem, const std:
     if (std::find(active.begin(), active.end(), c) != active.end()) continue;
     std::vector<int> with = active;
     with.push_back(c);
-    if (AdoptIfLarger(problem, with, current, current_set, sweeps)) active = std::move(with);
+    if (AdoptIfLarger(problem, frame, with, current, current_set, sweeps)) active = std::move(with);
   }
   // Fewest rays: every ray the region does not need is dropped (each one is a servo the robot must run and a line the
   // camera must see); a ray goes if the region without it still contains the current one.
@@ -1317,7 +1354,7 @@ std::vector<int> TrackSelection(const BackprojectionProblem& problem, const std:
   for (size_t i = 0; i < active.size();) {
     std::vector<int> without = active;
     without.erase(without.begin() + static_cast<std::ptrdiff_t>(i));
-    SweepResult t = RunSweep(problem, without);
+    SweepResult t = RunSweep(problem, without, frame);
     ++sweeps;
     if (ContainsSet(current_set, t.rings)) {
       active = std::move(without);
@@ -1333,8 +1370,8 @@ std::vector<int> TrackSelection(const BackprojectionProblem& problem, const std:
 // Exact choice: every subset of the candidates, by size, then lexicographically (so that the first set reaching the
 // best area is the smallest, then the first by id). A subset's region is checked for containing B_θ(G) only when
 // its area beats the best so far (the check is a polygon difference; the sweep is the unavoidable cost).
-std::vector<int> ExactSelection(const BackprojectionProblem& problem, const std::vector<int>& candidates,
-                                SweepResult& best, int& sweeps) {
+std::vector<int> ExactSelection(const BackprojectionProblem& problem, SweepFrame& frame,
+                                const std::vector<int>& candidates, SweepResult& best, int& sweeps) {
   const int n = static_cast<int>(candidates.size());
   const PolygonSet base_set = ToPolygonSet(best.rings);
   std::vector<int> best_set;
@@ -1345,7 +1382,7 @@ std::vector<int> ExactSelection(const BackprojectionProblem& problem, const std:
     while (true) {
       std::vector<int> trial_set;
       for (int i : pos) trial_set.push_back(candidates[i]);
-      SweepResult trial = RunSweep(problem, trial_set);
+      SweepResult trial = RunSweep(problem, trial_set, frame);
       ++sweeps;
       if (LargerArea(trial, best) && ContainsSet(base_set, trial.rings)) {
         best = std::move(trial);
@@ -1376,7 +1413,8 @@ VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem, 
   std::sort(candidates.begin(), candidates.end(),
             [&](int a, int b) { return problem.rays[a].id < problem.rays[b].id; });
   out.candidates = static_cast<int>(candidates.size());
-  SweepResult result = RunSweep(problem, {});
+  SweepFrame frame(problem.theta);
+  SweepResult result = RunSweep(problem, {}, frame);
   out.classic = result.region;
   out.sweeps = 1;
   std::vector<int> active;
@@ -1384,13 +1422,13 @@ VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem, 
     out.selection = RaySelection::kNone;
   } else if (options.method == RaySelection::kTrack) {
     out.selection = RaySelection::kTrack;
-    active = TrackSelection(problem, candidates, result, out.sweeps);
+    active = TrackSelection(problem, frame, candidates, result, out.sweeps);
   } else if (options.method == RaySelection::kExact && out.candidates <= options.exact_limit) {
     out.selection = RaySelection::kExact;
-    active = ExactSelection(problem, candidates, result, out.sweeps);
+    active = ExactSelection(problem, frame, candidates, result, out.sweeps);
   } else {
     out.selection = RaySelection::kGreedy;
-    active = GreedySelection(problem, candidates, result, out.sweeps);
+    active = GreedySelection(problem, frame, candidates, result, out.sweeps);
   }
   for (int c : candidates) {
     if (std::find(active.begin(), active.end(), c) == active.end()) out.rejected_rays.push_back(problem.rays[c].id);

@@ -14,6 +14,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <thread>
 
 #include "common/error.h"
 #include "common/write_output.h"
@@ -29,12 +30,14 @@ namespace {
 
 double Deg(double rad) { return rad * 180.0 / M_PI; }
 
+int DefaultThreads() { return static_cast<int>(std::max(1u, std::thread::hardware_concurrency())); }
+
 struct Args {
   std::string scene;
   bool kernel = false;
   bool slices = false;
   std::string svg, out;
-  int threads = 1;
+  int threads = DefaultThreads();
   int samples = 240;
   std::string method = "kinetic";
 };
@@ -275,7 +278,9 @@ void RegisterCriticalCommand(CLI::App& app) {
       "--svg", args->svg,
       "draw the areas of B_theta(G) and B_vctheta(G) against theta with the critical orientations into FILE");
   cmd->add_option("--samples", args->samples, "orientations sampled for the --svg curves")->capture_default_str();
-  cmd->add_option("--threads", args->threads, "worker threads for the slices")->capture_default_str();
+  cmd->add_option("--threads", args->threads,
+                  "worker threads for the slices (default: the machine's cores; the result does not depend on it)")
+      ->capture_default_str();
   cmd->add_option("--method", args->method,
                   "kinetic (sweep again only at candidates whose free edges are the regions') or baseline (Donald's "
                   "critical-slice method: a sweep at every candidate)")

@@ -14,6 +14,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
 #include <string>
+#include <thread>
 
 #include "common/error.h"
 #include "common/write_output.h"
@@ -27,13 +28,15 @@
 namespace visco::planning {
 namespace {
 
+int DefaultThreads() { return static_cast<int>(std::max(1u, std::thread::hardware_concurrency())); }
+
 struct Args {
   std::string scene;
   int max_steps = 3;
   bool kernel_only = false;
   bool no_camera = false;
   std::string out, svg, lcm_url;
-  int threads = 1;
+  int threads = DefaultThreads();
   int check = 0;
   double speed = 0.25;
   int max_backprojections = 60;
@@ -144,7 +147,9 @@ void RegisterPlanCommand(CLI::App& app) {
   cmd->add_option("--max-backprojections", args->max_backprojections,
                   "stop the search after this many nondirectional backprojections (a few seconds each)")
       ->capture_default_str();
-  cmd->add_option("--threads", args->threads, "worker threads for the nondirectional backprojections")
+  cmd->add_option("--threads", args->threads,
+                  "worker threads for the nondirectional backprojections (default: the machine's cores; the result "
+                  "does not depend on it)")
       ->capture_default_str();
   cmd->add_option("--check", args->check,
                   "simulate the strategy from N sampled start configurations with adversarial velocities; exit 1 if "
