@@ -133,6 +133,14 @@ void ControlLoop::RunCycle(std::int64_t now_ns, std::int64_t now_utime) {
     const drivers::LinkFault& f = fault_scratch_;
     // A foreign fault is about another controller's session (e.g. the watchdog stop of the controller that ran
     // before this one): this controller is not commanding the driver, and waits for it to be ready.
+    if (f.foreign && f.local && f.what != nullptr) {  // the link's own report about a foreign session: a warning
+      FaultEvent warning;
+      warning.utime = now_utime;
+      warning.code = FaultCode::kPeerTimeout;
+      warning.severity = visco::fault_t::SEVERITY_WARNING;
+      CopyText(warning.message, f.what);
+      outbox_.faults.TryPush(warning);
+    }
     if (f.cleared || f.foreign || input_.link_fault_code != 0) continue;
     // Faults that stop the controller: those the driver stopped the robot for, and the link's own stopping ones
     // (bus-off, lost frames, a restarted driver, a lost session). Error passive and warning are reported only.

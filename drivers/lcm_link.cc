@@ -108,7 +108,7 @@ class LcmRobotLink final : public RobotLink {
       }
     }
     // Without a session only an e-stop goes out (the driver honours it whatever the session).
-    if (!session_.have() && !command.estop && !command.quick_stop) return LinkResult::kNoSession;
+    if (!session_.usable() && !command.estop && !command.quick_stop) return LinkResult::kNoSession;
     Outgoing out;
     out.command = command;
     out.session = session_.session();
@@ -164,10 +164,13 @@ class LcmRobotLink final : public RobotLink {
       status_last_ = s.seq;
       last_status_us_ = now_us;
       s.receive_us = now_us;
-      session_.OnStatus(s.command_seq);
+      ++counters_.statuses_received;
+      if (session_.OnStatus(s.command_seq)) ReportForeign(now_us);
+      // Another controller's session: the driver is alive (peer_state), but its state is not this controller's to
+      // start from; it waits for the fresh session the driver issues when that one ends.
+      if (session_.foreign()) continue;
       status_ = s;
       fresh_status_ = true;
-      ++counters_.statuses_received;
     }
     LinkFault f;
     while (incoming_faults_.Pop(f)) {
@@ -229,6 +232,15 @@ class LcmRobotLink final : public RobotLink {
     }
     status_synced_ = false;
     stale_reported_ = false;
+  }
+  void ReportForeign(std::int64_t now_us) {
+    LinkFault fault;
+    fault.receive_us = now_us;
+    fault.code = fault_t::CODE_BAD_MESSAGE;
+    fault.local = true;
+    fault.foreign = true;  // reported, no reason to stop: this controller has commanded nothing
+    fault.what = kForeignSessionWhat;
+    if (!faults_.Push(fault)) ++counters_.faults_dropped;
   }
   void PushLocal(std::int64_t now_us, std::int32_t code, const char* what) {
     LinkFault fault;

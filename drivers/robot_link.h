@@ -112,6 +112,12 @@ constexpr const char* DriverFaultWhat(std::uint16_t emcy_code) {
                              : nullptr;
 }
 
+/// LinkFault::what of the (foreign, non-stopping) fault a link reports when the driver's session turns out to be
+/// another controller's.
+inline constexpr const char* kForeignSessionWhat =
+    "the driver's session has accepted another controller's commands (one that just ended, or one still running): "
+    "this controller waits for the fresh session the driver issues after a watchdog period without commands";
+
 /// Result of a real-time link call.
 enum class LinkResult : std::uint8_t {
   kOk = 0,
@@ -120,7 +126,8 @@ enum class LinkResult : std::uint8_t {
   kBufferFull,  // the kernel's transmit queue (or the LCM hand-off) is full; the command was not sent
   kOutOfRange,  // the command cannot be represented on the wire (|v| beyond the frame's range); not sent
   kError,       // another I/O error (counted in LinkCounters::io_errors)
-  kNoSession,   // the driver's session is not known yet (no announcement seen): not sent (stops are always sent)
+  kNoSession,   // no session to command in yet (none announced, its first status not seen, or another controller's):
+                // not sent (stops are always sent)
 };
 
 /// Returns a short name for a result ("ok", "bus-off", ...). Real-time safe.
@@ -174,6 +181,8 @@ class SessionView {
     session_ = nonce;
     last_ = 0;
     owned_ = false;
+    checked_ = false;
+    foreign_ = false;
     if (first) return Change::kFirst;
     return owned ? Change::kLost : Change::kAdopted;
   }
@@ -188,13 +197,30 @@ class SessionView {
     operational_ = false;
     have_ = false;
     owned_ = false;
+    checked_ = false;
+    foreign_ = false;
     last_ = 0;
     return restarted;
   }
-  /// An accepted status of the current session saying the driver accepted `accepted` (0: none yet).
-  void OnStatus(std::uint32_t accepted) {
-    if (accepted != 0 && accepted <= last_) owned_ = true;
+  /// An accepted status of the current session saying the driver accepted `accepted` (0: none yet). The first one
+  /// decides whether the session is this link's to use: a session that accepted commands before this link sent any
+  /// is another controller's (one that ran just before and whose session has not expired yet, or one still running);
+  /// numbering from 1 in it would be refused as stale, and its expiry would void this link's run midway. Returns
+  /// true when that is found (once per session).
+  bool OnStatus(std::uint32_t accepted) {
+    if (!checked_) {
+      checked_ = true;
+      foreign_ = accepted != 0 && last_ == 0;
+      if (foreign_) return true;
+    }
+    if (!foreign_ && accepted != 0 && accepted <= last_) owned_ = true;
+    return false;
   }
+  /// The session is known, its first status said it is fresh, and it is not another controller's: commands may be
+  /// numbered in it. Until then a link sends only e-stops and quick stops (LinkResult::kNoSession).
+  bool usable() const { return have_ && checked_ && !foreign_; }
+  /// The current session accepted another controller's commands: its statuses are not this link's to act on.
+  bool foreign() const { return have_ && foreign_; }
   bool have() const { return have_; }
   std::uint32_t session() const { return session_; }
   /// The number of the next command; call Sent() once it went out.
@@ -208,6 +234,8 @@ class SessionView {
   bool have_ = false;
   bool owned_ = false;
   bool operational_ = false;
+  bool checked_ = false;  // the session's first status was seen
+  bool foreign_ = false;  // ... and said it had accepted commands before this link sent any
   std::uint32_t session_ = 0;
   std::uint32_t last_ = 0;
 };

@@ -77,7 +77,7 @@ class SocketCanRobotLink final : public RobotLink {
 
   LinkResult SendCommand(const VelocityCommand& command, std::int64_t now_us) override {
     // Without a session only an e-stop goes out (the driver honours its flag whatever the session).
-    if (!session_.have() && !command.estop && !command.quick_stop) return LinkResult::kNoSession;
+    if (!session_.usable() && !command.estop && !command.quick_stop) return LinkResult::kNoSession;
     can::CommandFrame wire;
     wire.seq = session_.Next();
     wire.session = session_.session();
@@ -344,7 +344,19 @@ class SocketCanRobotLink final : public RobotLink {
     // those bits (0: none accepted in this session).
     const std::uint32_t last = session_.last();
     status_.command_seq = last - static_cast<std::uint8_t>(static_cast<std::uint8_t>(last) - partial_.command_seq);
-    session_.OnStatus(status_.command_seq);
+    ++counters_.statuses_received;
+    if (session_.OnStatus(status_.command_seq)) {
+      LinkFault fault;
+      fault.receive_us = now_us;
+      fault.code = fault_t::CODE_BAD_MESSAGE;
+      fault.local = true;
+      fault.foreign = true;  // reported, no reason to stop: this controller has commanded nothing
+      fault.what = kForeignSessionWhat;
+      Push(fault);
+    }
+    // Another controller's session: the driver is alive (peer_state), but its state is not this controller's to
+    // start from; it waits for the fresh session the driver issues when that one ends.
+    if (session_.foreign()) return;
     for (int i = 0; i < 2; ++i) {
       status_.position[i] = partial_.position[i];
       status_.velocity[i] = partial_.velocity[i];
@@ -354,7 +366,6 @@ class SocketCanRobotLink final : public RobotLink {
     status_.state = partial_.state;
     status_.fault_bits = partial_.fault_bits;
     fresh_status_ = true;
-    ++counters_.statuses_received;
   }
 
   void Note(BusTracker::Change change, std::int64_t now_us) {

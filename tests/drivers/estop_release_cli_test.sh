@@ -13,14 +13,12 @@ set -uo pipefail
 rt="$1"
 driver_timing=()
 run_timing=()
-# A run that ends (goal or e-stop) leaves the driver in its session until the watchdog ends it: a controller that
-# starts within that period adopts the old session, which then ends under it (drivers/README.md, "Sessions"). Each
-# run waits that out (measured: the third run failed 2 of 3 times on an idle machine without it).
-settle=0.3
+# Each run starts right after the previous one ends: a run that ends leaves the driver in its session until the
+# watchdog ends it, and the next controller must leave that session alone and wait for the fresh one (it used to
+# adopt it and fail when it ended: 2 of 3 times on an idle machine; drivers/README.md, "Sessions").
 if [[ "${2:-}" == "--sanitized" ]]; then
   driver_timing=(--watchdog-ms 300)
   run_timing=(--status-timeout-ms 300 --heartbeat-timeout-ms 500)
-  settle=0.6
 fi
 url="udpm://239.255.76.67:$((44000 + $$ % 20000))?ttl=0"
 tmp=$(mktemp -d)
@@ -49,7 +47,6 @@ run() {  # run NAME SCENE [extra]: visco run against the driver; its JSON summar
 run first near
 status=$?
 [[ $status -eq 0 ]] || { fail "first run exited $status"; cat "$tmp/first.json" "$tmp/first.log"; }
-sleep "$settle"
 "$rt" run "$tmp/plan.json" --scene "$tmp/far.json" --lcm-url "$url" --goal-from-odometry --no-realtime \
   "${run_timing[@]}" >"$tmp/second.json" 2>"$tmp/second.log" &
 second=$!
@@ -59,7 +56,6 @@ wait $second
 status=$?
 [[ $status -eq 1 ]] || fail "interrupted run exited $status, expected 1"
 grep -q '"reason":"e-stop requested"' "$tmp/second.json" || fail "interrupted run: $(cat "$tmp/second.json")"
-sleep "$settle"
 run third far
 status=$?
 [[ $status -eq 1 ]] || fail "the run after the e-stop exited $status, expected 1"

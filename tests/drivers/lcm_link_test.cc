@@ -191,6 +191,67 @@ TEST_F(LcmLink, ANewControllerWaitsForAFreshSession) {
   EXPECT_EQ(last_.fault_bits & (fault_bits::kSequence | fault_bits::kSession), 0);
 }
 
+// Found by `visco demo` (a run started right after the previous one): the new controller adopted the old session,
+// whose few accepted commands its own numbers soon passed, took them for its own, and when that session expired
+// reported "the driver started a new session" and stopped. Now the first status of a session decides: one that had
+// accepted commands before this link sent any is another controller's; the link reports it (a warning), sends
+// nothing but stops in it, and commands in the fresh session the driver issues once the other controller is silent.
+TEST_F(LcmLink, ANewControllerLeavesAnotherControllersSessionAlone) {
+  command_.reset = true;
+  ASSERT_TRUE(RunUntil(
+      3'000'000, [&] { return last_.state == RobotState::kReady; }, true));
+  const std::uint32_t old_session = link_->session();
+  ASSERT_LT(link_->last_command_seq(), 200U);  // few commands: the case the old check got wrong
+  // B starts while A still commands (zero velocity): B sees A's session and its accepted commands.
+  std::unique_ptr<RobotLink> b = MakeLcmRobotLink(LinkConfig());
+  std::vector<LinkFault> b_faults;
+  RobotStatus b_last;
+  VelocityCommand b_command;
+  b_command.reset = true;
+  std::vector<LinkResult> b_sent;
+  auto poll_b = [&] {
+    b->Poll(MonotonicMicros());
+    RobotStatus status;
+    if (b->TakeStatus(status) == LinkResult::kOk) b_last = status;
+    LinkFault fault;
+    while (b->TakeFault(fault) == LinkResult::kOk) b_faults.push_back(fault);
+    b_sent.push_back(b->SendCommand(b_command, MonotonicMicros()));
+  };
+  auto b_saw_foreign = [&] {
+    return std::any_of(b_faults.begin(), b_faults.end(), [](const LinkFault& f) {
+      return f.local && f.foreign && !f.robot_stopped && f.what == kForeignSessionWhat;
+    });
+  };
+  command_ = VelocityCommand{};
+  ASSERT_TRUE(RunUntil(
+      3'000'000,
+      [&] {
+        poll_b();
+        return b_saw_foreign();
+      },
+      true));
+  EXPECT_EQ(b->session(), old_session);
+  EXPECT_EQ(b_last.session, 0U) << "a status of another controller's session reached B's controller";
+  for (LinkResult r : b_sent) EXPECT_EQ(r, LinkResult::kNoSession) << ToString(r);
+  const DriverStats before = driver_->Snapshot().stats;
+  // A ends; B waits for the fresh session and enables the driver in it.
+  link_.reset();
+  const std::int64_t end = MonotonicMicros() + 3'000'000;
+  while (MonotonicMicros() < end && !(b_last.state == RobotState::kReady && b_last.session != old_session)) {
+    poll_b();
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  ASSERT_EQ(b_last.state, RobotState::kReady);
+  EXPECT_NE(b->session(), old_session);
+  for (const LinkFault& f : b_faults) {
+    EXPECT_FALSE(f.local && f.robot_stopped) << (f.what != nullptr ? f.what : "(a local stopping fault)");
+  }
+  const DriverStats after = driver_->Snapshot().stats;
+  EXPECT_EQ(after.out_of_sequence, before.out_of_sequence) << "B numbered commands in A's session";
+  EXPECT_EQ(after.wrong_session, before.wrong_session);
+  link_ = std::move(b);
+}
+
 // The driver restarts while this controller commands it: the link reports it (a stopping fault that says why) and
 // numbers its commands in the new session only after a new announcement.
 TEST_F(LcmLink, ADriverRestartDuringARunIsAFaultThatSaysWhy) {
@@ -276,7 +337,9 @@ TEST(SessionView, AdoptsTheFirstSessionAndReportsLosingAnOwnedOne) {
   view.Sent(1);
   view.Sent(2);
   EXPECT_EQ(view.OnAnnounce(0xAA), SessionView::Change::kNone);
-  view.OnStatus(0);  // nothing accepted yet
+  EXPECT_FALSE(view.usable());  // no status of the session seen yet
+  view.OnStatus(0);             // nothing accepted yet: a fresh session
+  EXPECT_TRUE(view.usable());
   EXPECT_FALSE(view.owned());
   EXPECT_EQ(view.OnAnnounce(0xBB), SessionView::Change::kAdopted);  // never owned: no fault
   EXPECT_EQ(view.Next(), 1U);
@@ -291,6 +354,31 @@ TEST(SessionView, AdoptsTheFirstSessionAndReportsLosingAnOwnedOne) {
   EXPECT_FALSE(view.OnHeartbeat(false));
   EXPECT_TRUE(view.OnHeartbeat(true));
   EXPECT_EQ(view.OnAnnounce(0xDD), SessionView::Change::kFirst);
+}
+
+TEST(SessionView, ASessionThatAcceptedCommandsBeforeThisLinkSentAnyIsAnotherControllers) {
+  SessionView view;
+  EXPECT_EQ(view.OnAnnounce(0xAA), SessionView::Change::kFirst);
+  EXPECT_TRUE(view.OnStatus(7));  // the previous controller's seven commands: reported once
+  EXPECT_TRUE(view.foreign());
+  EXPECT_FALSE(view.usable());
+  EXPECT_FALSE(view.OnStatus(8));
+  for (std::uint32_t k = 1; k <= 10; ++k) view.OnStatus(k);
+  EXPECT_FALSE(view.owned());  // its numbers are never taken for this link's
+  // Its end is no loss for this link: the fresh session is adopted without a fault, and is usable once its first
+  // status says it accepted nothing.
+  EXPECT_EQ(view.OnAnnounce(0xBB), SessionView::Change::kAdopted);
+  EXPECT_FALSE(view.foreign());
+  EXPECT_FALSE(view.usable());
+  EXPECT_FALSE(view.OnStatus(0));
+  EXPECT_TRUE(view.usable());
+  view.Sent(1);
+  view.OnStatus(1);
+  EXPECT_TRUE(view.owned());
+  // A boot-up forgets the verdict with the session.
+  view.OnHeartbeat(false);
+  EXPECT_TRUE(view.OnHeartbeat(true));
+  EXPECT_FALSE(view.usable());
 }
 
 }  // namespace
