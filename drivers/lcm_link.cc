@@ -234,13 +234,7 @@ class LcmRobotLink final : public RobotLink {
     stale_reported_ = false;
   }
   void ReportForeign(std::int64_t now_us) {
-    LinkFault fault;
-    fault.receive_us = now_us;
-    fault.code = fault_t::CODE_BAD_MESSAGE;
-    fault.local = true;
-    fault.foreign = true;  // reported, no reason to stop: this controller has commanded nothing
-    fault.what = kForeignSessionWhat;
-    if (!faults_.Push(fault)) ++counters_.faults_dropped;
+    if (!faults_.Push(ForeignSessionFault(now_us, fault_t::CODE_BAD_MESSAGE))) ++counters_.faults_dropped;
   }
   void PushLocal(std::int64_t now_us, std::int32_t code, const char* what) {
     LinkFault fault;

@@ -118,6 +118,19 @@ inline constexpr const char* kForeignSessionWhat =
     "the driver's session has accepted another controller's commands (one that just ended, or one still running): "
     "this controller waits for the fresh session the driver issues after a watchdog period without commands";
 
+/// The (local, foreign, non-stopping) fault a link reports when the driver's session turns out to be another
+/// controller's; `code` is visco::fault_t::CODE_BAD_MESSAGE (this header does not include the LCM types). Real-time
+/// safe.
+inline LinkFault ForeignSessionFault(std::int64_t now_us, std::int32_t code) {
+  LinkFault fault;
+  fault.receive_us = now_us;
+  fault.code = code;
+  fault.local = true;
+  fault.foreign = true;  // reported, no reason to stop: this controller has commanded nothing
+  fault.what = kForeignSessionWhat;
+  return fault;
+}
+
 /// Result of a real-time link call.
 enum class LinkResult : std::uint8_t {
   kOk = 0,

@@ -345,15 +345,7 @@ class SocketCanRobotLink final : public RobotLink {
     const std::uint32_t last = session_.last();
     status_.command_seq = last - static_cast<std::uint8_t>(static_cast<std::uint8_t>(last) - partial_.command_seq);
     ++counters_.statuses_received;
-    if (session_.OnStatus(status_.command_seq)) {
-      LinkFault fault;
-      fault.receive_us = now_us;
-      fault.code = fault_t::CODE_BAD_MESSAGE;
-      fault.local = true;
-      fault.foreign = true;  // reported, no reason to stop: this controller has commanded nothing
-      fault.what = kForeignSessionWhat;
-      Push(fault);
-    }
+    if (session_.OnStatus(status_.command_seq)) Push(ForeignSessionFault(now_us, fault_t::CODE_BAD_MESSAGE));
     // Another controller's session: the driver is alive (peer_state), but its state is not this controller's to
     // start from; it waits for the fresh session the driver issues when that one ends.
     if (session_.foreign()) return;
