@@ -165,7 +165,9 @@ class LcmRobotLink final : public RobotLink {
       last_status_us_ = now_us;
       s.receive_us = now_us;
       ++counters_.statuses_received;
-      if (session_.OnStatus(s.command_seq)) ReportForeign(now_us);
+      if (session_.OnStatus(s.command_seq) && !faults_.Push(ForeignSessionFault(now_us, fault_t::CODE_BAD_MESSAGE))) {
+        ++counters_.faults_dropped;
+      }
       // Another controller's session: the driver is alive (peer_state), but its state is not this controller's to
       // start from; it waits for the fresh session the driver issues when that one ends.
       if (session_.foreign()) continue;
@@ -232,9 +234,6 @@ class LcmRobotLink final : public RobotLink {
     }
     status_synced_ = false;
     stale_reported_ = false;
-  }
-  void ReportForeign(std::int64_t now_us) {
-    if (!faults_.Push(ForeignSessionFault(now_us, fault_t::CODE_BAD_MESSAGE))) ++counters_.faults_dropped;
   }
   void PushLocal(std::int64_t now_us, std::int32_t code, const char* what) {
     LinkFault fault;

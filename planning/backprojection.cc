@@ -78,11 +78,13 @@ Label Status(bool good) { return good ? Label::kGood : Label::kBad; }
 // Point equality that skips the exact evaluation when both are one shared point (the common case in the sweep: an
 // equality of equal points is never decided by the interval filter, and each undecided filter costs an exception).
 bool Same(const P2& a, const P2& b) { return CGAL::identical(a, b) || a == b; }
+// (y, x) order with the same short-cut.
+CGAL::Comparison_result CompareYX(const P2& a, const P2& b) {
+  return CGAL::identical(a, b) ? CGAL::EQUAL : CGAL::compare_yx(a, b);
+}
 
 struct LessYX {
-  bool operator()(const P2& a, const P2& b) const {
-    return !CGAL::identical(a, b) && CGAL::compare_yx(a, b) == CGAL::SMALLER;
-  }
+  bool operator()(const P2& a, const P2& b) const { return CompareYX(a, b) == CGAL::SMALLER; }
 };
 
 // An input edge in the sweep frame, directed with its polygon's interior on the left (bounds: the inside).
@@ -119,8 +121,6 @@ struct Rotation {
   FT Scale2() const { return FT(det); }  // the similarity's area factor
 };
 
-}  // namespace
-
 // The sweep frame of one θ, shared by every sweep at that θ (the ray choice runs up to 3k + 1 of them): each world
 // point is mapped once, so equal world points are one exact point in every sweep and their comparisons, which the
 // interval filter cannot decide, reuse one exact value instead of rebuilding it.
@@ -138,8 +138,6 @@ class SweepFrame {
   Rotation rot_;
   std::map<std::pair<double, double>, P2> points_;
 };
-
-namespace {
 
 // Where direction d lies going clockwise from reference r, as a key ordered like the clockwise angle in (0, 2π]:
 // 0 strictly clockwise of r within a half turn, 1 opposite to r, 2 the other half turn, 3 along r (a full turn).
@@ -273,7 +271,7 @@ class Sweep {
   int AddName(std::string name);
 
   const BackprojectionProblem& problem_;
-  Rotation rot_;
+  const Rotation& rot_;  // the frame's (it outlives the sweep)
   double eps_ = 0, phi_ = 0;
   V2 free_right_, free_left_;  // directions 90° − ε and 90° + ε
   V2 cone_cw_, cone_ccw_;  // the velocity cone's extremes −90° − ε and −90° + ε (= −free_right_, −free_left_)
@@ -286,7 +284,7 @@ class Sweep {
   std::set<int> bad_track_rays_;
   std::vector<std::pair<P2, std::vector<StaticCurve>>> static_events_;
   std::priority_queue<P2, std::vector<P2>, std::function<bool(const P2&, const P2&)>> dynamic_{
-      [](const P2& a, const P2& b) { return !CGAL::identical(a, b) && CGAL::compare_yx(a, b) == CGAL::LARGER; }};
+      [](const P2& a, const P2& b) { return CompareYX(a, b) == CGAL::LARGER; }};
   StatusLess less_;
   std::set<Curve*, StatusLess> status_{less_};
   std::vector<std::unique_ptr<Curve>> curves_;
@@ -611,7 +609,7 @@ void Sweep::Run() {
     } else if (dynamic_.empty()) {
       from_static = true;
     } else {
-      from_static = CGAL::compare_yx(static_events_[si].first, dynamic_.top()) != CGAL::LARGER;
+      from_static = CompareYX(static_events_[si].first, dynamic_.top()) != CGAL::LARGER;
     }
     const P2 p = from_static ? static_events_[si].first : dynamic_.top();
     while (!dynamic_.empty() && Same(dynamic_.top(), p)) dynamic_.pop();

@@ -14,7 +14,6 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
-#include <thread>
 
 #include "common/error.h"
 #include "common/write_output.h"
@@ -30,14 +29,12 @@ namespace {
 
 double Deg(double rad) { return rad * 180.0 / M_PI; }
 
-int DefaultThreads() { return static_cast<int>(std::max(1u, std::thread::hardware_concurrency())); }
-
 struct Args {
   std::string scene;
   bool kernel = false;
   bool slices = false;
   std::string svg, out;
-  int threads = DefaultThreads();
+  int threads = MachineThreads();
   int samples = 240;
   std::string method = "kinetic";
 };

@@ -10,6 +10,8 @@
 #include <thread>
 
 namespace visco::planning {
+
+int MachineThreads() { return static_cast<int>(std::max(1u, std::thread::hardware_concurrency())); }
 namespace {
 
 using Eigen::Vector2d;

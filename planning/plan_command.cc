@@ -14,12 +14,12 @@
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
 #include <string>
-#include <thread>
 
 #include "common/error.h"
 #include "common/write_output.h"
 #include "lcmtypes/channels.h"
 #include "planning/cspace.h"
+#include "planning/nondirectional.h"
 #include "planning/scene.h"
 #include "planning/strategy.h"
 #include "planning/vc_rays.h"
@@ -28,15 +28,13 @@
 namespace visco::planning {
 namespace {
 
-int DefaultThreads() { return static_cast<int>(std::max(1u, std::thread::hardware_concurrency())); }
-
 struct Args {
   std::string scene;
   int max_steps = 3;
   bool kernel_only = false;
   bool no_camera = false;
   std::string out, svg, lcm_url;
-  int threads = DefaultThreads();
+  int threads = MachineThreads();
   int check = 0;
   double speed = 0.25;
   int max_backprojections = 60;
