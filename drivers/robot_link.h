@@ -113,8 +113,9 @@ constexpr const char* DriverFaultWhat(std::uint16_t emcy_code) {
 }
 
 /// LinkFault::what of the (foreign, non-stopping) fault a link reports when the driver's session turns out to be
-/// another controller's.
-inline constexpr const char* kForeignSessionWhat =
+/// another controller's. An array, not a pointer to a literal: one object with one address in every translation unit
+/// (identical literals in different units need not share one; under ASan they never do), so `what ==` identifies it.
+inline constexpr char kForeignSessionWhat[] =
     "the driver's session has accepted another controller's commands (one that just ended, or one still running): "
     "this controller waits for the fresh session the driver issues after a watchdog period without commands";
 
