@@ -1,6 +1,7 @@
 // `visco demo`: the whole system on the embedded default scene (or --scene FILE). It plans (`visco plan`), then
 // executes the strategy in closed loop as separate processes talking LCM, as on real hardware:
-//   visco sim    the simulated robot behind its driver (the motion model of SEMANTICS.md with a seeded adversary) and
+//   visco sim    the simulated robot behind its driver (the motion model of docs/semantics.md with a seeded adversary)
+//   and
 //                the rendered camera (the AprilTags of robot and obstacles, published as images);
 //   visco track  the vision pipeline (detection, tracking, poses, CM vertices, visual events);
 //   visco run    the controller (visual guarded and compliant motions, contact, goal);
@@ -27,6 +28,7 @@
 #include <filesystem>
 #include <fstream>
 #include <lcm/lcm-cpp.hpp>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -36,6 +38,7 @@
 #include <thread>
 #include <vector>
 
+#include "app/netns_hosts.h"
 #include "app/paths.h"
 #include "common/error.h"
 #include "common/write_output.h"
@@ -73,6 +76,7 @@ struct Args {
   bool keep_logs = false;
   double timeout_s = 120;
   double speed = 0.6;
+  bool netns = false;
 };
 
 struct Child {
@@ -317,8 +321,9 @@ std::vector<Eigen::Vector2d> SampleStarts(const planning::Polygon& region, int r
 
 // One closed-loop run: the processes, supervised until the controller ends, the run's timeout, a process that ends
 // early, or Ctrl-C; then the outcome from their outputs and the log.
+// With `hosts`, each process runs on a host of its own (a network namespace; NetnsHosts).
 RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::Vector2d& start, const fs::path& rd,
-                      const std::string& url, std::mutex& print) {
+                      const std::string& url, const app::NetnsHosts* hosts, std::mutex& print) {
   const Args& a = *su.args;
   const fs::path& dir = su.dir;
   // Every process on the bus receives the camera's images (300 kB each) whether it subscribes or not: without a
@@ -326,10 +331,21 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
   // commands in a row lost by the driver, a sequence fault, with two runs at once).
   const std::string bus = url + "&recv_buf_size=4194304";
   fs::create_directories(rd);
+  // The host each process runs on (with --netns).
+  const std::vector<std::pair<std::string, std::string>> host_of = {
+      {"lcm-logger", "logger"}, {"sim", "robot"}, {"track", "vision"}, {"run", "controller"}};
+  auto on_host = [&](const std::string& name, const std::vector<std::string>& argv) {
+    if (hosts == nullptr) return argv;
+    for (const auto& [process, host] : host_of) {
+      if (process == name) return hosts->Wrap(host, argv);
+    }
+    return argv;
+  };
   std::vector<Child> children;
-  children.push_back(Spawn("lcm-logger",
-                           {"lcm-logger", "--lcm-url=" + bus, "--quiet", "--force", (rd / "run.lcmlog").string()},
-                           rd / "logger.out", rd / "logger.log"));
+  children.push_back(Spawn(
+      "lcm-logger",
+      on_host("lcm-logger", {"lcm-logger", "--lcm-url=" + bus, "--quiet", "--force", (rd / "run.lcmlog").string()}),
+      rd / "logger.out", rd / "logger.log"));
   std::vector<std::string> sim = {su.self,
                                   "sim",
                                   (dir / "scene.json").string(),
@@ -357,11 +373,11 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
     sim.push_back("--can");
     sim.push_back("vcan0");
   }
-  children.push_back(Spawn("sim", sim, rd / "sim.json", rd / "sim.log"));
+  children.push_back(Spawn("sim", on_host("sim", sim), rd / "sim.json", rd / "sim.log"));
   if (su.rendered) {
     std::vector<std::string> track = {su.self, "track", "--lcm", "--lcm-url", bus};
     track.insert(track.end(), su.cam.begin(), su.cam.end());
-    children.push_back(Spawn("track", track, rd / "track.jsonl", rd / "track.log"));
+    children.push_back(Spawn("track", on_host("track", track), rd / "track.jsonl", rd / "track.log"));
   }
   std::vector<std::string> run = {su.self,
                                   "run",
@@ -397,12 +413,20 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
     run.push_back("--can");
     run.push_back("vcan0");
   }
-  Child controller = Spawn("run", run, rd / "run.json", rd / "run.log");
+  Child controller = Spawn("run", on_host("run", run), rd / "run.json", rd / "run.log");
   const auto started = Clock::now();
   int last_report = -1;
   bool failed_early = false;
+  // With --netns: the network namespace each process was seen in, once it had time to enter its own.
+  std::map<std::string, std::uint64_t> seen_in;
   while (!Poll(controller) && g_signal == 0) {
     const double elapsed = std::chrono::duration<double>(Clock::now() - started).count();
+    if (hosts != nullptr && seen_in.empty() && elapsed > 1.5) {
+      for (const Child* c : {&children[0], &children[1], &controller}) {
+        seen_in[c->name] = app::NetnsHosts::ProcessNamespaceInode(c->pid);
+      }
+      if (children.size() > 2) seen_in[children[2].name] = app::NetnsHosts::ProcessNamespaceInode(children[2].pid);
+    }
     if (elapsed > a.timeout_s) break;
     for (auto& c : children) {
       if (Poll(c) && c.name != "lcm-logger") failed_early = true;
@@ -451,6 +475,20 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
               {"goal_error_m", number_or_null(error)},
               {"success", out.ok}};
   if (failed_early) out.item["reason"] = "a process ended early (see its log in " + rd.string() + ")";
+  if (hosts != nullptr) {
+    // Where each process ran: its host's namespace (name, address, inode) and the namespace it was seen in.
+    nlohmann::json netns = nlohmann::json::object();
+    for (const auto& [process, host] : host_of) {
+      if (seen_in.count(process) == 0) continue;
+      netns[process] = {{"host", host},
+                        {"namespace", hosts->Namespace(host)},
+                        {"address", hosts->Address(host)},
+                        {"namespace_inode", app::NetnsHosts::NamespaceInode(hosts->Namespace(host))},
+                        {"seen_in_inode", seen_in[process]}};
+    }
+    out.item["netns"] = netns;
+    out.item["demo_netns_inode"] = app::NetnsHosts::ProcessNamespaceInode(getpid());
+  }
   // Monte Carlo keeps the logs of the runs to debug (failures), not of every success (tens of MB each, images).
   if (a.runs > 1 && out.ok && !a.keep_logs) {
     fs::remove(rd / "run.lcmlog");
@@ -550,6 +588,12 @@ int Run(const Args& a) {
                      "link set up vcan0) or use the HIL VM (README, \"Hardware-in-the-loop on virtual CAN\")");
   }
   if (a.can && a.jobs > 1) throw InputError("command line", "--jobs", "runs over --can share vcan0: use --jobs 1");
+  if (a.netns) {
+    std::string why;
+    if (!app::NetnsHosts::Available(&why)) throw InputError("command line", "--netns", why);
+    if (a.can)
+      throw InputError("command line", "--netns", "cannot be combined with --can (vcan0 lives in one namespace)");
+  }
   const auto t0 = Clock::now();
   const fs::path dir = FreshDir(a.out);
   // The scene: the embedded default (no file needed) or the user's.
@@ -599,13 +643,34 @@ int Run(const Args& a) {
   std::atomic<int> next{0};
   std::mutex print;
   int completed = 0, successes = 0;
+  // --netns: per job, a host per process (made here, on the main thread: a failure is an error, not a crash).
+  std::vector<std::unique_ptr<app::NetnsHosts>> job_hosts(static_cast<size_t>(std::min(a.jobs, a.runs)));
+  if (a.netns) {
+    for (size_t j = 0; j < job_hosts.size(); ++j) {
+      job_hosts[j] = std::make_unique<app::NetnsHosts>(
+          fmt::format("visco{}j{}", getpid(), j), std::vector<std::string>{"robot", "vision", "controller", "logger"},
+          static_cast<int>(j) + 1);
+    }
+    std::fprintf(stderr,
+                 "visco demo: every process on a host of its own (network namespaces such as %s at %s, LCM "
+                 "multicast over a bridge, ttl=1)\n",
+                 job_hosts[0]->Namespace("robot").c_str(), job_hosts[0]->Address("robot").c_str());
+  }
   auto worker = [&](int job) {
-    // Each job talks on its own multicast port, so simultaneous runs do not hear each other.
-    const std::string url = fmt::format("udpm://239.255.76.67:{}?ttl=0", 20000 + (getpid() % 5000) * 8 + job);
+    // Each job talks on its own multicast port, so simultaneous runs do not hear each other. Across hosts the
+    // datagrams must leave the host: ttl=1 (one link; ttl=0 keeps them on the host).
+    const std::string url =
+        fmt::format("udpm://239.255.76.67:{}?ttl={}", 20000 + (getpid() % 5000) * 8 + job, a.netns ? 1 : 0);
+    const app::NetnsHosts* hosts = job_hosts[static_cast<size_t>(job)].get();
+    {
+      std::lock_guard<std::mutex> lock(print);
+      std::fprintf(stderr, "visco demo: %s talks LCM on %s (watch it: visco spy --lcm-url '%s')\n",
+                   a.runs == 1 ? "the run" : fmt::format("job {}", job + 1).c_str(), url.c_str(), url.c_str());
+    }
     for (int r = next++; r < a.runs && g_signal == 0; r = next++) {
       const std::uint64_t seed = a.seed + static_cast<std::uint64_t>(r);
       const fs::path rd = a.runs == 1 ? dir : dir / fmt::format("run{:03d}", r);
-      RunOutcome o = ExecuteRun(su, r, seed, starts[static_cast<size_t>(r)], rd, url, print);
+      RunOutcome o = ExecuteRun(su, r, seed, starts[static_cast<size_t>(r)], rd, url, hosts, print);
       std::lock_guard<std::mutex> lock(print);
       ++completed;
       successes += o.ok;
@@ -655,6 +720,7 @@ int Run(const Args& a) {
                             {"speed", a.speed},
                             {"camera", su.rendered ? "rendered" : "events"},
                             {"transport", a.can ? "can" : "lcm"},
+                            {"netns", a.netns},
                             {"interrupted", g_signal != 0}};
   WriteTextOutput(summary.dump(2) + "\n", (dir / "summary.json").string());
   if (a.runs > 1) WriteTextOutput(MonteCarloSvg(su, done_runs), (dir / "montecarlo.svg").string());
@@ -694,7 +760,7 @@ void RegisterDemoCommand(CLI::App& app) {
       "summary.json into DIR. Exit 0 only when the goal is recognisably reached (the controller recognised it and "
       "the simulated robot is in the goal).");
   cmd->add_option("--out", args->out, "output directory (default: a fresh ./visco-demo-N)");
-  cmd->add_option("--scene", args->scene, "scene file instead of the embedded default (CONTRACT.md)");
+  cmd->add_option("--scene", args->scene, "scene file instead of the embedded default (docs/formats.md)");
   cmd->add_option("--seed", args->seed, "seed of the adversary and the camera noise")->capture_default_str();
   cmd->add_flag("--can", args->can, "the controller talks to the driver over SocketCAN vcan0 instead of LCM");
   cmd->add_option("--runs", args->runs, "Monte Carlo: runs from seeded random starts in the start region")
@@ -707,6 +773,10 @@ void RegisterDemoCommand(CLI::App& app) {
   cmd->add_flag("--keep-logs", args->keep_logs,
                 "Monte Carlo: keep every run's LCM logs (default: only the failed runs' logs)");
   cmd->add_option("--timeout", args->timeout_s, "give up a run after this many seconds")->capture_default_str();
+  cmd->add_flag("--netns", args->netns,
+                "run every process on a host of its own: a network namespace each, joined by veth to a bridge, LCM "
+                "multicast with ttl=1 between them, as on several machines (needs root; summary.json records where "
+                "each process ran)");
   cmd->callback([args] {
     const int status = Run(*args);
     if (status == 130) throw JobFailed("interrupted");

@@ -1,4 +1,4 @@
-// The `visco` program: one command with subcommands (CONTRACT.md). Each library registers its own subcommands;
+// The `visco` program: one command with subcommands (docs/formats.md). Each library registers its own subcommands;
 // this file only wires them together and owns the user-facing error path and exit statuses.
 
 #include <CLI/CLI.hpp>

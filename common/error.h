@@ -1,5 +1,5 @@
 #pragma once
-// The two ways visco reports failure to users (CONTRACT.md): bad input exits 2 with
+// The two ways visco reports failure to users (docs/formats.md): bad input exits 2 with
 // "visco: FILE: OBJECT: what is wrong"; a job that ran and failed exits 1.
 
 #include <stdexcept>

@@ -420,7 +420,7 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
     return;
   }
 
-  // Command. Contact ends a visual compliant motion (the contact rules take over, SEMANTICS.md).
+  // Command. Contact ends a visual compliant motion (the contact rules take over, docs/semantics.md).
   if (in.status.contact && engaged_ray_ >= 0) {
     contact_latched_ = true;
     engaged_ray_ = -1;

@@ -7,7 +7,7 @@
 // displacement dq moves its image by dd = L dq with L = (f / rho) n^T (1x2, px/m; f the focal length in pixels).
 // This is the planar pinhole camera's derivative at the line (terms in d / rho vanish there).
 // Law (image-based visual servoing, e = s - s*):
-//   v = v_t + v_n,   v_t = s_cmd (u . t) t          the commanded velocity's projection on the ray (SEMANTICS.md)
+//   v = v_t + v_n,   v_t = s_cmd (u . t) t          the commanded velocity's projection on the ray (docs/semantics.md)
 //                    v_n = sat(-lambda L^+ e)        with L^+ = (rho / f) n, saturated to |v_n| <= v_n,max
 // where u is the commanded direction, t the ray's unit direction, s_cmd the commanded speed and lambda the gain
 // (1/s). With the true interaction, e decays as exp(-lambda t) once out of saturation; with an estimated range

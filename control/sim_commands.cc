@@ -103,7 +103,8 @@ void RegisterSimCommands(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "sim",
       "Simulated robot and camera for `visco run`: the robot driver (LCM, or SocketCAN with --can) drives a robot "
-      "that obeys SEMANTICS.md's motion model (actual direction inside the velocity cone chosen by a seeded random "
+      "that obeys docs/semantics.md's motion model (actual direction inside the velocity cone chosen by a seeded "
+      "random "
       "adversary, Coulomb friction on the C-obstacles, sticking, bounds, a workspace-bounds fault when it leaves "
       "them). The simulated camera either renders the AprilTags of robot and obstacles from the true poses "
       "(--objects, --camera, --extrinsics: the files of `visco track`) and publishes image_t on "
@@ -112,7 +113,7 @@ void RegisterSimCommands(CLI::App& app) {
       "vertex to its VC line) and VISCO_ROBOT_ESTIMATE directly. Camera faults can be injected (--occlude, "
       "--blackout, --stale). A latched e-stop is released by the operator with SIGUSR1. Runs until SIGINT/SIGTERM or "
       "--duration; prints a JSON summary on exit.");
-  cmd->add_option("scene", o.scene_path, "scene file (CONTRACT.md)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("scene", o.scene_path, "scene file (docs/formats.md)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--rays", o.rays_path,
                   "synthetic events: `visco vcrays` output, the CVC rays to report visual events for")
       ->check(CLI::ExistingFile);

@@ -1,5 +1,5 @@
 #pragma once
-// The simulated robot of `visco sim`: SEMANTICS.md's motion model (planning/motion_model.h) behind the driver's
+// The simulated robot of `visco sim`: docs/semantics.md's motion model (planning/motion_model.h) behind the driver's
 // RobotInterface. The commanded velocity is followed with an acceleration limit; its direction is turned by an
 // offset inside the control-uncertainty cone chosen by a seeded random adversary (planning::RandomAdversary: a new
 // offset after exponentially distributed distances and at every contact change); contacts with the C-obstacles

@@ -1,5 +1,5 @@
 #pragma once
-// `visco sim`: the simulated robot (SEMANTICS.md's motion model behind the robot driver of drivers/, over LCM or
+// `visco sim`: the simulated robot (docs/semantics.md's motion model behind the robot driver of drivers/, over LCM or
 // SocketCAN) and a simulated camera. The camera either renders the AprilTags of robot and obstacles from the true
 // poses (sim_camera.h) and publishes image_t on VISCO_CAMERA_IMAGE for the real vision pipeline (`visco track
 // --lcm`), or -- without object models -- publishes what vision would: visual_events_t for every CVC ray (the

@@ -88,7 +88,7 @@ struct Task {
   std::unordered_map<std::string, int> ray_index;
 };
 
-/// Reads a scene file (CONTRACT.md). @throws InputError naming the file and object if it is malformed.
+/// Reads a scene file (docs/formats.md). @throws InputError naming the file and object if it is malformed.
 SceneInfo LoadScene(const std::string& path);
 /// Reads `visco vcrays` output. @throws InputError.
 std::vector<CvcRay> LoadRays(const std::string& path);
@@ -110,7 +110,7 @@ bool InPolygon(const Polygon& polygon, Vec2 p);
 /// Distance from `p` to the polygon's boundary. Real-time safe.
 double BoundaryDistance(const Polygon& polygon, Vec2 p);
 /// True if `p` is in the goal kernel: in the goal and at least `erosion` from its boundary (the goal eroded by the
-/// closed disc of radius `erosion`, SEMANTICS.md). Real-time safe.
+/// closed disc of radius `erosion`, docs/semantics.md). Real-time safe.
 bool InKernel(const Polygon& goal, double erosion, Vec2 p);
 
 }  // namespace visco::control

@@ -1,7 +1,7 @@
 #pragma once
 // Plain value types of the controller: what the real-time loop reads, computes and writes. All are trivially
 // copyable so that they cross threads through visco::LatestValue and SpscQueue without allocation.
-// Frames: world frame of SEMANTICS.md (x right, y up, metres); positions are of the robot's reference point.
+// Frames: world frame of docs/semantics.md (x right, y up, metres); positions are of the robot's reference point.
 // Times are CLOCK_MONOTONIC nanoseconds (`*_ns`) unless named `utime` (microseconds since the epoch).
 
 #include <cmath>

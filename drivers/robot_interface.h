@@ -1,6 +1,6 @@
 #pragma once
 // What the driver drives: a robot that takes a reference-point velocity and reports its state. The default is the
-// simulated robot (drivers/simulated_robot.h); a hardware robot or the motion model of SEMANTICS.md
+// simulated robot (drivers/simulated_robot.h); a hardware robot or the motion model of docs/semantics.md
 // (planning/motion_model.h, plugged in by the control side) implements the same interface.
 
 namespace visco::drivers {

@@ -3,8 +3,8 @@
 // acceleration limit (so a stop takes v / a seconds, as on a real axis) and optional walls at the workspace bounds
 // that the robot presses against (contact, with a reaction force proportional to the velocity pushed into the
 // wall), and an optional workspace whose exit is reported (RobotFeedback::out_of_bounds). The full motion model of
-// SEMANTICS.md (velocity cone chosen by an adversary, friction contacts with obstacles, sticking) lives in planning/
-// and is plugged in by the control side through RobotInterface.
+// docs/semantics.md (velocity cone chosen by an adversary, friction contacts with obstacles, sticking) lives in
+// planning/ and is plugged in by the control side through RobotInterface.
 
 #include "drivers/robot_interface.h"
 

@@ -206,7 +206,7 @@ std::string BackprojectionToJson(double theta_deg, const Region& classic, const 
   doc["classic"] = RegionJson(classic);
   nlohmann::json v = RegionJson(vc.region);
   v["active_rays"] = vc.active_rays;
-  // How the active rays were chosen (an addition to CONTRACT.md's fields): "exact" (every subset of the reliable
+  // How the active rays were chosen (an addition to docs/formats.md's fields): "exact" (every subset of the reliable
   // candidates swept: an admissible set of largest area), "greedy" (above the exact limit), "none" (no candidate).
   v["ray_selection"] = {
       {"method", RaySelectionName(vc.selection)}, {"candidates", vc.candidates}, {"sweeps", vc.sweeps}};
@@ -238,8 +238,8 @@ void RegisterBackprojectCommand(CLI::App& app) {
       "--ray-selection exact sweeps every subset up to --exact-limit candidates). Prints JSON "
       "{\"theta_deg\", \"classic\": REGION, \"vc\": REGION + {\"active_rays\", \"ray_selection\": {\"method\", "
       "\"candidates\", \"sweeps\"}}}, REGION = {\"area\", \"regions\": "
-      "[{\"outer\": {\"vertices\", \"edges\": [{\"kind\", \"ref\"}]}, \"holes\"}]} (CONTRACT.md).");
-  cmd->add_option("SCENE", args->scene, "scene file (JSON, see CONTRACT.md)")->required();
+      "[{\"outer\": {\"vertices\", \"edges\": [{\"kind\", \"ref\"}]}, \"holes\"}]} (docs/formats.md).");
+  cmd->add_option("SCENE", args->scene, "scene file (JSON, see docs/formats.md)")->required();
   cmd->add_option("--theta", args->theta_deg, "commanded direction, degrees counter-clockwise from +x")->required();
   cmd->add_flag("--kernel", args->kernel,
                 "backproject the goal kernel (the goal eroded by the position uncertainty) instead of the goal");

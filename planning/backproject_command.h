@@ -1,5 +1,5 @@
 #pragma once
-// `visco backproject SCENE --theta DEG [--kernel] [--out FILE] [--svg FILE]` (CONTRACT.md), and the pieces it is
+// `visco backproject SCENE --theta DEG [--kernel] [--out FILE] [--svg FILE]` (docs/formats.md), and the pieces it is
 // made of, for tests and for the planner: the backprojection problem of a scene, the region JSON, the picture.
 
 #include <string>
@@ -32,7 +32,7 @@ BackprojectionProblem ProblemFromScene(const Scene& scene, const CSpace& cspace,
 /// The CVC rays of a scene as backprojection candidates (id, group = the VC ray's id, free-space segments).
 std::vector<CvcRayInput> CvcRayInputs(const VcRays& rays);
 
-/// CONTRACT.md region JSON: {"area", "regions": [{"outer": {"vertices", "edges": [{"kind", "ref"}]}, "holes"}]}.
+/// docs/formats.md region JSON: {"area", "regions": [{"outer": {"vertices", "edges": [{"kind", "ref"}]}, "holes"}]}.
 std::string RegionToJson(const Region& region, int indent = -1);
 
 /// The `visco backproject` document: {"theta_deg", "classic": REGION, "vc": REGION + {"active_rays": [...]}}.

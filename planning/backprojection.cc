@@ -11,7 +11,7 @@
 //
 // Local rule at an event point p (a vertex of the overlay or a point where a free edge meets another curve). Curves
 // through p are rays from p: lower rays (already swept, with known labels on both sides) and upper rays. For a point
-// q just above p in a free upper sector S, its forward cone can reach (SEMANTICS.md's motion model):
+// q just above p in a free upper sector S, its forward cone can reach (docs/semantics.md's motion model):
 //   * S's clockwise side iff q's direction from p is below 90° + ε (sweep frame angles),
 //   * S's counter-clockwise side iff it is above 90° − ε,
 //   * p itself iff it is within [90° − ε, 90° + ε].
@@ -405,7 +405,7 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
     top_ = FT(top + 1.0 + std::abs(top));
   }
   // Active rays, clipped to the bounds exactly in the sweep frame (their rounded ends may lie a hair outside). An
-  // end that is open (clipped here or by the C-space cut, or the camera end) fails when complied to: SEMANTICS.md,
+  // end that is open (clipped here or by the C-space cut, or the camera end) fails when complied to: docs/semantics.md,
   // "the bounds are no end of a ray". Compliance runs down a reliable ray, so only lower ends matter.
   for (int r : active_rays) {
     const CvcRayInput& ray = pr.rays.at(r);
@@ -676,7 +676,7 @@ bool Sweep::OutcomeAt(const V2& w, const std::vector<LRay>& rays, Label below) c
   }
   if (IsGood(sector)) return true;
   if (sector == Label::kBad || sector == Label::kOutside) return false;
-  // Pushing into CB: contact rules (SEMANTICS.md vertex rule). The edge with the larger tangential component wins;
+  // Pushing into CB: contact rules (docs/semantics.md vertex rule). The edge with the larger tangential component wins;
   // where two tie (w on the bisector of their directions, one of the critical directions sampled below) either may be
   // taken, so both must lead somewhere good (decided with a tolerance: rounding must not pick one side at random).
   constexpr double kTie = 1e-12;

@@ -1,5 +1,5 @@
 #pragma once
-// Directional backprojections in C = R² (Fox & Hutchinson §IV–V, SEMANTICS.md "Backprojections"):
+// Directional backprojections in C = R² (Fox & Hutchinson §IV–V, docs/semantics.md "Backprojections"):
 //   * B_θ(G): the classic one (Erdmann; Donald–Canny plane sweep against the commanded velocity);
 //   * B_vcθ(G): the same with a set of active CVC rays (frictionless two-sided walls), and the choice of that set
 //     so that the region stays sound and contains B_θ(G).
@@ -20,7 +20,7 @@
 namespace visco::planning {
 
 /// A polygon with names for its vertices and edges (edge i runs from vertex i to vertex i + 1, wrapping). Names are
-/// the provenance refs of the output (CONTRACT.md); empty names are filled in as "<prefix>[i].v[k]"/"…e[k]".
+/// the provenance refs of the output (docs/formats.md); empty names are filled in as "<prefix>[i].v[k]"/"…e[k]".
 struct NamedPolygon {
   std::vector<Eigen::Vector2d> vertices;
   std::vector<std::string> vertex_refs;  ///< optional, one per vertex
@@ -29,7 +29,7 @@ struct NamedPolygon {
   bool hole = false;
 };
 
-/// A candidate CVC ray for B_vcθ(G): its free-space segments and its id (CONTRACT.md `cvc_rays[].id`).
+/// A candidate CVC ray for B_vcθ(G): its free-space segments and its id (docs/formats.md `cvc_rays[].id`).
 struct CvcRayInput {
   std::string id;
   std::string group;  ///< the workspace VC ray it comes from (siblings share it); may be empty
@@ -58,7 +58,7 @@ struct BackprojectionProblem {
 enum class EdgeKind : std::uint8_t { kObstacle, kGoal, kFree, kVc, kBounds };
 const char* EdgeKindName(EdgeKind kind);
 
-/// Provenance of one output edge (CONTRACT.md region JSON).
+/// Provenance of one output edge (docs/formats.md region JSON).
 struct RegionEdge {
   EdgeKind kind = EdgeKind::kFree;
   std::string ref;
@@ -101,7 +101,7 @@ struct VcBackprojection {
   Region classic;  ///< B_θ(G), the region with no ray active (swept first; callers need not sweep it again)
   std::vector<std::string> active_rays;      ///< ids of the CVC rays the motion complies to (sorted)
   std::vector<std::string> rejected_rays;    ///< reliable candidates that are not active
-  std::vector<std::string> unreliable_rays;  ///< candidates within 90° ± ε_v of θ (never active, SEMANTICS.md)
+  std::vector<std::string> unreliable_rays;  ///< candidates within 90° ± ε_v of θ (never active, docs/semantics.md)
   RaySelection selection = RaySelection::kNone;
   int candidates = 0;  ///< reliable candidates (the exact search sweeps 2^candidates active sets)
   int sweeps = 0;      ///< plane sweeps run to choose the set (the no-ray sweep included)

@@ -9,6 +9,7 @@
 #include "common/error.h"
 #include "common/write_output.h"
 #include "planning/backproject_command.h"
+#include "planning/camera_command.h"
 #include "planning/critical_command.h"
 #include "planning/cspace.h"
 #include "planning/plan_command.h"
@@ -46,7 +47,7 @@ void RegisterCommands(CLI::App& app) {
       "Prints JSON {\"vc_rays\": [{\"id\", \"obstacle\", \"vertex\", \"from\", \"to\"}], \"cvc_rays\": [{\"id\", "
       "\"vc_ray\", \"cm_vertex\", \"segments\"}], \"cvc_crossings\": [...]}. Ids are stable: \"vc<k>\" for the k-th "
       "obstacle vertex of the file, \"vc<k>.cm<j>\" for robot vertex j.");
-  vcrays->add_option("SCENE", args->scene, "scene file (JSON, see CONTRACT.md)")->required();
+  vcrays->add_option("SCENE", args->scene, "scene file (JSON, see docs/formats.md)")->required();
   vcrays->add_option("--out", args->out, "write the JSON to FILE instead of stdout");
   vcrays->add_option("--svg", args->svg,
                      "draw obstacles, C-obstacles, camera, VC rays and labelled CVC rays into FILE (SVG)");
@@ -54,6 +55,7 @@ void RegisterCommands(CLI::App& app) {
   RegisterBackprojectCommand(app);
   RegisterCriticalCommand(app);
   RegisterPlanCommand(app);
+  RegisterCameraCommand(app);
 }
 
 }  // namespace visco::planning

@@ -1,5 +1,5 @@
 #pragma once
-// The planner's subcommands of the `visco` program: `vcrays`, `backproject` (CONTRACT.md).
+// The planner's subcommands of the `visco` program: `vcrays`, `backproject` (docs/formats.md).
 
 namespace CLI {
 class App;

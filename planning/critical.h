@@ -31,7 +31,7 @@
 namespace visco::planning {
 
 enum class CriticalKind : std::uint8_t { kVgraph, kSliding, kVertex, kR, kFreeEdge, kVc, kSelection };
-/// "vgraph", "sliding", "vertex", "R", "free-edge", "vc", "selection" (CONTRACT.md).
+/// "vgraph", "sliding", "vertex", "R", "free-edge", "vc", "selection" (docs/formats.md).
 const char* CriticalKindName(CriticalKind kind);
 
 /// One critical orientation: θ in [−π, π) and the features that cause it (vertex, edge and ray refs as in the

@@ -1,5 +1,5 @@
 // `visco critical SCENE [--kernel] [--slices] [--svg FILE] [--threads N] [--method kinetic|baseline] [--out FILE]`
-// (CONTRACT.md): the critical orientations of the scene's backprojections, and with --slices the nondirectional
+// (docs/formats.md): the critical orientations of the scene's backprojections, and with --slices the nondirectional
 // backprojection (one slice per orientation and per open interval) and where the start region fits.
 
 #include "planning/critical_command.h"
@@ -268,7 +268,7 @@ void RegisterCriticalCommand(CLI::App& app) {
       "[{\"theta_deg\", \"kind\", \"refs\"}], \"stats\", \"start_intervals\": {\"classic\", \"vc\"} (the "
       "theta-intervals where the start region lies inside the backprojection)}; with --slices also \"slices\" "
       "(the nondirectional backprojection: one per orientation and one per open interval).");
-  cmd->add_option("SCENE", args->scene, "scene file (JSON, see CONTRACT.md)")->required();
+  cmd->add_option("SCENE", args->scene, "scene file (JSON, see docs/formats.md)")->required();
   cmd->add_flag("--kernel", args->kernel, "backproject the goal kernel (the goal eroded by the position uncertainty)");
   cmd->add_flag("--slices", args->slices, "print the slices of the nondirectional backprojection too");
   cmd->add_option(

@@ -1,6 +1,6 @@
 #pragma once
 // `visco critical SCENE [--kernel] [--slices] [--svg FILE] [--threads N] [--method kinetic|baseline] [--out FILE]`
-// (CONTRACT.md), and its picture: the areas of B_θ(G) and B_vcθ(G) against θ with the critical orientations.
+// (docs/formats.md), and its picture: the areas of B_θ(G) and B_vcθ(G) against θ with the critical orientations.
 
 #include <string>
 #include <vector>

@@ -1,5 +1,5 @@
 #pragma once
-// Configuration space of a translating robot (Fox & Hutchinson §III, SEMANTICS.md "Frames and units"):
+// Configuration space of a translating robot (Fox & Hutchinson §III, docs/semantics.md "Frames and units"):
 // C-obstacles CB_i = B_i (+) (-A) (Minkowski sums, robot and obstacles possibly non-convex), their union CB, and the
 // free space (the bounds rectangle minus the interior of CB).
 //
@@ -28,7 +28,7 @@ namespace visco::planning {
 ///                  ref "obstacle[ID].e[k]-robot.v[j]";
 ///   kRobotEdge:    reflected robot edge [-a_j, -a_j+1] translated by b_k: [b_k - a_j, b_k - a_j+1],
 ///                  ref "obstacle[ID].v[k]-robot.e[j]".
-/// k and j are file positions (CONTRACT.md "Indices in outputs"; edge k runs from file vertex k to k + 1).
+/// k and j are file positions (docs/formats.md "Indices in outputs"; edge k runs from file vertex k to k + 1).
 /// Generators are ordered by (obstacle, kind with kObstacleEdge first, obstacle_feature, robot_feature); every
 /// boundary point gets the first generator whose segment contains it (collinear, coincident generators are
 /// resolved that way), and boundary edges are split where that generator changes, so each edge has exactly one.

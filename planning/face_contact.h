@@ -5,7 +5,7 @@
 // manipulated object: e = n · D_a⁻¹ · D_b · v (eq. 25), where D_a and D_b are operation dependency lists (ODLs):
 // products of motion parameters T_k and their inverses. Each motion parameter is split into the observed constant
 // part T_k and the variable part ΔT_k = P(x,y,z)·Rx(α)·Ry(β)·Rz(γ) (eq. 4), so T_k becomes T_k·ΔT_k and its inverse
-// ΔT_k⁻¹·T_k⁻¹ (eq. 3, read as e = n·ΔT_a⁻¹·T_a⁻¹·T_b·ΔT_b·v, SEMANTICS.md).
+// ΔT_k⁻¹·T_k⁻¹ (eq. 3, read as e = n·ΔT_a⁻¹·T_a⁻¹·T_b·ΔT_b·v, docs/semantics.md).
 //
 // SolveContacts finds the *smallest* correction q (six parameters per variable motion parameter) that makes every
 // equation hold: minimise Σ_k |t_k|² + L²·|r_k|² (t translation, r the three angles, L the characteristic length,

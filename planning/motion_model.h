@@ -1,5 +1,5 @@
 #pragma once
-// The one implementation of SEMANTICS.md's motion model: a translating point (the robot's reference point) in
+// The one implementation of docs/semantics.md's motion model: a translating point (the robot's reference point) in
 // C = R^2 among polygonal C-obstacles, under the generalised damper with Coulomb friction, a velocity chosen
 // adversarially inside the control uncertainty cone, active CVC rays as frictionless two-sided walls, a bounds
 // rectangle (leaving it fails) and a goal region (entering it succeeds).
@@ -108,7 +108,7 @@ class MotionModel {
   /// and −n is at most φ (+ kStickAngleTolerance). False if v does not push (v·n ≥ 0).
   static bool Sticks(const Eigen::Vector2d& v, const Eigen::Vector2d& outward_normal, double friction_cone);
 
-  /// SEMANTICS.md: an edge is a sticking edge for θ if some velocity in the cone [θ−ε_v, θ+ε_v] sticks on it.
+  /// docs/semantics.md: an edge is a sticking edge for θ if some velocity in the cone [θ−ε_v, θ+ε_v] sticks on it.
   /// Same tolerance as Sticks (a tie counts as sticking).
   static bool IsStickingEdge(const Eigen::Vector2d& outward_normal, double theta, double velocity_cone,
                              double friction_cone);

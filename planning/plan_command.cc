@@ -1,5 +1,5 @@
 // `visco plan SCENE [--max-steps K] [--kernel-only] [--no-camera] [--out FILE] [--svg FILE] [--lcm-url URL]
-// [--threads N] [--check N]` (CONTRACT.md): a motion strategy by backchaining preimages.
+// [--threads N] [--check N]` (docs/formats.md): a motion strategy by backchaining preimages.
 
 #include "planning/plan_command.h"
 
@@ -58,7 +58,7 @@ motion_strategy_t StrategyToLcm(const Scene& scene, const Strategy& strategy, do
                           : s.terminate == Termination::kVisualGuarded ? motion_step_t::TERMINATE_VC
                                                                        : motion_step_t::TERMINATE_CONTACT;
     step.terminate_ref = s.terminate_ref;
-    step.timeout_s = 0.0;
+    step.timeout_s = StepTimeout(scene, speed);  // as in the JSON: `visco run` times a step out the same way
     m.steps.push_back(step);
   }
   m.num_steps = static_cast<int32_t>(m.steps.size());
@@ -130,9 +130,9 @@ void RegisterPlanCommand(CLI::App& app) {
       "orientations (never sampled). Fewest "
       "steps win, then the largest margin. Prints JSON {\"feasible\", \"steps\": [{\"theta_deg\", \"active_rays\", "
       "\"terminate\": {\"kind\", \"ref\"}, \"preimage\": REGION, \"guarantee\", \"interval_deg\", \"margin\"}]} in "
-      "execution order (CONTRACT.md), which `visco run` executes as it is. Exit 1 when no strategy within "
+      "execution order (docs/formats.md), which `visco run` executes as it is. Exit 1 when no strategy within "
       "--max-steps exists, with the reason on stderr.");
-  cmd->add_option("SCENE", args->scene, "scene file (JSON, see CONTRACT.md); needs a start region")->required();
+  cmd->add_option("SCENE", args->scene, "scene file (JSON, see docs/formats.md); needs a start region")->required();
   cmd->add_option("--max-steps", args->max_steps, "the most steps a strategy may have")->capture_default_str();
   cmd->add_flag("--kernel-only", args->kernel_only,
                 "goal-terminated steps only (no visual guarded subgoals): one step from the start region or none");

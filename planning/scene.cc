@@ -165,16 +165,6 @@ Vector DirectionFromDegrees(double degrees) {
   return {std::cos(r * kDegree), std::sin(r * kDegree)};
 }
 
-Camera MakeCamera(const Point& center, double first_deg, double span_deg) {
-  Camera camera;
-  camera.center = center;
-  camera.fov_first_rad = first_deg * kDegree;
-  camera.fov_second_rad = (first_deg + span_deg) * kDegree;
-  camera.fov_first = DirectionFromDegrees(first_deg);
-  camera.fov_second = DirectionFromDegrees(first_deg + span_deg);
-  return camera;
-}
-
 Camera ReadCamera(const Reader& r, const Json& j) {
   const std::string object = "camera";
   if (j.is_object() && j.contains("pinhole")) {
@@ -198,7 +188,7 @@ Camera ReadCamera(const Reader& r, const Json& j) {
                        "second); it must be narrower than 180 degrees",
                        span));
   }
-  return MakeCamera(center, first, span);
+  return MakePlanarCamera(center, first, span);
 }
 
 std::string ObstacleName(std::size_t i, const std::string& id) {
@@ -249,7 +239,7 @@ Scene Parse(const Reader& r, const Json& j, const std::string& default_name) {
     scene.obstacles.push_back(std::move(obstacle));
   }
   // Obstacles may touch and overlap (scenes are built from parts, e.g. a floor and walls): the obstacle region is
-  // their union (SEMANTICS.md).
+  // their union (docs/semantics.md).
 
   r.CheckKeys(j["goal"], "goal", {"polygon"}, {});
   scene.goal = r.ReadPolygon(j["goal"]["polygon"], "goal.polygon");
@@ -289,6 +279,16 @@ std::string StemOf(const std::string& path) {
 }
 
 }  // namespace
+
+Camera MakePlanarCamera(const Point& center, double first_deg, double span_deg) {
+  Camera camera;
+  camera.center = center;
+  camera.fov_first_rad = first_deg * kDegree;
+  camera.fov_second_rad = (first_deg + span_deg) * kDegree;
+  camera.fov_first = DirectionFromDegrees(first_deg);
+  camera.fov_second = DirectionFromDegrees(first_deg + span_deg);
+  return camera;
+}
 
 bool Camera::Sees(const Point& p) const {
   if (p == center) return false;
@@ -378,7 +378,7 @@ Camera DerivePlanarCamera(const PinholeCamera& pinhole, const std::string& sourc
                                  "(tilt the camera so that it does not see below itself)",
                                  span / kDegree));
   }
-  Camera camera = MakeCamera(foot, std::remainder(first, 2 * kPi) / kDegree, span / kDegree);
+  Camera camera = MakePlanarCamera(foot, std::remainder(first, 2 * kPi) / kDegree, span / kDegree);
   camera.pinhole = pinhole;
   return camera;
 }

@@ -1,10 +1,11 @@
 #pragma once
-// The planner's immutable scene model (CONTRACT.md "Scene file", SEMANTICS.md "Frames and units") and its loader.
+// The planner's immutable scene model (docs/formats.md "Scene file", docs/semantics.md "Frames and units") and its
+// loader.
 //
 // A Scene is plain data, built and validated once by LoadScene / ParseScene and then only read (pass it as
 // `const Scene&`). Polygons are normalised: counter-clockwise, repeated consecutive vertices dropped; the
 // `source_index` of each polygon maps a normalised vertex back to its 0-based position in the file, which is what
-// outputs report (CONTRACT.md "Indices in outputs"). Angles are radians, lengths metres.
+// outputs report (docs/formats.md "Indices in outputs"). Angles are radians, lengths metres.
 
 #include <optional>
 #include <string>
@@ -81,6 +82,11 @@ struct Camera {
   bool Sees(const Point& p) const;
 };
 
+/// The planar camera at `center` whose field of view sweeps `span_deg` counter-clockwise from the direction
+/// `first_deg` (degrees from +x; directions at multiples of 90 degrees are exact). No checks: the scene loader checks
+/// what it reads, `visco camera` builds its candidates with this.
+Camera MakePlanarCamera(const Point& center, double first_deg, double span_deg);
+
 /// Control and sensing uncertainty.
 struct Uncertainty {
   /// Half-angle of the control uncertainty cone, radians, in [0, pi/2).
@@ -89,7 +95,7 @@ struct Uncertainty {
   double position = 0;
 };
 
-/// A planning scene (CONTRACT.md). Treat as immutable after loading.
+/// A planning scene (docs/formats.md). Treat as immutable after loading.
 struct Scene {
   std::string name;
   /// Where it came from (file path, or a label such as "<embedded slot.json>"), for messages.
@@ -125,7 +131,7 @@ std::string_view DefaultSceneJson();
 /// Loads the default demo scene. @throws visco::InputError only if the embedded file is broken (a build bug).
 Scene DefaultScene();
 
-/// Derives the planar camera model from a pinhole camera (SEMANTICS.md "Real cameras", docs/planning_cspace.md):
+/// Derives the planar camera model from a pinhole camera (docs/semantics.md "Real cameras", docs/planning_cspace.md):
 /// the projection centre is the camera centre's foot point on the motion plane z = 0, the field of view is the
 /// angular extent, seen from that foot point, of the image's footprint on the motion plane.
 /// @throws visco::InputError(source, object, ...) if the camera centre is not above the plane, the image sees no

@@ -212,7 +212,7 @@ std::vector<ThetaInterval> Fits(const Node& node, const NamedPolygon& region) {
 
 // A place where a motion can stick: a face of CB (a maximal straight run of its boundary, CB on its left) or a
 // concave corner of CB (two faces meeting with free space inside an angle below π), and the θ where it sticks for
-// the whole velocity cone (the friction model of SEMANTICS.md).
+// the whole velocity cone (the friction model of docs/semantics.md).
 struct ContactFeature {
   bool corner = false;
   Vector2d a{0, 0}, b{0, 0};         // face: from a to b; corner: a = b = the corner
@@ -569,12 +569,16 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
   return out;
 }
 
+double StepTimeout(const Scene& scene, double speed) {
+  return std::round(3.0 * (scene.bounds.max - scene.bounds.min).norm() / speed + 10.0);
+}
+
 std::string StrategyToJson(const Scene& scene, const Strategy& strategy, double speed) {
   nlohmann::json doc;
   doc["feasible"] = strategy.feasible;
   doc["scene"] = scene.name;
   doc["speed"] = speed;
-  const double timeout = 3.0 * (scene.bounds.max - scene.bounds.min).norm() / speed + 10.0;
+  const double timeout = StepTimeout(scene, speed);
   nlohmann::json steps = nlohmann::json::array();
   for (const auto& s : strategy.steps) {
     nlohmann::json step;

@@ -42,7 +42,7 @@ inline constexpr double kVcStripHalfWidth = 0.01;
 inline constexpr double kContactDepth = 0.01;
 
 enum class Termination : std::uint8_t { kGoal, kVisualGuarded, kContact };
-/// "goal", "vc", "contact" (CONTRACT.md).
+/// "goal", "vc", "contact" (docs/formats.md).
 const char* TerminationName(Termination t);
 
 struct StrategyStep {
@@ -105,6 +105,10 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options = {});
 /// "timeout_s": three times the bounds' diagonal at that speed, plus 10 s).
 std::string StrategyToJson(const Scene& scene, const Strategy& strategy, double speed = 0.25);
 
+/// The time-out of every step at commanded speed `speed` (m/s): three times the bounds' diagonal at that speed, plus
+/// 10 s, in whole seconds (the JSON's and the LCM message's "timeout_s").
+double StepTimeout(const Scene& scene, double speed);
+
 /// The nested preimages of the steps (Fig. 13 style): the start region, each preimage, its commanded direction, the
 /// rays used and the goal.
 std::string StrategyToSvg(const Scene& scene, const CSpace& cspace, const Strategy& strategy);
@@ -112,7 +116,7 @@ std::string StrategyToSvg(const Scene& scene, const CSpace& cspace, const Strate
 /// The same drawing onto a canvas of the scene's bounds (for pictures drawn over the plan, e.g. `visco demo`'s).
 void DrawStrategy(SvgCanvas& canvas, const Scene& scene, const CSpace& cspace, const Strategy& strategy);
 
-/// Result of simulating a strategy (the motion model of SEMANTICS.md with adversarial velocities).
+/// Result of simulating a strategy (the motion model of docs/semantics.md with adversarial velocities).
 struct StrategyCheck {
   int starts = 0;                     ///< sampled start configurations (interior and boundary of R)
   int successes = 0;                  ///< reached the goal kernel after the last step

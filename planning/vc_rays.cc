@@ -160,8 +160,8 @@ std::vector<std::pair<Point, Point>> SectorsAtCamera(const Scene& scene, const P
 std::vector<UnoccludedVertex> FindUnoccludedVertices(const Scene& scene) {
   std::vector<UnoccludedVertex> result;
   if (!scene.camera) return result;
-  // The sweep's status order needs edges that do not cross; overlapping obstacles (allowed, SEMANTICS.md) fall back
-  // to the O(n^2) test, which handles a vertex inside another obstacle (its segment to P starts in that interior).
+  // The sweep's status order needs edges that do not cross; overlapping obstacles (allowed, docs/semantics.md) fall
+  // back to the O(n^2) test, which handles a vertex inside another obstacle (its segment to P starts in that interior).
   if (FindOverlappingObstacles(scene.obstacles)) return FindUnoccludedVerticesReference(scene);
   const Camera& camera = *scene.camera;
   const Point p = camera.center;

@@ -1,5 +1,5 @@
 #pragma once
-// Visual constraint rays (Fox & Hutchinson §III, SEMANTICS.md "Visual constraints"): the workspace VC rays from
+// Visual constraint rays (Fox & Hutchinson §III, docs/semantics.md "Visual constraints"): the workspace VC rays from
 // unoccluded obstacle vertices to the camera's projection centre, the CM vertices of the robot for each ray
 // direction, and the C-space VC (CVC) rays, cut where they enter the interior of CB and clipped to the bounds, with
 // their pairwise crossings.
@@ -68,7 +68,7 @@ struct CvcRay {
   /// towards the camera end (rounded to doubles from exact values).
   std::vector<Segment> segments;
   /// open_ends[k]: per end of segments[k] (source, target), true where it is not on CB's boundary: the bounds clip
-  /// the ray there or it is the camera end. Complying along the ray to an open end fails (SEMANTICS.md: nothing
+  /// the ray there or it is the camera end. Complying along the ray to an open end fails (docs/semantics.md: nothing
   /// physical stops the servo there).
   std::vector<std::array<bool, 2>> open_ends;
 };
@@ -92,7 +92,7 @@ struct VcRays {
 /// meetings of CVC rays with CB edges and with each other. Not real-time safe.
 VcRays ComputeVcRays(const Scene& scene, const CSpace& cspace);
 
-/// The `visco vcrays` JSON (CONTRACT.md): {"vc_rays": [{"id", "obstacle", "vertex", "from", "to"}], "cvc_rays":
+/// The `visco vcrays` JSON (docs/formats.md): {"vc_rays": [{"id", "obstacle", "vertex", "from", "to"}], "cvc_rays":
 /// [{"id", "vc_ray", "cm_vertex", "segments"}]}, plus "cvc_crossings": [{"rays": [id, id], "point", "overlap"}] and
 /// "camera": {"center", "fov_deg"}. "obstacle" is the obstacle's id, "vertex" and "cm_vertex" file positions.
 std::string VcRaysToJson(const Scene& scene, const VcRays& rays);

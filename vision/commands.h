@@ -1,5 +1,5 @@
 #pragma once
-// The vision subcommands of the `visco` program: `detect` (one image, CONTRACT.md) and `track` (streaming).
+// The vision subcommands of the `visco` program: `detect` (one image, docs/formats.md) and `track` (streaming).
 
 namespace CLI {
 class App;

@@ -1,5 +1,5 @@
 #pragma once
-// `visco detect`: detections and poses of one image as the JSON of CONTRACT.md.
+// `visco detect`: detections and poses of one image as the JSON of docs/formats.md.
 
 #include <string>
 
@@ -9,7 +9,7 @@
 
 namespace visco::vision {
 
-/// Runs detection and pose estimation on `image` and returns the CONTRACT.md JSON text (pretty-printed):
+/// Runs detection and pose estimation on `image` and returns the docs/formats.md JSON text (pretty-printed):
 /// {"image": {"width", "height"}, "detections": [{"id", "family", "corners", "pose": {"t", "R"},
 /// "decision_margin", "hamming", "reprojection_error_px", "ambiguous"}]}. Detections whose pose is rejected
 /// (reprojection error above the limit, degenerate corners) are left out and counted in "rejected".

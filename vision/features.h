@@ -1,7 +1,7 @@
 #pragma once
-// Per-frame features for the strategies (Fox & Hutchinson with a real camera, SEMANTICS.md): object poses from their
-// tags, the robot's position on the motion plane with its uncertainty, the image of each CM vertex, the VC line of
-// each obstacle vertex (the image of the plane through the camera centre and the vertical obstacle edge: the line
+// Per-frame features for the strategies (Fox & Hutchinson with a real camera, docs/semantics.md): object poses from
+// their tags, the robot's position on the motion plane with its uncertainty, the image of each CM vertex, the VC line
+// of each obstacle vertex (the image of the plane through the camera centre and the vertical obstacle edge: the line
 // through the images of the edge's ends), their signed image distance and crossing events with hysteresis.
 //
 // Image quantities are in ideal (undistorted) pixels: with lens distortion the image of a straight edge is curved,

@@ -1,6 +1,6 @@
 #pragma once
 // AprilTag detection (the AprilTag C library, hidden behind a PIMPL) and tag pose estimation with the planar
-// ambiguity handled explicitly. Poses follow ViSP's convention (CONTRACT.md): cMo is the tag frame in the camera
+// ambiguity handled explicitly. Poses follow ViSP's convention (docs/formats.md): cMo is the tag frame in the camera
 // frame, tag x right and y up as printed, z out of the tag face, the tag size being the black border's outer edge.
 // Corners are in the AprilTag library's own order and pixel convention: corner 0 is the bottom-left of the printed
 // tag, then counter-clockwise (as printed).

@@ -1,7 +1,7 @@
 #pragma once
 // A small kinematic plant for controller tests: the reference point integrates the commanded velocity, optionally
 // rotated by a fixed disturbance angle (inside the control cone), and stops or slides on straight walls with
-// Coulomb friction (sticking when the push is within the friction cone of the wall normal, SEMANTICS.md).
+// Coulomb friction (sticking when the push is within the friction cone of the wall normal, docs/semantics.md).
 
 #include <cmath>
 #include <vector>

@@ -21,7 +21,7 @@ using testing::Example;
 
 constexpr double kResidue = 1e-9;
 // Second-order effects of the noise (2e-4 m, 1.5e-3 rad) on directions the contacts do not constrain: far below
-// the noise itself and below the 0.5 mm – 0.25 m drifts a wrong rank produces (SEMANTICS.md).
+// the noise itself and below the 0.5 mm – 0.25 m drifts a wrong rank produces (docs/semantics.md).
 constexpr double kKeepT = 2e-6;
 constexpr double kKeepR = 2e-5;
 
@@ -196,7 +196,7 @@ TEST_P(Examples, AllAtOnceSatisfiesEveryContact) {
   }
 }
 
-// SEMANTICS.md's warning, reproduced on §5.1 all at once: at the noisy observation the redundant directions have
+// docs/semantics.md's warning, reproduced on §5.1 all at once: at the noisy observation the redundant directions have
 // small but non-zero singular values, so a default pseudo-inverse threshold sees a higher rank than the contacts'
 // structural rank (measured where they hold), and the paper's plain iteration with it drifts along redundant
 // directions. Our correction has no null-space component.

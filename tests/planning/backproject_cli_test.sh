@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# `visco backproject` (CONTRACT.md): JSON shape, provenance kinds, B_θ ⊆ B_vcθ by area, --kernel, --svg, exit 2 on
+# `visco backproject` (docs/formats.md): JSON shape, provenance kinds, B_θ ⊆ B_vcθ by area, --kernel, --svg, exit 2 on
 # bad input.
 set -uo pipefail
 visco="$1"
@@ -55,7 +55,7 @@ for key, g in groups.items():
     assert len(list(g.iter(ns + "line"))) >= 4, key  # region edges, velocity arrow
     assert any(t.text and t.text.startswith(titles[key]) for t in g.iter(ns + "text")), key
 PY
-# Refs name file positions (CONTRACT.md): the same scene with every polygon written clockwise from another vertex
+# Refs name file positions (docs/formats.md): the same scene with every polygon written clockwise from another vertex
 # gives the same regions; goal refs name the same file edges (renumbered by the rewrite), and every obstacle ref
 # names, in each file, a Minkowski segment (obstacle edge - robot vertex, or obstacle vertex - robot edge) that
 # contains its edge. (Where several coincident segments contain an edge, the first by file position wins, so which

@@ -145,8 +145,8 @@ TEST(BackprojectScene, KernelRegionIsSmallerAndSound) {
 }
 
 // Regression (found outside the project, 2026-12-01): active rays whose free segments end where the bounds clip
-// them. A robot that reaches such a ray complies along it out of the bounds (SEMANTICS.md: the bounds are no end of
-// a ray); the VC region used to include such places. The extreme direction θ − ε_v alone refuted most of it.
+// them. A robot that reaches such a ray complies along it out of the bounds (docs/semantics.md: the bounds are no end
+// of a ray); the VC region used to include such places. The extreme direction θ − ε_v alone refuted most of it.
 TEST(BackprojectScene, RaysClippedByTheBoundsAreNoEnd) {
   const Pipeline pl("tests/planning/data/cases/ray_leaves_bounds.json");
   int open_ends = 0;
@@ -197,7 +197,7 @@ TEST(BackprojectScene, RaysClippedByTheBoundsAreNoEnd) {
   EXPECT_GT(inside, 0);
 }
 
-// Scenes built from overlapping parts (a floor and walls, SEMANTICS.md) load, and their regions are sound.
+// Scenes built from overlapping parts (a floor and walls, docs/semantics.md) load, and their regions are sound.
 TEST(BackprojectScene, OverlappingPartsFunnel) {
   const Pipeline pl("tests/planning/data/cases/funnel_overlapping.json");
   ASSERT_FALSE(pl.rays.vc_rays.empty());

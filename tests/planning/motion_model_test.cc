@@ -1,4 +1,4 @@
-// Unit tests of SEMANTICS.md's motion model (planning/motion_model.h): free motion, sticking (inclusive at φ),
+// Unit tests of docs/semantics.md's motion model (planning/motion_model.h): free motion, sticking (inclusive at φ),
 // sliding, vertex rules, bounds, goal, active CVC rays, the step-wise API and the adversaries.
 
 #include "planning/motion_model.h"
@@ -185,10 +185,10 @@ TEST(MotionModel, ActiveRayGuidesIntoTheGoal) {
 }
 
 TEST(MotionModel, ComplyingToAnOpenRayEndFails) {
-  // SEMANTICS.md: only a C-obstacle ends a compliant motion. A ray from (1, 8.5) down-right to (6, 3.5), which ends in
-  // free space above the floor: where that end is on a C-obstacle (closed) the motion leaves the ray there and falls
-  // freely; where it is open (the bounds clip the ray there, or it is the camera end) the servo carries the robot on
-  // past it, and the motion fails with kOpenRayEnd.
+  // docs/semantics.md: only a C-obstacle ends a compliant motion. A ray from (1, 8.5) down-right to (6, 3.5), which
+  // ends in free space above the floor: where that end is on a C-obstacle (closed) the motion leaves the ray there and
+  // falls freely; where it is open (the bounds clip the ray there, or it is the camera end) the servo carries the robot
+  // on past it, and the motion fails with kOpenRayEnd.
   const Poly floor = Rect(0, 0, 10, 2);
   MotionWorld w = World({floor}, {Rect(5, 2, 8, 2.5)}, 20);
   w.active_rays.push_back({Vector2d(1, 8.5), Vector2d(6, 3.5)});

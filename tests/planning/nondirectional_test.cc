@@ -50,7 +50,7 @@ SliceStructure StructureAt(const BackprojectionProblem& pr, double theta) {
   return {RegionStructure(vc.classic), RegionStructure(vc.region), vc.active_rays};
 }
 
-// The property of CONTRACT.md `visco critical`: sampled at ¼, ½, ¾ of every interval between consecutive
+// The property of docs/formats.md `visco critical`: sampled at ¼, ½, ¾ of every interval between consecutive
 // orientations, the structure is the same; and across every non-R orientation it changes.
 void CheckStructure(const std::string& name, const BackprojectionProblem& pr, const NondirectionalBackprojection& nd,
                     Tally& t) {

@@ -52,7 +52,7 @@ inline bool InsideConvexOrAny(const NamedPolygon& poly, const Eigen::Vector2d& p
   return inside;
 }
 
-/// The parts of segment [a, b] inside the bounds and outside every obstacle (as CVC rays are, SEMANTICS.md), with
+/// The parts of segment [a, b] inside the bounds and outside every obstacle (as CVC rays are, docs/semantics.md), with
 /// their open ends: an end is closed only where an obstacle edge cuts the segment (a bounds cut and the segment's own
 /// ends in free space are open, like a clipped CVC ray's end and its camera end).
 struct FreeParts {

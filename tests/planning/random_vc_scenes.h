@@ -65,7 +65,8 @@ inline Scene RandomScene(std::uint64_t seed, const RandomSceneOptions& o = {}) {
       const Point lo(cx * o.cell, cy * o.cell);
       Polygon p;
       if (o.overlap > 0 && unit(rng) < o.overlap) {  // no draw otherwise: the other tests' scenes stay the same
-        // A rectangle or a star that reaches into the neighbouring cells: obstacles overlap (SEMANTICS.md allows it).
+        // A rectangle or a star that reaches into the neighbouring cells: obstacles overlap (docs/semantics.md allows
+        // it).
         const double grow = o.cell * (0.2 + 0.4 * unit(rng));
         if (unit(rng) < 0.5) {
           const Point a(Snap(lo.x() - grow, o.lattice), Snap(lo.y() + 0.3 * o.cell, o.lattice));

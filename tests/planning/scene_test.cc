@@ -136,7 +136,7 @@ TEST(Scene, RejectsBadPolygons) {
 }
 
 TEST(Scene, AcceptsOverlappingAndTouchingObstacles) {
-  // SEMANTICS.md: scenes are built from overlapping parts; the obstacle region is their union.
+  // docs/semantics.md: scenes are built from overlapping parts; the obstacle region is their union.
   Json j = BaseScene();
   j["obstacles"][1]["polygon"] = Json::parse("[[3, 1], [10, 1], [10, 2], [3, 2]]");
   j["goal"]["polygon"] = Json::parse("[[4, 2], [4.5, 2], [4.5, 2.5], [4, 2.5]]");

@@ -16,9 +16,11 @@
 #include <vector>
 
 #include "planning/cspace.h"
+#include "planning/plan_command.h"
 #include "planning/scene.h"
 #include "planning/vc_rays.h"
 #include "tests/planning/random_vc_scenes.h"
+#include "visco/motion_strategy_t.hpp"
 
 namespace visco::planning {
 namespace {
@@ -69,6 +71,11 @@ TEST(Strategy, OneStepOnlyWithVisualConstraints) {
   one.max_steps = 1;
   one.use_camera = false;
   EXPECT_FALSE(PlanStrategy(s, one).feasible);
+  // The LCM form carries the JSON's time-outs (it carried 0, and `visco run` fell back to its own).
+  const motion_strategy_t m = StrategyToLcm(s, p.with_camera, 0.5);
+  ASSERT_EQ(m.steps.size(), 1u);
+  EXPECT_EQ(m.steps[0].timeout_s, StepTimeout(s, 0.5));
+  EXPECT_GT(m.steps[0].timeout_s, 10.0);
 }
 
 // corner.json: the start region is far wider than the goal kernel, no single motion reaches it recognisably, and

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# `visco detect` against CONTRACT.md: JSON shape on visp-images-data's AprilTag.pgm, and exit 2 with a message naming
+# `visco detect` against docs/formats.md: JSON shape on visp-images-data's AprilTag.pgm, and exit 2 with a message naming
 # the file and what is wrong for bad input.
 set -uo pipefail
 visco="$1"
