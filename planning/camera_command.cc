@@ -264,26 +264,38 @@ void Run(const Args& a) {
   }
   if (centers.empty()) throw JobFailed(a.scene + ": no candidate centre lies outside the obstacles");
 
-  // The baselines first: without a camera, and the scene's own camera (as the file gives it).
-  std::vector<std::optional<Camera>> cameras = {std::nullopt};
-  if (scene.camera) cameras.push_back(scene.camera);
-  const std::size_t first_candidate = cameras.size();
-  for (const Point& p : centers) cameras.push_back(AimedCamera(p, aim, fov));
   CameraSearchOptions options;
   options.max_steps = a.max_steps;
   options.max_backprojections = a.max_backprojections;
   options.threads = a.threads;
+  std::string stage;
   options.progress = [&](int done, int total) {
     if (!tty) return;
-    std::fprintf(stderr, "\rplanning with camera %d of %d", done, total);
+    std::fprintf(stderr, "\rplanning %s: camera %d of %d", stage.c_str(), done, total);
     std::fflush(stderr);
   };
-  std::vector<CameraEvaluation> all = EvaluateCameras(scene, cameras, options);
-  if (tty) std::fprintf(stderr, "\r%40s\r", "");
-  const CameraEvaluation no_camera = all[0];
+  // The baselines: without a camera, and the scene's own camera (as the file gives it), with every step allowed.
+  std::vector<std::optional<Camera>> baselines = {std::nullopt};
+  if (scene.camera) baselines.push_back(scene.camera);
+  stage = "the baselines";
+  const std::vector<CameraEvaluation> base = EvaluateCameras(scene, baselines, options);
+  const CameraEvaluation no_camera = base[0];
   std::optional<CameraEvaluation> scene_camera;
-  if (scene.camera) scene_camera = all[1];
-  std::vector<CameraEvaluation> evaluated(all.begin() + static_cast<std::ptrdiff_t>(first_candidate), all.end());
+  if (scene.camera) scene_camera = base[1];
+  // The candidates with one step allowed, then two, ...: a strategy with fewer steps ranks first whatever the rest,
+  // so the search stops at the first step count that some candidate reaches (the best is the one planning each
+  // with every step allowed would give; the others are reported as planned at that count).
+  std::vector<std::optional<Camera>> cameras;
+  for (const Point& p : centers) cameras.push_back(AimedCamera(p, aim, fov));
+  std::vector<CameraEvaluation> evaluated;
+  int searched = 0;
+  for (int k = 1; k <= a.max_steps; ++k) {
+    options.max_steps = searched = k;
+    stage = fmt::format("with up to {} step{}", k, k == 1 ? "" : "s");
+    evaluated = EvaluateCameras(scene, cameras, options);
+    if (std::any_of(evaluated.begin(), evaluated.end(), [](const CameraEvaluation& e) { return e.feasible; })) break;
+  }
+  if (tty) std::fprintf(stderr, "\r%60s\r", "");
   for (std::size_t i = 0; i < evaluated.size(); ++i) evaluated[i].cell = cell_of[i];
   std::vector<std::size_t> order(evaluated.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
@@ -299,6 +311,7 @@ void Run(const Args& a) {
   j["fov_deg"] = fov;
   j["aim"] = PointJson(aim);
   j["max_steps"] = a.max_steps;
+  j["steps_searched"] = searched;
   if (mode == Mode::kCells) {
     j["cells"] = {{"event_lines", cells.event_lines},
                   {"faces", cells.faces},
