@@ -179,7 +179,7 @@ TEST(CameraPlacement, EvaluationsAreThePlannersAndTheBestCameraIsChecked) {
     if (std::find(seen.begin(), seen.end(), c.view) != seen.end()) continue;
     seen.push_back(c.view);
     cameras.push_back(AimedCamera(c.sample, aim, 100.0));
-    if (cameras.size() == 6) break;
+    if (cameras.size() == 5) break;
   }
   CameraSearchOptions options;
   options.max_steps = 2;
