@@ -3,6 +3,9 @@
 # and rejects bad input with exit 2 naming the file and the object.
 set -uo pipefail
 visco="$1"
+# --sanitized (ASan/UBSan build): fewer candidates, the same checks.
+cells=6
+[[ "${2:-}" == "--sanitized" ]] && cells=3
 cd "$(dirname "${BASH_SOURCE[0]}")/../.."
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
@@ -10,9 +13,9 @@ failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
 
 # fig13 (§VIII-A): no strategy without a camera, one step with the scene's camera.
-"$visco" camera data/scenes/fig13.json --max-candidates 6 --threads 2 --out "$tmp/cells.json" --svg "$tmp/cells.svg" \
+"$visco" camera data/scenes/fig13.json --max-candidates $cells --threads 2 --out "$tmp/cells.json" --svg "$tmp/cells.svg" \
   2>"$tmp/cells.log" || fail "visco camera (cells) exited $?: $(cat "$tmp/cells.log")"
-python3 - "$tmp/cells.json" <<'PY' || fail "cells JSON: $(head -c 600 "$tmp/cells.json")"
+python3 - "$tmp/cells.json" "$cells" <<'PY' || fail "cells JSON: $(head -c 600 "$tmp/cells.json")"
 import json, sys
 j = json.load(open(sys.argv[1]))
 assert j["mode"] == "cells", j["mode"]
@@ -20,7 +23,8 @@ assert j["cells"]["views"] > 1 and j["cells"]["faces"] >= j["cells"]["cells"] > 
 assert j["no_camera"]["feasible"] is False, j["no_camera"]
 assert j["scene_camera"]["feasible"] is True and j["scene_camera"]["steps"] == 1, j["scene_camera"]
 c = j["candidates"]
-assert len(c) == 6 and [x["rank"] for x in c] == list(range(1, 7)), [x.get("rank") for x in c]
+n = int(sys.argv[2])
+assert len(c) == n and [x["rank"] for x in c] == list(range(1, n + 1)), [x.get("rank") for x in c]
 key = lambda x: (not x["feasible"], x["steps"] if x["feasible"] else 0, -x["min_interval_deg"], -x["preimage_area"])
 assert [key(x) for x in c] == sorted(key(x) for x in c), "not ranked"
 assert j["best"] is not None and j["best"]["center"] == c[0]["center"], j["best"]
@@ -44,7 +48,9 @@ assert j["aim"] == [5, 4] and j["fov_deg"] == 100
 PY
 
 # A coarse grid.
-"$visco" camera data/scenes/fig13.json --grid 4 --max-steps 1 --threads 2 --out "$tmp/grid.json" \
+grid=4
+[[ "${2:-}" == "--sanitized" ]] && grid=6
+"$visco" camera data/scenes/fig13.json --grid $grid --max-steps 1 --threads 2 --out "$tmp/grid.json" \
   --svg "$tmp/grid.svg" 2>"$tmp/grid.log"
 status=$?
 [[ $status -eq 0 || $status -eq 1 ]] || fail "visco camera (grid) exited $status: $(cat "$tmp/grid.log")"

@@ -171,4 +171,33 @@ inline bool RandomWholeScene(std::uint64_t seed, Scene& s, double& theta, int ce
   return false;
 }
 
+// A start region for a RandomWholeScene: a 0.3 m square `near`-`far` m from the goal's centre (default 1-2.5), kept
+// where it is free, and a velocity cone of `cone_lo`-`cone_hi` degrees (default 2-8°, narrower than the scene's, so
+// that strategies exist often enough to be worth checking). False if no place was found in 200 tries.
+inline bool PlaceStartRegion(std::uint64_t seed, Scene& s, double near = 1.0, double far = 2.5, double cone_lo = 2.0,
+                             double cone_hi = 8.0) {
+  const CSpace cspace(s);
+  std::mt19937_64 rng(seed * 101);
+  std::uniform_real_distribution<double> u(0, 1);
+  s.uncertainty.velocity_cone_rad = (cone_lo + (cone_hi - cone_lo) * u(rng)) * M_PI / 180;
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  for (const auto& v : s.goal.polygon.vertices) centre += v / 4.0;
+  for (int attempt = 0; attempt < 200; ++attempt) {
+    const double a = 2 * M_PI * u(rng), d = near + (far - near) * u(rng);
+    const Eigen::Vector2d c = centre + d * Eigen::Vector2d(std::cos(a), std::sin(a));
+    Polygon r{{c + Eigen::Vector2d(-0.15, -0.15), c + Eigen::Vector2d(0.15, -0.15), c + Eigen::Vector2d(0.15, 0.15),
+               c + Eigen::Vector2d(-0.15, 0.15)}};
+    bool ok = true;
+    for (auto& v : r.vertices) ok = ok && s.bounds.Contains(v) && cspace.Locate(v) == Location::kOutside;
+    ok = ok && cspace.Locate(c) == Location::kOutside;
+    if (!ok) continue;
+    ScenePolygon sp;
+    sp.polygon = r;
+    sp.source_index = {0, 1, 2, 3};
+    s.start = sp;
+    return true;
+  }
+  return false;
+}
+
 }  // namespace visco::planning::testing

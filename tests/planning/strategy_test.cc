@@ -275,31 +275,7 @@ TEST(Strategy, RandomScenesAreCheckedInSimulation) {
     Scene s;
     double theta = 0;
     if (!testing::RandomWholeScene(seed, s, theta, 2, 1)) continue;
-    // A start region: a 0.3 m square 1-2.5 m from the goal's centre, kept where it is free; a narrower velocity cone
-    // (2-8°) so that strategies exist often enough to be worth checking.
-    const CSpace cspace(s);
-    std::mt19937_64 rng(seed * 101);
-    std::uniform_real_distribution<double> u(0, 1);
-    s.uncertainty.velocity_cone_rad = (2.0 + 6.0 * u(rng)) * M_PI / 180;
-    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
-    for (const auto& v : s.goal.polygon.vertices) centre += v / 4.0;
-    bool placed = false;
-    for (int attempt = 0; attempt < 200 && !placed; ++attempt) {
-      const double a = 2 * M_PI * u(rng), d = 1.0 + 1.5 * u(rng);
-      const Eigen::Vector2d c = centre + d * Eigen::Vector2d(std::cos(a), std::sin(a));
-      Polygon r{{c + Eigen::Vector2d(-0.15, -0.15), c + Eigen::Vector2d(0.15, -0.15), c + Eigen::Vector2d(0.15, 0.15),
-                 c + Eigen::Vector2d(-0.15, 0.15)}};
-      bool ok = true;
-      for (auto& v : r.vertices) ok = ok && s.bounds.Contains(v) && cspace.Locate(v) == Location::kOutside;
-      ok = ok && cspace.Locate(c) == Location::kOutside;
-      if (!ok) continue;
-      ScenePolygon sp;
-      sp.polygon = r;
-      sp.source_index = {0, 1, 2, 3};
-      s.start = sp;
-      placed = true;
-    }
-    if (!placed) continue;
+    if (!testing::PlaceStartRegion(seed, s)) continue;
     ++scenes;
     const Planned p = PlanAndCheck(s, "seed " + std::to_string(seed), kSanitized ? 6 : 24);
     with += p.with_camera.feasible;
