@@ -5,11 +5,23 @@
 # Needs root and iproute2: skipped (77) otherwise.
 set -uo pipefail
 visco="$1"
-if [[ $(id -u) -ne 0 ]] || ! ip netns add "visco-probe-$$" 2>/dev/null; then
-  echo "SKIP: needs root and network namespaces"
+# The probe makes what the demo makes, on a small scale: a namespace with a bridge and a veth pair into another.
+probe() {
+  local a="visco-probe-$$-a" b="visco-probe-$$-b" ok=0
+  ip netns add "$a" 2>/dev/null || return 1
+  if ip netns add "$b" 2>/dev/null; then
+    ip -n "$a" link add br0 type bridge mcast_snooping 0 2>/dev/null &&
+      ip -n "$a" link add p0 type veth peer name eth0 netns "$b" 2>/dev/null &&
+      ip -n "$a" link set p0 master br0 up 2>/dev/null && ok=1
+    ip netns del "$b"
+  fi
+  ip netns del "$a"
+  [[ $ok -eq 1 ]]
+}
+if [[ $(id -u) -ne 0 ]] || ! command -v ip >/dev/null || ! probe; then
+  echo "SKIP: needs root, network namespaces, bridges and veth pairs"
   exit 77
 fi
-ip netns del "visco-probe-$$"
 tmp=$(mktemp -d)
 trap 'pkill -f "$tmp" 2>/dev/null; rm -rf "$tmp"' EXIT
 failures=0
