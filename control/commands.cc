@@ -106,6 +106,11 @@ void RegisterCommands(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--step-timeout", o.executor.default_step_timeout_s, "time-out of steps that give none, s")
       ->capture_default_str();
+  cmd->add_option("--stuck-s", o.executor.stuck_s,
+                  "a goal- or ray-terminated step whose robot stays in contact without moving for this long, away "
+                  "from the goal, fails then (stuck for good) instead of at its time-out, s (0: wait for the time-out)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   cmd->add_flag("--goal-from-odometry", o.executor.goal_from_odometry,
                 "recognise the goal from the driver's odometry instead of vision's robot estimate");
   cmd->add_flag("--no-realtime", cli->no_realtime, "do not try SCHED_FIFO and mlockall");

@@ -90,6 +90,7 @@ void Executor::BeginStep(int index, std::int64_t now_ns, int reached_ray) {
   engaged_ray_ = -1;
   contact_latched_ = false;
   contact_since_ns_ = -1;
+  stuck_since_ns_ = -1;
   const Step& step = task_.steps[static_cast<std::size_t>(index)];
   mode_ = step.terminate == TerminateKind::kVisualGuarded ? Mode::kVisualGuarded : Mode::kFree;
   // The previous step ended on reaching `reached_ray` (visual guarded motion): if this step complies to that ray, it
@@ -406,6 +407,26 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
     terminated = true;
     VISCO_FORMAT_TEXT(message, "step %d: stopped in contact at (%.4f, %.4f) m", step_, in.status.position.x,
                       in.status.position.y);
+  }
+  // Stuck: in contact and not moving for stuck_s, away from the goal. Under the step's constant direction nothing
+  // frees it (docs/semantics.md: sticking is final), so the step can no longer end as planned: say where, now.
+  if (in.status.contact) {
+    if (stuck_since_ns_ < 0 || Norm(in.status.position - stuck_at_) > config_.stuck_distance) {
+      stuck_since_ns_ = in.now_ns;
+      stuck_at_ = in.status.position;
+    }
+  } else {
+    stuck_since_ns_ = -1;
+  }
+  if (!terminated && step.terminate != TerminateKind::kContact && config_.stuck_s > 0 && stuck_since_ns_ >= 0 &&
+      in.now_ns - stuck_since_ns_ >= Nanoseconds(config_.stuck_s) &&
+      !(task_.goal && (InPolygon(*task_.goal, out.estimate) ||
+                       BoundaryDistance(*task_.goal, out.estimate) <= task_.position_uncertainty))) {
+    VISCO_FORMAT_TEXT(message,
+                      "step %d (terminate %s): stuck in contact at (%.4f, %.4f) m for %.1f s, away from the goal",
+                      step_, ToString(step.terminate), out.estimate.x, out.estimate.y, config_.stuck_s);
+    Stop(FaultCode::kStrategyFailed, message, out, in);
+    return;
   }
   if (terminated) {
     if (step_ + 1 >= static_cast<int>(task_.steps.size())) {

@@ -69,7 +69,12 @@ struct ExecutorConfig {
   double contact_speed = 0.002;        // m/s, below this speed in contact the motion has stopped
   double contact_dwell_s = 0.02;       // s, ... for at least this long (contact termination)
   double contact_min_step_s = 0.1;     // s, a contact step cannot end before it had time to start moving
-  bool goal_from_odometry = false;     // recognise the goal from the driver's odometry instead of vision
+  // A goal- or ray-terminated step whose robot stays in contact within stuck_distance (m) for stuck_s (s), farther
+  // than ε_p from the goal, is stuck for good (sticking is final under a constant direction): it fails then, with
+  // CODE_STRATEGY_FAILED, instead of at its time-out. 0 disables.
+  double stuck_s = 2.0;
+  double stuck_distance = 0.001;
+  bool goal_from_odometry = false;  // recognise the goal from the driver's odometry instead of vision
   /// m, > 0: near a VC line not yet reached, the speed is cut so that the motion goes past the line by at most this
   /// before the event is seen (one frame interval plus the frame's age late): the planner's strip half-width
   /// (planning::kVcStripHalfWidth). 0: full speed up to the line.
@@ -164,6 +169,8 @@ class Executor {
   int engaged_ray_ = -1;
   bool contact_latched_ = false;  // contact ended the compliant motion; re-engage only after it clears
   std::int64_t contact_since_ns_ = -1;
+  std::int64_t stuck_since_ns_ = -1;  // in contact near stuck_at_ since then (-1: not in contact)
+  Vec2 stuck_at_{};
   bool holding_ = false;
   FaultCode hold_code_ = FaultCode::kNone;
   std::int64_t hold_since_ns_ = 0;

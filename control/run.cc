@@ -128,6 +128,8 @@ std::string ExecutorConfigToJson(const ExecutorConfig& c) {
   j["contact_min_step_s"] = c.contact_min_step_s;
   j["goal_from_odometry"] = c.goal_from_odometry;
   j["approach_tolerance_m"] = c.approach_tolerance_m;
+  j["stuck_s"] = c.stuck_s;
+  j["stuck_distance"] = c.stuck_distance;
   j["servo"] = {{"gain", c.servo.gain},
                 {"focal_px", c.servo.focal_px},
                 {"nominal_range_m", c.servo.nominal_range_m},
@@ -155,6 +157,8 @@ ExecutorConfig ExecutorConfigFromJson(const std::string& text, const std::string
     c.contact_min_step_s = j.at("contact_min_step_s").get<double>();
     c.goal_from_odometry = j.at("goal_from_odometry").get<bool>();
     c.approach_tolerance_m = j.value("approach_tolerance_m", 0.0);  // logs from before it existed: full speed
+    c.stuck_s = j.value("stuck_s", 0.0);                            // ... and: no stuck detection
+    c.stuck_distance = j.value("stuck_distance", 0.001);
     const auto& s = j.at("servo");
     c.servo.gain = s.at("gain").get<double>();
     c.servo.focal_px = s.at("focal_px").get<double>();

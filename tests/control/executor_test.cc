@@ -386,6 +386,54 @@ TEST(Executor, StepTimeoutStops) {
   EXPECT_NEAR(ticks * 0.002, 0.3, 0.006);
 }
 
+// A goal step whose motion sticks on a wall away from the goal (a push inside the friction cone) fails once it has
+// not moved for stuck_s, with CODE_STRATEGY_FAILED and where it stuck, not at the step's time-out; a slow slide
+// along the same wall (outside the friction cone) is not stuck, and a robot resting in contact inside the goal is
+// left to goal recognition.
+TEST(Executor, StuckAwayFromTheGoalFailsEarlyButASlowSlideDoesNot) {
+  Task task;
+  task.steps.push_back(MakeStep(-M_PI / 2, TerminateKind::kGoal));  // straight down onto the floor y = 0
+  task.steps.back().timeout_s = 60;
+  task.goal = Polygon{{{5.0, 0.0}, {6.0, 0.0}, {6.0, 1.0}, {5.0, 1.0}}};
+  task.position_uncertainty = 0.05;
+  ExecutorConfig config = Config();
+  config.stuck_s = 1.0;
+  {
+    Harness h(task, config, {1.0, 0.3});
+    h.plant.walls = {testing::Wall{{0, 0}, {0, 1}}};
+    h.plant.friction = 0.3;  // the push (straight down) sticks
+    h.Start();
+    const int ticks = h.RunUntilFinished(10.0);
+    EXPECT_EQ(h.executor().stop_code(), FaultCode::kStrategyFailed);
+    EXPECT_NE(std::string(h.executor().stop_reason()).find("stuck in contact"), std::string::npos)
+        << h.executor().stop_reason();
+    EXPECT_LT(ticks * 0.002, 10.0);
+    EXPECT_GT(ticks * 0.002, 1.0);
+  }
+  {
+    // The same push tilted 80° from the normal: it slides right at about 0.05 * sin(80°) m/s along the floor.
+    Task sliding = task;
+    sliding.steps.back().theta = -M_PI / 2 + 80.0 * M_PI / 180;
+    Harness h(sliding, config, {1.0, 0.02});
+    h.plant.walls = {testing::Wall{{0, 0}, {0, 1}}};
+    h.plant.friction = 0.3;
+    h.Start();
+    for (int i = 0; i < 2000; ++i) h.Tick();  // 4 s in contact, moving
+    EXPECT_FALSE(h.executor().finished()) << h.executor().stop_reason();
+  }
+  {
+    // Resting in contact inside the goal: not "stuck" (the goal's own recognition decides).
+    Task in_goal = task;
+    in_goal.goal = Polygon{{{0.5, 0.0}, {1.5, 0.0}, {1.5, 0.02}, {0.5, 0.02}}};  // too thin for the kernel
+    Harness h(in_goal, config, {1.0, 0.01});
+    h.plant.walls = {testing::Wall{{0, 0}, {0, 1}}};
+    h.plant.friction = 0.3;
+    h.Start();
+    for (int i = 0; i < 2000; ++i) h.Tick();
+    EXPECT_NE(h.executor().stop_code(), FaultCode::kStrategyFailed) << h.executor().stop_reason();
+  }
+}
+
 TEST(Executor, EstopLatchesAndCommandsEstop) {
   Task task;
   task.steps.push_back(MakeStep(0.0, TerminateKind::kContact));
