@@ -24,6 +24,7 @@
 #include "common/error.h"
 #include "common/write_output.h"
 #include "planning/camera_placement.h"
+#include "planning/json_lines.h"
 #include "planning/nondirectional.h"
 #include "planning/scene.h"
 #include "planning/svg.h"
@@ -100,25 +101,6 @@ Json EvaluationJson(const CameraEvaluation& e, bool camera) {
   j["seconds"] = std::round(e.seconds * 1000) / 1000;
   if (!e.feasible) j["reason"] = e.reason;
   return j;
-}
-
-// One top-level key per line, each candidate on a line of its own: readable and still a few lines per candidate.
-std::string CompactJson(const Json& j) {
-  std::string out = "{";
-  bool first = true;
-  for (const auto& [key, value] : j.items()) {
-    out += first ? "\n  " : ",\n  ";
-    first = false;
-    out += Json(key).dump() + ": ";
-    if (value.is_array() && !value.empty() && value.front().is_object()) {
-      out += "[";
-      for (std::size_t i = 0; i < value.size(); ++i) out += (i ? ",\n    " : "\n    ") + value[i].dump();
-      out += "\n  ]";
-    } else {
-      out += value.dump();
-    }
-  }
-  return out + "\n}";
 }
 
 std::string Describe(const CameraEvaluation& e) {
@@ -334,7 +316,7 @@ void Run(const Args& a) {
   j["best"] = best != nullptr ? EvaluationJson(*best, true) : Json(nullptr);
   j["candidates"] = std::move(ranked);
   j["seconds"] = std::round(seconds * 100) / 100;
-  WriteTextOutput(CompactJson(j), a.out);
+  WriteTextOutput(JsonLines(j, 2, 4, true), a.out);  // a candidate per line
   if (!a.svg.empty()) {
     WriteTextOutput(HeatMapSvg(scene, min, max, mode, cells, evaluated, by_view, a.grid, scene_camera, best), a.svg);
   }

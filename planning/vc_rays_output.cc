@@ -6,6 +6,7 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "planning/json_lines.h"
 #include "planning/svg.h"
 #include "planning/vc_rays.h"
 
@@ -54,21 +55,7 @@ std::string VcRaysToJson(const Scene& scene, const VcRays& rays) {
                                   {"overlap", x.overlap}});
   }
   // One line per ray or crossing: readable and diff-friendly.
-  std::string out = "{";
-  bool first_key = true;
-  for (const auto& [key, value] : j.items()) {
-    out += first_key ? "\n" : ",\n";
-    first_key = false;
-    out += " " + nlohmann::ordered_json(key).dump() + ": ";
-    if (value.is_array() && !value.empty()) {
-      out += "[";
-      for (std::size_t i = 0; i < value.size(); ++i) out += (i ? ",\n  " : "\n  ") + value[i].dump();
-      out += "\n ]";
-    } else {
-      out += value.dump();
-    }
-  }
-  return out + "\n}";
+  return JsonLines(j, 1, 2, false);
 }
 
 std::string VcRaysToSvg(const Scene& scene, const CSpace& cspace, const VcRays& rays) {
