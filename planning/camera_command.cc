@@ -218,11 +218,13 @@ void Run(const Args& a) {
   std::vector<int> cell_of;  // per candidate: its cell (cells mode), else -1
   std::map<int, std::size_t> by_view;
   if (mode == Mode::kCells) {
-    std::fprintf(stderr, "viewing cells ...");
-    std::fflush(stderr);
+    if (tty) {
+      std::fprintf(stderr, "viewing cells ...\r");
+      std::fflush(stderr);
+    }
     cells = ComputeViewingCells(scene, min, max);
     std::fprintf(stderr,
-                 "\rviewing cells: %d event lines, %d faces, %zu cells outside the obstacles, %d views "
+                 "viewing cells: %d event lines, %d faces, %zu cells outside the obstacles, %d views "
                  "(n = %d obstacle vertices, m = %d robot hull vertices, (mn)^2 = %lld)\n",
                  cells.event_lines, cells.faces, cells.cells.size(), cells.views, cells.obstacle_vertices,
                  cells.robot_vertices,
