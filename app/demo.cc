@@ -422,10 +422,8 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
   while (!Poll(controller) && g_signal == 0) {
     const double elapsed = std::chrono::duration<double>(Clock::now() - started).count();
     if (hosts != nullptr && seen_in.empty() && elapsed > 1.5) {
-      for (const Child* c : {&children[0], &children[1], &controller}) {
-        seen_in[c->name] = app::NetnsHosts::ProcessNamespaceInode(c->pid);
-      }
-      if (children.size() > 2) seen_in[children[2].name] = app::NetnsHosts::ProcessNamespaceInode(children[2].pid);
+      for (const Child& c : children) seen_in[c.name] = app::NetnsHosts::ProcessNamespaceInode(c.pid);
+      seen_in[controller.name] = app::NetnsHosts::ProcessNamespaceInode(controller.pid);
     }
     if (elapsed > a.timeout_s) break;
     for (auto& c : children) {
