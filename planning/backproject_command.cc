@@ -182,6 +182,7 @@ BackprojectionProblem ProblemFromScene(const Scene& scene, const CSpace& cspace,
   pr.theta = theta;
   pr.velocity_cone = scene.uncertainty.velocity_cone_rad;
   pr.friction_cone = scene.friction_cone_rad;
+  pr.ray_tracking_error = scene.uncertainty.vc_tracking;
   return pr;
 }
 

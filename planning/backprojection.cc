@@ -264,6 +264,8 @@ class Sweep {
 
   void Process(const P2& p, const std::vector<StaticCurve>& uppers);
   Label StatusAtPoint(const std::vector<LRay>& rays, Label below) const;
+  bool LandingIsGood(const StaticCurve& ray, const std::vector<LRay>& rays,
+                     const std::vector<StaticCurve>& uppers) const;
   bool OutcomeAt(const V2& w, const std::vector<LRay>& rays, Label below) const;
   void CheckIntersection(const Curve* a, const Curve* b, const P2& p);
   int VertexName(const P2& p, const std::vector<Curve*>& through);
@@ -281,6 +283,9 @@ class Sweep {
   std::map<P2, int, LessYX> vertex_names_;
   P2 bounds_sweep_[4];                    // the bounds' corners in the sweep frame, counter-clockwise
   std::set<P2, LessYX> open_lower_ends_;  // lower ends of active ray segments that fail when complied to
+  // Lower ends on CB of active ray segments (sources_ indices), when the tracking error is positive: complying to the
+  // end is good only if meeting CB beside it is (LandingIsGood).
+  std::map<P2, std::vector<int>, LessYX> closed_lower_ends_;
   std::set<int> bad_track_rays_;
   std::vector<std::pair<P2, std::vector<StaticCurve>>> static_events_;
   std::priority_queue<P2, std::vector<P2>, std::function<bool(const P2&, const P2&)>> dynamic_{
@@ -307,6 +312,8 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
   }
   if (!(pr.friction_cone >= 0.0 && pr.friction_cone < M_PI / 2)) {
     throw std::invalid_argument("backprojection: the friction cone must be in [0, 90) degrees");
+    if (!(pr.ray_tracking_error >= 0.0) || !std::isfinite(pr.ray_tracking_error))
+      throw std::invalid_argument("backprojection: the ray tracking error must be finite and not negative");
   }
   eps_ = std::max(pr.velocity_cone, 1e-9);  // a cone of zero width is planned as a hair wider: a subset
   phi_ = pr.friction_cone;
@@ -425,7 +432,11 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       s.ray = r;
       sources_.push_back(s);
       const int lower = CGAL::compare_yx(ends[0], ends[1]) == CGAL::SMALLER ? 0 : 1;
-      if (open[lower]) open_lower_ends_.insert(ends[lower]);
+      if (open[lower]) {
+        open_lower_ends_.insert(ends[lower]);
+      } else if (pr.ray_tracking_error > 0.0) {
+        closed_lower_ends_[ends[lower]].push_back(static_cast<int>(sources_.size()) - 1);
+      }
     }
   }
 
@@ -771,6 +782,62 @@ Label Sweep::StatusAtPoint(const std::vector<LRay>& rays, Label below) const {
   return Label::kGood;
 }
 
+// The servo runs the robot up to δ beside an active ray's line, so complying down to the ray's lower end p on CB
+// meets CB anywhere on the two C-obstacle edges that bound the free wedge around the ray at p (the first obstacle ray
+// turning clockwise from the ray's direction, and the first counter-clockwise), up to L = δ / sin(angle to the ray)
+// from p; from there it moves with the commanded cone under the contact rules (compliance has ended). Good when, on
+// both sides:
+//   * nothing else lies in the wedge that the offset motion would cross first (the bounds, a forbidden region,
+//     another active ray) and the continuation of the ray beyond p points into CB;
+//   * a lower edge (below p in the sweep frame): the free sector beside it is good (a motion that meets the edge
+//     there behaves as one arriving from that sector: sticking or sliding on to somewhere bad makes it bad), and the
+//     edge piece reaches at least L below p (its label is the same along the piece);
+//   * an upper edge: every direction of the cone pushes into it and slides down it towards p without sticking (both
+//     extremes decide: the good directions form one arc), and the edge runs on for at least L; p's own status covers
+//     the rest.
+bool Sweep::LandingIsGood(const StaticCurve& ray, const std::vector<LRay>& rays,
+                          const std::vector<StaticCurve>& uppers) const {
+  const double delta = problem_.ray_tracking_error;
+  const V2 up = ray.hi - ray.lo;
+  const Vector2d upd = ToD(up).normalized();
+  // Rays at p other than along `up`, in clockwise order from it.
+  std::vector<const LRay*> order;
+  for (const LRay& r : rays) {
+    if (ClockwiseHalf(up, r.edir) == 3) continue;  // the ray itself (and anything running along it)
+    order.push_back(&r);
+  }
+  std::sort(order.begin(), order.end(),
+            [&](const LRay* a, const LRay* b) { return ClockwiseBefore(up, a->edir, b->edir); });
+  auto side_ok = [&](bool clockwise) {
+    const size_t n = order.size();
+    for (size_t i = 0; i < n; ++i) {
+      const LRay& r = *order[clockwise ? i : n - 1 - i];
+      const int half = ClockwiseHalf(up, r.edir);
+      if (half == 1 || (clockwise ? half != 0 : half != 2)) return false;  // the continuation is free
+      if (r.kind == EdgeKind::kGoal || r.kind == EdgeKind::kFree) continue;
+      if (r.kind != EdgeKind::kObstacle) return false;  // bounds, forbidden or another active ray in the way
+      const double sin_angle = std::abs(upd.x() * r.dir.y() - upd.y() * r.dir.x());
+      if (!(sin_angle > 1e-9)) return false;
+      const double reach = delta / sin_angle;
+      const Label beside = clockwise ? r.ccw : r.cw;  // the wedge's side of the edge
+      if (!r.upper) {
+        if (!IsGood(beside)) return false;
+        return ToD(r.curve->lo - r.curve->hi).norm() >= reach;
+      }
+      const StaticCurve& u = uppers[r.upper_index];
+      if (u.sticking || ToD(u.hi - u.lo).norm() < reach) return false;
+      for (const V2& w : {cone_cw_, cone_ccw_}) {
+        const Vector2d wd = ToD(w).normalized();
+        if (!(wd.dot(u.n_free) < -1e-14) || MotionModel::Sticks(wd, u.n_free, phi_) || !(wd.dot(r.dir) < -1e-14))
+          return false;
+      }
+      return true;
+    }
+    return false;  // no C-obstacle edge on this side
+  };
+  return side_ok(true) && side_ok(false);
+}
+
 void Sweep::CheckIntersection(const Curve* a, const Curve* b, const P2& p) {
   if (!a || !b) return;
   if (a->kind != EdgeKind::kFree && b->kind != EdgeKind::kFree) return;
@@ -841,6 +908,7 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
     rays.push_back(r);
   }
   const Label below = l_left;
+  const auto closed_end = closed_lower_ends_.find(p);
   bool status_p_known = false;
   Label status_p = Label::kBad;
   auto point_status = [&]() {
@@ -862,6 +930,15 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
   };
   std::vector<std::vector<NewCurve>> per_sector(k + 1);
   std::vector<Label> sector_low(k + 1), sector_high(k + 1);
+  // Where complying down the upper ray `u` from p leads: p's status, unless u ends here on CB and the servo's tracking
+  // error can make the motion meet CB beside p somewhere bad.
+  auto ray_status = [&](const StaticCurve& u) -> Label {
+    const Label at_p = point_status();
+    if (!IsGood(at_p) || closed_end == closed_lower_ends_.end()) return at_p;
+    const auto& srcs = closed_end->second;
+    if (std::find(srcs.begin(), srcs.end(), u.src) == srcs.end()) return at_p;
+    return LandingIsGood(u, rays, uppers) ? at_p : Label::kBad;
+  };
   auto side_status = [&](int upper_index, Label lower) -> bool {
     if (upper_index < 0) return IsGood(lower);
     const StaticCurve& u = uppers[upper_index];
@@ -873,7 +950,7 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
       case EdgeKind::kObstacle:
         return !u.sticking && IsGood(point_status());
       case EdgeKind::kVc:
-        return IsGood(point_status());
+        return IsGood(ray_status(u));
       case EdgeKind::kFree:
         return false;
     }
@@ -968,7 +1045,7 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
       c->sticking = u.sticking;
       c->n_free = u.n_free;
       if (u.kind == EdgeKind::kVc) {
-        c->track = point_status();
+        c->track = ray_status(u);
         // Blame the ray only where its failure starts: below p no active ray arrives (a bad track inherited from a
         // crossing ray is that ray's fault, and that ray is blamed at its own start).
         const bool inherited =

@@ -50,6 +50,12 @@ struct BackprojectionProblem {
   double velocity_cone = 0.0;     ///< ε_v, half-angle, in [0, π/2); 0 is planned as 1e-9 rad (more cautious)
   double friction_cone = 0.0;     ///< φ, in [0, π/2)
   std::vector<CvcRayInput> rays;  ///< candidate CVC rays (ignored by the classic backprojection)
+  /// How far (metres) a motion complying to an active ray may run beside its line (the servo's tracking error). 0:
+  /// compliance is exact (the papers' model). > 0: where a ray's lower end lies on CB, complying down the ray is good
+  /// only if the motion is good wherever it can meet CB this close to the line: on each of the two C-obstacle edges
+  /// that bound the free wedge around the ray at its end, up to δ / sin(angle between the ray and the edge) from the
+  /// end (docs/semantics.md "Compliance ends").
+  double ray_tracking_error = 0.0;
   /// Regions where arriving fails, treated like the outside of the bounds (their edges appear as `bounds` edges):
   /// e.g. the parts of a visual guarded step's ray outside the next preimage, where the step would end too early.
   std::vector<NamedPolygon> forbidden;

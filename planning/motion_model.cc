@@ -446,6 +446,7 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
         result.event = MotionEvent::kOpenRayEnd;
         return result;
       }
+      if (world_.ray_landing_offset != 0.0) return LandBesideRayEnd(state, ns, v, q, m, seg[1 - end], best / speed);
       break;
     }
     case Hit::kGoal:
@@ -484,6 +485,64 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
   } else {
     result.event = MotionEvent::kContact;
   }
+  return result;
+}
+
+// A motion complying down an active ray to its end q on CB, run `ray_landing_offset` beside the line: it meets CB
+// where the parallel line first enters a C-obstacle near q (searched from up to 100 offsets back along the ray, from a
+// free start), and goes on from there under the contact rules.
+StepResult MotionModel::LandBesideRayEnd(MotionState& state, MotionState ns, const Vector2d& v, const Vector2d& q,
+                                         const Vector2d& m, const Vector2d& other_end, double time) const {
+  StepResult result;
+  result.time = time;
+  const double o = world_.ray_landing_offset;
+  const Vector2d side = Vector2d(-m.y(), m.x()) * o;
+  double back = std::min((q - other_end).norm(), 100.0 * std::abs(o));
+  Vector2d s0 = q + side - back * m;
+  while (back > tol_ && (InObstacleInterior(s0) || !InBounds(s0))) {
+    back *= 0.5;
+    s0 = q + side - back * m;
+  }
+  ns.mode = MotionMode::kFree;
+  ns.ray = -1;
+  ns.direction = Vector2d::Zero();
+  if (InObstacleInterior(s0) || !InBounds(s0)) {  // blocked right beside the end: it stops there
+    ns.position = q;
+    ns.mode = MotionMode::kStopped;
+    state = ns;
+    result.event = MotionEvent::kStopped;
+    return result;
+  }
+  double best = std::numeric_limits<double>::infinity();
+  EdgeId hit_edge;
+  for (size_t k = 0; k < world_.obstacles.size(); ++k) {
+    const auto& poly = world_.obstacles[k];
+    for (size_t j = 0; j < poly.size(); ++j) {
+      const EdgeId e{static_cast<int>(k), static_cast<int>(j)};
+      if (!(m.dot(OutwardNormal(e)) < 0.0)) continue;
+      const double t = PathSegment(s0, m, poly[j], poly[(j + 1) % poly.size()], tol_);
+      if (t >= 0.0 && t < best) best = t, hit_edge = e;
+    }
+  }
+  if (!std::isfinite(best)) {  // the parallel line misses CB: the servo carries the robot on along the VC line
+    ns.position = q;
+    state = ns;
+    result.event = MotionEvent::kOpenRayEnd;
+    return result;
+  }
+  const Vector2d& a = EdgeStart(hit_edge);
+  const Vector2d ab = EdgeEnd(hit_edge) - a;
+  Vector2d x = a + std::clamp((s0 + best * m - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) * ab;
+  if ((x - a).norm() <= tol_) x = a;
+  if ((x - EdgeEnd(hit_edge)).norm() <= tol_) x = EdgeEnd(hit_edge);
+  ns.position = x;
+  if (!InBounds(x)) {
+    state = ns;
+    result.event = MotionEvent::kLeftBounds;
+    return result;
+  }
+  state = ResolveAt(ns, v, -1);
+  result.event = state.mode == MotionMode::kStopped ? MotionEvent::kStopped : MotionEvent::kContact;
   return result;
 }
 

@@ -48,6 +48,11 @@ struct MotionWorld {
   std::vector<std::array<bool, 2>> active_ray_open_ends;
   /// Friction cone half-angle φ in radians, in [0, π/2).
   double friction_cone = 0.0;
+  /// The servo's tracking error as a signed offset (metres, left of the direction of motion positive): a motion that
+  /// complies down an active ray to an end on a C-obstacle runs this far beside the ray's line and meets CB where that
+  /// parallel line does (near the end, not at it), where compliance ends and the contact rules take over. 0: exact
+  /// compliance. Tests run ±δ to check what the planner's BackprojectionProblem::ray_tracking_error promises.
+  double ray_landing_offset = 0.0;
 };
 
 /// What the reference point is doing.
@@ -152,6 +157,8 @@ class MotionModel {
                             int skip_obstacle) const;
   MotionState ContactRules(const Eigen::Vector2d& p, const Eigen::Vector2d& v) const;
   double RayRemaining(int ray, const Eigen::Vector2d& p, const Eigen::Vector2d& dir) const;
+  StepResult LandBesideRayEnd(MotionState& state, MotionState ns, const Eigen::Vector2d& v, const Eigen::Vector2d& q,
+                              const Eigen::Vector2d& m, const Eigen::Vector2d& other_end, double time) const;
 
   MotionWorld world_;
   double tol_ = 1e-12;

@@ -258,11 +258,15 @@ Scene Parse(const Reader& r, const Json& j, const std::string& default_name) {
     }
   }
 
-  r.CheckKeys(j["uncertainty"], "uncertainty", {"velocity_cone_deg", "position"}, {});
+  r.CheckKeys(j["uncertainty"], "uncertainty", {"velocity_cone_deg", "position"}, {"vc_tracking"});
   scene.uncertainty.velocity_cone_rad =
       r.ReadConeAngle(j["uncertainty"]["velocity_cone_deg"], "uncertainty.velocity_cone_deg");
   scene.uncertainty.position = r.Number(j["uncertainty"]["position"], "uncertainty.position");
   if (scene.uncertainty.position < 0) r.Fail("uncertainty.position", "must not be negative");
+  if (j["uncertainty"].contains("vc_tracking")) {
+    scene.uncertainty.vc_tracking = r.Number(j["uncertainty"]["vc_tracking"], "uncertainty.vc_tracking");
+    if (scene.uncertainty.vc_tracking < 0) r.Fail("uncertainty.vc_tracking", "must not be negative");
+  }
   scene.friction_cone_rad = r.ReadConeAngle(j["friction_cone_deg"], "friction_cone_deg");
 
   const CSpace cspace(scene);

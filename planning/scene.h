@@ -93,6 +93,12 @@ struct Uncertainty {
   double velocity_cone_rad = 0;
   /// Radius of the position-sensing disc, metres, >= 0.
   double position = 0;
+  /// How far (metres, >= 0) the robot may run beside an active ray's line while it complies to it (the visual
+  /// servo's tracking error): where the ray ends on a C-obstacle, the motion may meet CB anywhere this close to the
+  /// line, not only at the ray's end (docs/semantics.md "Compliance ends"). Optional in the file.
+  double vc_tracking = kDefaultVcTracking;
+  /// The default: the demo's servo runs up to 14 mm beside the line at 7 m from the camera (docs/demo.md).
+  static constexpr double kDefaultVcTracking = 0.02;
 };
 
 /// A planning scene (docs/formats.md). Treat as immutable after loading.

@@ -684,8 +684,10 @@ StrategyCheck CheckStrategy(const Scene& scene, const CSpace& cspace, const VcRa
   StrategyCheck out;
   if (!scene.start || !strategy.feasible) return out;
   const BackprojectionProblem base = ProblemFromScene(scene, cspace, &rays, 0.0, true);
-  // The simulated world of each step: one solid polygon per C-obstacle part, the step's target as its goal.
-  std::vector<MotionModel> models;
+  // The simulated world of each step: one solid polygon per C-obstacle part, the step's target as its goal; three
+  // of each, complying exactly and with the servo's tracking error to either side of a ray's line (start i uses
+  // models[i % 3]).
+  std::vector<MotionModel> models[3];
   for (const auto& s : strategy.steps) {
     MotionWorld w;
     for (std::size_t i = 0; i < cspace.num_c_obstacles(); ++i) {
@@ -709,7 +711,10 @@ StrategyCheck CheckStrategy(const Scene& scene, const CSpace& cspace, const VcRa
         }
       }
     }
-    models.emplace_back(std::move(w));
+    for (int side = 0; side < 3; ++side) {
+      w.ray_landing_offset = (side == 0 ? 0.0 : side == 1 ? 1.0 : -1.0) * base.ray_tracking_error;
+      models[side].emplace_back(w);
+    }
   }
   const auto& r = scene.start->polygon.vertices;
   Vector2d lo = r[0], hi = r[0];
@@ -732,8 +737,9 @@ StrategyCheck CheckStrategy(const Scene& scene, const CSpace& cspace, const VcRa
     bool ok = true;
     for (size_t k = 0; k < strategy.steps.size() && ok; ++k) {
       const auto& s = strategy.steps[k];
-      const SimulationResult res = SimulateAdversarially(models[k], pos, s.theta, scene.uncertainty.velocity_cone_rad,
-                                                         seed * 7919 + i * 31 + k, /*greedy=*/i % 3 == 0);
+      const SimulationResult res =
+          SimulateAdversarially(models[i % 3][k], pos, s.theta, scene.uncertainty.velocity_cone_rad,
+                                seed * 7919 + i * 31 + k, /*greedy=*/i % 3 == 0);
       bool reached = res.outcome == Outcome::kReachedGoal;
       const char* why = OutcomeName(res.outcome);
       if (s.terminate == Termination::kContact) {

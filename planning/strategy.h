@@ -124,7 +124,9 @@ struct StrategyCheck {
 };
 
 /// Runs the strategy from `samples` seeded start configurations in the start region (half on its boundary) with the
-/// standard battery of adversaries per step, chaining each step's end into the next.
+/// standard battery of adversaries per step, chaining each step's end into the next. One start in three complies
+/// exactly; the others run the scene's tracking error (uncertainty.vc_tracking) to the left or right of a ray's line
+/// (MotionWorld::ray_landing_offset).
 StrategyCheck CheckStrategy(const Scene& scene, const CSpace& cspace, const VcRays& rays, const Strategy& strategy,
                             int samples, std::uint64_t seed);
 

@@ -9,6 +9,9 @@
 # CVC rays: `visco vcrays` of that scene; strategy: tests/control/data/slot_e2e_plan.json, whose compliant step is
 # the one `visco backproject SCENE --theta -125 --kernel` proves (its active rays; the guarded step stops on one of
 # them, at the border of that VC backprojection). Checked against ground truth: the simulated robot ends in the goal.
+# The scene plans with exact compliance (uncertainty.vc_tracking 0): vc9.cm1 ends on the right block's corner with its
+# continuation free (it grazes the corner), which the planner refuses under a tracking error (docs/semantics.md,
+# "Compliance ends beside the end"); the executor complies on past the corner until contact, into the slot.
 # Faults: stale frames (hold, then resume and finish) and the robot's tag lost (occluded: hold, then stop with the
 # fault reported).
 # usage: vision_loop_e2e_test.sh VISCO [--sanitized]   (slower settings for sanitizer builds; CTest registers the

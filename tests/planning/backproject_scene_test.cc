@@ -50,6 +50,81 @@ void ExpectSound(const Pipeline& pl, const BackprojectionProblem& pr, const VcBa
   EXPECT_GT(inside, 0);
 }
 
+// The demo's Monte Carlo failure (docs/demo.md): on the slot, vc9.cm1 ends on the right block's convex corner
+// (4.2, 2). Complying exactly, the vertex rule sends the robot down the slot's wall; a servo that runs a centimetre
+// to the right meets the block's top face instead, where θ = -60° slides it right into the step's corner, stuck.
+// With the tracking error the planner must see the ray's track as bad and keep no point that the offset motion
+// fails from; with exact compliance (δ = 0, the papers' model) the region is sound only for exact compliance.
+TEST(BackprojectScene, SlotComplianceEndingOnACornerCountsTheServosTrackingError) {
+  const Pipeline pl("data/scenes/slot.json");
+  ASSERT_NEAR(pl.scene.uncertainty.vc_tracking, Uncertainty::kDefaultVcTracking, 0);
+  BackprojectionProblem pr = pl.Problem(-60, /*kernel=*/true);
+  const std::vector<std::string> active = {"vc9.cm1"};
+  const CvcRayInput* ray = nullptr;
+  for (const auto& r : pr.rays) ray = r.id == active[0] ? &r : ray;
+  ASSERT_NE(ray, nullptr);
+  ASSERT_EQ(ray->segments.size(), 1u);
+  const Eigen::Vector2d end = ray->segments[0][0], top = ray->segments[0][1];  // (4.2, 2) and the camera end
+  ASSERT_NEAR((end - Eigen::Vector2d(4.2, 2.0)).norm(), 0, 1e-12);
+  // Points just beside the ray, a metre up from its end: they reach the ray and comply down it.
+  const Eigen::Vector2d u = (top - end).normalized(), n(-u.y(), u.x());
+  std::vector<Eigen::Vector2d> near_ray;
+  for (double t : {0.5, 1.0, 1.5}) {
+    near_ray.push_back(end + t * u + 1e-3 * n);
+    near_ray.push_back(end + t * u - 1e-3 * n);
+  }
+  auto offset_model = [&](const BackprojectionProblem& p, double offset) {
+    MotionWorld w = ToMotionWorld(pl.cspace, p, active);
+    w.ray_landing_offset = offset;
+    return MotionModel(std::move(w));
+  };
+  // Exact compliance: the region holds the ray's neighbourhood, and those points reach the goal only when the motion
+  // meets the corner exactly; 1 cm to the right of the line (seen going down the ray) they stick.
+  pr.ray_tracking_error = 0;
+  const Region exact = BackprojectionWithActiveRays(pr, active);
+  const MotionModel exact_model = offset_model(pr, 0),
+                    right = offset_model(pr, 0.01);  // left of the motion down-left: towards the top face
+  int inside_exact = 0, fail_right = 0;
+  for (const auto& p : near_ray) {
+    if (!exact.Contains(p)) continue;
+    ++inside_exact;
+    EXPECT_EQ(SimulateAdversarially(exact_model, p, pr.theta, pr.velocity_cone).outcome, Outcome::kReachedGoal);
+    fail_right += SimulateAdversarially(right, p, pr.theta, pr.velocity_cone).outcome != Outcome::kReachedGoal;
+  }
+  EXPECT_GT(inside_exact, 0);
+  EXPECT_EQ(fail_right, inside_exact) << "the offset motion should stick on the block's top face";
+  // With the tracking error: the ray's track is bad, so the selection drops it, and whatever region the ray forced
+  // active gives is sound with the motion run to either side.
+  pr.ray_tracking_error = pl.scene.uncertainty.vc_tracking;
+  const Region robust = BackprojectionWithActiveRays(pr, active);
+  for (const auto& p : near_ray) EXPECT_FALSE(robust.Contains(p)) << p.transpose();
+  const VcBackprojection chosen = VcEnlargedBackprojection(pr);
+  EXPECT_EQ(std::count(chosen.active_rays.begin(), chosen.active_rays.end(), active[0]), 0);
+  for (double offset : {-pr.ray_tracking_error, pr.ray_tracking_error}) {
+    const MotionModel m = offset_model(pr, offset);
+    for (int i = 0; i < 40; ++i) {
+      const Eigen::Vector2d p = end + (0.05 + 0.1 * i) * u + ((i % 3) - 1) * 2e-3 * n;
+      if (!robust.Contains(p) || robust.BoundaryDistance(p) < 1e-6 || m.InObstacleInterior(p)) continue;
+      EXPECT_EQ(SimulateAdversarially(m, p, pr.theta, pr.velocity_cone, i).outcome, Outcome::kReachedGoal)
+          << p.transpose() << " offset " << offset;
+    }
+  }
+}
+
+// A ray that ends in the middle of a C-obstacle edge is robust to the tracking error: landing beside the end is on
+// the same edge, under the same contact rule (fig13's floor, which the papers' rays reach mid-face).
+TEST(BackprojectScene, ComplianceEndingMidFaceKeepsItsRegionUnderTheTrackingError) {
+  const Pipeline pl("data/scenes/slot.json");
+  BackprojectionProblem pr = pl.Problem(-60, /*kernel=*/true);
+  const std::vector<std::string> active = {"vc2.cm1"};  // ends at (3, 2), inside the left block's top face
+  pr.ray_tracking_error = 0;
+  const Region exact = BackprojectionWithActiveRays(pr, active);
+  pr.ray_tracking_error = pl.scene.uncertainty.vc_tracking;
+  const Region robust = BackprojectionWithActiveRays(pr, active);
+  EXPECT_GT(robust.area, 0);
+  EXPECT_NEAR(robust.area, exact.area, 1e-9 * exact.area);
+}
+
 TEST(BackprojectScene, Fig13RayFansOutAndEnlargesTheRegion) {
   const Pipeline pl("data/scenes/fig13.json");
   const BackprojectionProblem pr = pl.Problem(-90);

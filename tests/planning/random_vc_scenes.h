@@ -166,6 +166,8 @@ inline bool RandomWholeScene(std::uint64_t seed, Scene& s, double& theta, int ce
     s.uncertainty.velocity_cone_rad = (2.0 + 18.0 * unit(rng)) * M_PI / 180;
     s.friction_cone_rad = (5.0 + 30.0 * unit(rng)) * M_PI / 180;
     theta = (-180.0 + 360.0 * unit(rng)) * M_PI / 180;
+    // The servo's tracking error: none (the papers' exact compliance) for one seed in five, else up to 10 cm.
+    s.uncertainty.vc_tracking = seed % 5 == 0 ? 0.0 : 0.1 * unit(rng);
     return true;
   }
   return false;

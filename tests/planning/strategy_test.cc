@@ -76,6 +76,15 @@ TEST(Strategy, OneStepOnlyWithVisualConstraints) {
   ASSERT_EQ(m.steps.size(), 1u);
   EXPECT_EQ(m.steps[0].timeout_s, StepTimeout(s, 0.5));
   EXPECT_GT(m.steps[0].timeout_s, 10.0);
+  // fig13.json plans as the paper does, with exact compliance (uncertainty.vc_tracking 0). The papers' one step
+  // complies down to the post's corner, where a servo a centimetre off the line meets the post's top face and slides
+  // away from the goal: with a tracking error, no single step from that camera is safe.
+  ASSERT_EQ(s.uncertainty.vc_tracking, 0.0);
+  Scene tracked = s;
+  tracked.uncertainty.vc_tracking = Uncertainty::kDefaultVcTracking;
+  PlanOptions one_with_camera;
+  one_with_camera.max_steps = 1;
+  EXPECT_FALSE(PlanStrategy(tracked, one_with_camera).feasible);
 }
 
 // corner.json: the start region is far wider than the goal kernel, no single motion reaches it recognisably, and

@@ -34,7 +34,15 @@ struct Counts {
 // them) with `active` as walls; counts and reports every failure.
 void CheckRegion(std::uint64_t seed, const CSpace& cspace, const BackprojectionProblem& pr, const Region& region,
                  const std::vector<std::string>& active, const char* what, Counts& counts) {
-  const MotionModel model(ToMotionWorld(cspace, pr, active));  // as the product's simulated robot
+  // As the product's simulated robot, complying exactly and, for two samples in three, run the servo's tracking error
+  // to either side of the ray's line (where a ray ends on CB, the motion meets CB beside the end).
+  std::vector<MotionModel> models;
+  for (const double side : {0.0, 1.0, -1.0}) {
+    MotionWorld w = ToMotionWorld(cspace, pr, active);
+    w.ray_landing_offset = side * pr.ray_tracking_error;
+    models.emplace_back(std::move(w));
+  }
+  const MotionModel& model = models[0];
   std::mt19937_64 rng(seed);
   auto u = [&]() { return static_cast<double>(rng() >> 11) * (1.0 / 9007199254740992.0); };
   Vector2d lo(1e300, 1e300), hi = -lo;
@@ -59,12 +67,14 @@ void CheckRegion(std::uint64_t seed, const CSpace& cspace, const BackprojectionP
     const Vector2d& p = points[i];
     if (!region.Contains(p) || region.BoundaryDistance(p) < 1e-6 || model.InObstacleInterior(p)) continue;
     ++counts.samples;
-    const SimulationResult r = SimulateAdversarially(model, p, pr.theta, pr.velocity_cone, seed * 1000 + i,
+    const MotionModel& m = models[i % 3];
+    const SimulationResult r = SimulateAdversarially(m, p, pr.theta, pr.velocity_cone, seed * 1000 + i,
                                                      /*greedy=*/i % 4 == 0);
     if (r.outcome != Outcome::kReachedGoal) {
       ++counts.failures;
       ADD_FAILURE() << "seed " << seed << " θ = " << pr.theta * 180 / M_PI << ", " << what << " (" << active.size()
-                    << " active): (" << p.x() << ", " << p.y() << ") is inside but fails: " << OutcomeName(r.outcome);
+                    << " active, landing offset " << m.world().ray_landing_offset << "): (" << p.x() << ", " << p.y()
+                    << ") is inside but fails: " << OutcomeName(r.outcome);
     }
   }
 }
