@@ -3,13 +3,13 @@
 // CGAL 5.5's thread-safe lazy exact kernel (Epeck, used by every sweep) runs std::call_once on each lazy number or
 // point the first time its exact value is needed, including those built from an exact value. glibc's pthread_once
 // ends every first run with an unconditional futex_wake system call, waiters or not: a system call per exact
-// evaluation, 25-35 % of `visco plan`'s time on this project's (paravirtualised) machines (perf; docs/planning_strategy.md
-// "Speed"). This definition replaces glibc's for the whole process (the linker takes it from the planning archive
-// before libc, and exports it, so shared libraries call it too): the same contract, and it wakes only when a thread
-// waits. States: 0 not run (PTHREAD_ONCE_INIT), 1 running, 2 running with waiters, 3 done. An initialiser that throws
-// (std::call_once with a throwing callable) resets the state to 0 and wakes the waiters, one of which runs it again.
-// Not fork-generation aware: a child forked while another thread runs an initialiser must exec before using the same
-// once control (visco's children exec at once).
+// evaluation, 25-35 % of `visco plan`'s time on this project's (paravirtualised) machines (perf;
+// docs/planning_strategy.md "Speed"). This definition replaces glibc's for the whole process (the linker takes it from
+// the planning archive before libc, and exports it, so shared libraries call it too): the same contract, and it wakes
+// only when a thread waits. States: 0 not run (PTHREAD_ONCE_INIT), 1 running, 2 running with waiters, 3 done. An
+// initialiser that throws (std::call_once with a throwing callable) resets the state to 0 and wakes the waiters, one of
+// which runs it again. Not fork-generation aware: a child forked while another thread runs an initialiser must exec
+// before using the same once control (visco's children exec at once).
 
 #include <linux/futex.h>
 #include <pthread.h>
