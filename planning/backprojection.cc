@@ -312,8 +312,9 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
   }
   if (!(pr.friction_cone >= 0.0 && pr.friction_cone < M_PI / 2)) {
     throw std::invalid_argument("backprojection: the friction cone must be in [0, 90) degrees");
-    if (!(pr.ray_tracking_error >= 0.0) || !std::isfinite(pr.ray_tracking_error))
-      throw std::invalid_argument("backprojection: the ray tracking error must be finite and not negative");
+  }
+  if (!(pr.ray_tracking_error >= 0.0) || !std::isfinite(pr.ray_tracking_error)) {
+    throw std::invalid_argument("backprojection: the ray tracking error must be finite and not negative");
   }
   eps_ = std::max(pr.velocity_cone, 1e-9);  // a cone of zero width is planned as a hair wider: a subset
   phi_ = pr.friction_cone;

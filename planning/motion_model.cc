@@ -235,6 +235,17 @@ MotionState MotionModel::ContactRules(const Vector2d& p, const Vector2d& v) cons
   return s;
 }
 
+// The point of edge e nearest to q (q is a hit on it), snapped onto an end within the length tolerance.
+Vector2d MotionModel::SnapOntoEdge(EdgeId e, const Vector2d& q) const {
+  const Vector2d& a = EdgeStart(e);
+  const Vector2d& b = EdgeEnd(e);
+  const Vector2d ab = b - a;
+  const Vector2d x = a + std::clamp((q - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) * ab;
+  if ((x - a).norm() <= tol_) return a;
+  if ((x - b).norm() <= tol_) return b;
+  return x;
+}
+
 double MotionModel::RayRemaining(int ray, const Vector2d& p, const Vector2d& dir) const {
   const auto& r = world_.active_rays[ray];
   return std::max((r[0] - p).dot(dir), (r[1] - p).dot(dir));
@@ -420,16 +431,9 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
   // Move.
   Vector2d q = p + best * m;
   switch (hit) {
-    case Hit::kObstacle: {
-      const Vector2d& a = EdgeStart(hit_edge);
-      const Vector2d& b = EdgeEnd(hit_edge);
-      const Vector2d ab = b - a;
-      const double s = std::clamp((q - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-      q = a + s * ab;
-      if ((q - a).norm() <= tol_) q = a;
-      if ((q - b).norm() <= tol_) q = b;
+    case Hit::kObstacle:
+      q = SnapOntoEdge(hit_edge, q);
       break;
-    }
     case Hit::kEdgeEnd:
       q = m.dot(EdgeEnd(hit_edge) - EdgeStart(hit_edge)) > 0.0 ? EdgeEnd(hit_edge) : EdgeStart(hit_edge);
       break;
@@ -530,11 +534,7 @@ StepResult MotionModel::LandBesideRayEnd(MotionState& state, MotionState ns, con
     result.event = MotionEvent::kOpenRayEnd;
     return result;
   }
-  const Vector2d& a = EdgeStart(hit_edge);
-  const Vector2d ab = EdgeEnd(hit_edge) - a;
-  Vector2d x = a + std::clamp((s0 + best * m - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) * ab;
-  if ((x - a).norm() <= tol_) x = a;
-  if ((x - EdgeEnd(hit_edge)).norm() <= tol_) x = EdgeEnd(hit_edge);
+  const Vector2d x = SnapOntoEdge(hit_edge, s0 + best * m);
   ns.position = x;
   if (!InBounds(x)) {
     state = ns;

@@ -157,6 +157,7 @@ class MotionModel {
                             int skip_obstacle) const;
   MotionState ContactRules(const Eigen::Vector2d& p, const Eigen::Vector2d& v) const;
   double RayRemaining(int ray, const Eigen::Vector2d& p, const Eigen::Vector2d& dir) const;
+  Eigen::Vector2d SnapOntoEdge(EdgeId e, const Eigen::Vector2d& q) const;
   StepResult LandBesideRayEnd(MotionState& state, MotionState ns, const Eigen::Vector2d& v, const Eigen::Vector2d& q,
                               const Eigen::Vector2d& m, const Eigen::Vector2d& other_end, double time) const;
 

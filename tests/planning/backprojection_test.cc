@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -167,6 +168,11 @@ TEST(Backprojection, RejectsBadInput) {
   EXPECT_THROW(ClassicBackprojection(pr), std::invalid_argument);
   pr = Problem({}, {Rect(4, 4, 6, 5)}, -90, 10, 20);
   pr.bounds_max = {0, 10};
+  EXPECT_THROW(ClassicBackprojection(pr), std::invalid_argument);
+  pr = Problem({}, {Rect(4, 4, 6, 5)}, -90, 10, 20);
+  pr.ray_tracking_error = -0.01;
+  EXPECT_THROW(ClassicBackprojection(pr), std::invalid_argument);
+  pr.ray_tracking_error = std::numeric_limits<double>::infinity();
   EXPECT_THROW(ClassicBackprojection(pr), std::invalid_argument);
 }
 
