@@ -37,6 +37,156 @@ std::string EdgeRef(const NamedPolygon& poly, size_t k, const std::string& prefi
   return prefix + ".e[" + std::to_string(k) + "]";
 }
 
+// A uniform grid over the static arrangement. Each cell lists the segments (and obstacle pieces) that come within
+// `pad` of it, so a query looks at the few segments near a segment, a circle or a point instead of all of them. Every
+// query visits a superset of the cells within its pad of the query shape; the callers then run the same arithmetic
+// as a scan over all segments would, on fewer segments, and get the same result (tested against the scan).
+class SegmentGrid {
+ public:
+  void Build(const std::vector<Seg>& segs, const Eigen::AlignedBox2d& extent, double pad) {
+    pad_ = pad;
+    Eigen::AlignedBox2d box = extent;
+    for (const auto& s : segs) {
+      box.extend(s.a);
+      box.extend(s.b);
+    }
+    lo_ = box.min() - Vector2d::Constant(2 * pad);
+    const Vector2d size = box.max() + Vector2d::Constant(2 * pad) - lo_;
+    // About one segment per cell on each axis: a segment crosses O(√n) cells.
+    const int side = std::clamp(static_cast<int>(std::ceil(std::sqrt(static_cast<double>(segs.size())))), 1, 1024);
+    nx_ = ny_ = side;
+    cell_ = {size.x() / nx_, size.y() / ny_};
+    cells_.assign(static_cast<size_t>(nx_) * ny_, {});
+    for (size_t k = 0; k < segs.size(); ++k) {
+      ForCellsNearSegment(segs[k].a, segs[k].b, pad_, [&](size_t c) {
+        cells_[c].push_back(static_cast<int>(k));
+        return true;
+      });
+    }
+    mark_.assign(segs.size(), 0);
+  }
+
+  // The pieces whose bounding boxes overlap each cell (for point-in-CB tests).
+  template <typename Box>
+  void AddBoxes(const std::vector<Box>& boxes) {
+    piece_cells_.assign(cells_.size(), {});
+    for (size_t k = 0; k < boxes.size(); ++k) {
+      if (boxes[k].isEmpty()) continue;
+      const int i0 = Column(boxes[k].min().x() - pad_), i1 = Column(boxes[k].max().x() + pad_);
+      const int j0 = Row(boxes[k].min().y() - pad_), j1 = Row(boxes[k].max().y() + pad_);
+      for (int i = i0; i <= i1; ++i)
+        for (int j = j0; j <= j1; ++j) piece_cells_[Cell(i, j)].push_back(static_cast<int>(k));
+    }
+  }
+
+  // Calls f(k) once for every segment k within `pad` of segment ab (and some more), roughly in order from a to b;
+  // f returns false to stop.
+  template <typename F>
+  void ForNearSegment(const Vector2d& a, const Vector2d& b, F&& f) const {
+    Begin();
+    ForCellsNearSegment(a, b, pad_, [&](size_t c) {
+      for (int k : cells_[c]) {
+        if (mark_[k] == stamp_) continue;
+        mark_[k] = stamp_;
+        if (!f(k)) return false;
+      }
+      return true;
+    });
+  }
+
+  // Segments within `pad` of the circle (and some more), each once, in no particular order.
+  const std::vector<int>& NearCircle(const Vector2d& c, double r) const {
+    Begin();
+    // sqrt(r² − dx²) loses about √ε·r near the circle's sides: widen the band by far more than that.
+    const double p = pad_ + 1e-6 * r;
+    const int i0 = Column(c.x() - r - p), i1 = Column(c.x() + r + p);
+    for (int i = i0; i <= i1; ++i) {
+      const double x0 = std::max(lo_.x() + i * cell_.x() - p, c.x() - r);
+      const double x1 = std::min(lo_.x() + (i + 1) * cell_.x() + p, c.x() + r);
+      if (x0 > x1) continue;
+      auto h = [&](double x) { return std::sqrt(std::max(0.0, r * r - (x - c.x()) * (x - c.x()))); };
+      const bool top = x0 <= c.x() && c.x() <= x1;
+      const double near_x = std::abs(x0 - c.x()) < std::abs(x1 - c.x()) ? x0 : x1;
+      const double far_x = near_x == x0 ? x1 : x0;
+      const double hmax = top ? r : h(near_x), hmin = h(far_x);
+      for (double sign : {1.0, -1.0}) {
+        const double y0 = sign > 0 ? c.y() + hmin : c.y() - hmax, y1 = sign > 0 ? c.y() + hmax : c.y() - hmin;
+        const int j0 = Row(y0 - p), j1 = Row(y1 + p);
+        for (int j = j0; j <= j1; ++j) Collect(Cell(i, j));
+      }
+    }
+    return Finish();
+  }
+
+  // Segments and pieces within `pad` of point p (and some more; one cell: no repeats, any order).
+  const std::vector<int>& NearPoint(const Vector2d& p) const { return cells_[Cell(Column(p.x()), Row(p.y()))]; }
+  const std::vector<int>& PiecesAt(const Vector2d& p) const {
+    static const std::vector<int> none;
+    if (piece_cells_.empty()) return none;
+    return piece_cells_[Cell(Column(p.x()), Row(p.y()))];
+  }
+
+ private:
+  int Column(double x) const { return std::clamp(static_cast<int>(std::floor((x - lo_.x()) / cell_.x())), 0, nx_ - 1); }
+  int Row(double y) const { return std::clamp(static_cast<int>(std::floor((y - lo_.y()) / cell_.y())), 0, ny_ - 1); }
+  size_t Cell(int i, int j) const { return static_cast<size_t>(j) * nx_ + i; }
+
+  // Calls f(cell) for every cell within `pad` of segment ab, strip by strip along the segment's longer axis from a
+  // towards b (within a strip, from a's side too); f returns false to stop. A strip's cells are those of the
+  // segment's range on the other axis over the strip's padded extent, widened by pad.
+  template <typename F>
+  void ForCellsNearSegment(const Vector2d& a, const Vector2d& b, double pad, F&& f) const {
+    const bool along_x = std::abs(b.x() - a.x()) >= std::abs(b.y() - a.y());
+    const int u = along_x ? 0 : 1, v = 1 - u;  // the strips' axis and the other
+    const double umin = std::min(a[u], b[u]), umax = std::max(a[u], b[u]);
+    const double vmin = std::min(a[v], b[v]), vmax = std::max(a[v], b[v]);
+    auto index = [&](int axis, double x) { return axis == 0 ? Column(x) : Row(x); };
+    const int s0 = index(u, umin - pad), s1 = index(u, umax + pad);
+    const double du = b[u] - a[u], dv = b[v] - a[v];
+    const bool forward_u = du >= 0, forward_v = dv >= 0;
+    for (int step = 0; step <= s1 - s0; ++step) {
+      const int i = forward_u ? s0 + step : s1 - step;
+      const double x0 = std::clamp(lo_[u] + i * cell_[u] - pad, umin, umax);
+      const double x1 = std::clamp(lo_[u] + (i + 1) * cell_[u] + pad, umin, umax);
+      double y0 = vmin, y1 = vmax;
+      if (du != 0) {
+        const double ya = a[v] + (x0 - a[u]) * (dv / du), yb = a[v] + (x1 - a[u]) * (dv / du);
+        y0 = std::clamp(std::min(ya, yb), vmin, vmax);
+        y1 = std::clamp(std::max(ya, yb), vmin, vmax);
+      }
+      const int j0 = index(v, y0 - pad), j1 = index(v, y1 + pad);
+      for (int k = 0; k <= j1 - j0; ++k) {
+        const int j = forward_v ? j0 + k : j1 - k;
+        if (!f(along_x ? Cell(i, j) : Cell(j, i))) return;
+      }
+    }
+  }
+
+  void Begin() const {
+    found_.clear();
+    if (++stamp_ == 0) {
+      std::fill(mark_.begin(), mark_.end(), 0);
+      stamp_ = 1;
+    }
+  }
+  void Collect(size_t c) const {
+    for (int k : cells_[c]) {
+      if (mark_[k] == stamp_) continue;
+      mark_[k] = stamp_;
+      found_.push_back(k);
+    }
+  }
+  const std::vector<int>& Finish() const { return found_; }
+
+  double pad_ = 0;
+  Vector2d lo_ = Vector2d::Zero(), cell_ = Vector2d::Ones();
+  int nx_ = 1, ny_ = 1;
+  std::vector<std::vector<int>> cells_, piece_cells_;
+  mutable std::vector<std::uint32_t> mark_;
+  mutable std::uint32_t stamp_ = 0;
+  mutable std::vector<int> found_;
+};
+
 // The obstacle region CB as rings with their holes (inside CB: inside a solid ring and none of its holes).
 struct ObstacleRegion {
   struct Piece {
@@ -47,6 +197,16 @@ struct ObstacleRegion {
   std::vector<Piece> pieces;
   std::vector<Seg> edges;
   double tolerance = 1e-12;
+  bool indexed = false;  // queries through `grid` (else scans of every edge: the reference)
+  SegmentGrid grid;
+
+  void Index(const Eigen::AlignedBox2d& extent, double pad) {
+    grid.Build(edges, extent, pad);
+    std::vector<Eigen::AlignedBox2d> boxes;
+    for (const auto& piece : pieces) boxes.push_back(piece.box);
+    grid.AddBoxes(boxes);
+    indexed = true;
+  }
 
   static bool InsideRing(const std::vector<Vector2d>& ring, const Vector2d& p) {
     bool in = false;
@@ -61,33 +221,70 @@ struct ObstacleRegion {
 
   // Strictly inside CB, by more than the tolerance (points on the boundary are not).
   bool StrictlyInside(const Vector2d& p) const {
-    for (const auto& e : edges) {
+    auto near_edge = [&](const Seg& e) {
       const Vector2d d = e.b - e.a;
       const double t = std::clamp((p - e.a).dot(d) / d.squaredNorm(), 0.0, 1.0);
-      if ((e.a + t * d - p).norm() <= tolerance) return false;
-    }
-    for (const auto& piece : pieces) {
-      if (!piece.box.contains(p)) continue;
-      if (!InsideRing(piece.outer, p)) continue;
+      return (e.a + t * d - p).norm() <= tolerance;
+    };
+    auto in_piece = [&](const Piece& piece) {
+      if (!piece.box.contains(p) || !InsideRing(piece.outer, p)) return false;
       bool in_hole = false;
       for (const auto& h : piece.holes) in_hole = in_hole || InsideRing(h, p);
-      if (!in_hole) return true;
+      return !in_hole;
+    };
+    if (indexed) {
+      for (int k : grid.NearPoint(p))
+        if (near_edge(edges[k])) return false;
+      for (int k : grid.PiecesAt(p))
+        if (in_piece(pieces[k])) return true;
+      return false;
     }
+    for (const auto& e : edges)
+      if (near_edge(e)) return false;
+    for (const auto& piece : pieces)
+      if (in_piece(piece)) return true;
     return false;
   }
 
-  // Whether the open segment (p, q) avoids CB's interior: it is split where it meets CB's edges and the middle of
-  // every piece is tested (a segment along an edge sees along it). Conservative: doubtful cases see.
+  // Whether the open segment (p, q) avoids CB's interior. First a certificate that it does not: it crosses an edge of
+  // CB transversally (by more than 1e-6 rad) at a point inside both (by 1e-8 of their lengths), so one side of that
+  // edge, inside its ring and so inside CB, is on the segment. Found near p first, that ends most queries early.
+  // Otherwise the segment is split where it meets CB's edges and the middle of every piece is tested (a segment
+  // along an edge sees along it). Conservative: doubtful cases see.
   bool Sees(const Vector2d& p, const Vector2d& q) const {
-    std::vector<double> cuts = {0.0, 1.0};
     const Vector2d d = q - p;
-    for (const auto& e : edges) {
+    const double dn = d.norm();
+    auto blocks = [&](const Seg& e) {
       const Vector2d f = e.b - e.a;
       const double den = Cross(d, f);
-      if (std::abs(den) < 1e-300) continue;
+      if (std::abs(den) < 1e-6 * dn * f.norm()) return false;
+      const double t = Cross(e.a - p, f) / den;
+      const double u = Cross(e.a - p, d) / den;
+      return t > 1e-8 && t < 1 - 1e-8 && u > 1e-8 && u < 1 - 1e-8;
+    };
+    std::vector<double> cuts = {0.0, 1.0};
+    auto cut = [&](const Seg& e) {
+      const Vector2d f = e.b - e.a;
+      const double den = Cross(d, f);
+      if (std::abs(den) < 1e-300) return;
       const double t = Cross(e.a - p, f) / den;
       const double u = Cross(e.a - p, d) / den;
       if (t > 0 && t < 1 && u >= -1e-12 && u <= 1 + 1e-12) cuts.push_back(t);
+    };
+    if (indexed) {
+      bool blocked = false;
+      near_.clear();
+      grid.ForNearSegment(p, q, [&](int k) {
+        blocked = blocks(edges[k]);
+        near_.push_back(k);
+        return !blocked;
+      });
+      if (blocked) return false;
+      for (int k : near_) cut(edges[k]);
+    } else {
+      for (const auto& e : edges)
+        if (blocks(e)) return false;
+      for (const auto& e : edges) cut(e);
     }
     std::sort(cuts.begin(), cuts.end());
     for (size_t i = 0; i + 1 < cuts.size(); ++i) {
@@ -96,6 +293,7 @@ struct ObstacleRegion {
     }
     return true;
   }
+  mutable std::vector<int> near_;
 };
 
 // The crossing of two segments, if they meet in one point (collinear overlaps add nothing new: their ends are
@@ -114,10 +312,17 @@ bool Crossing(const Seg& s, const Seg& t, Vector2d* out) {
 
 class Generator {
  public:
-  Generator(const BackprojectionProblem& pr, const NamedPolygon* start) : pr_(pr) {
+  Generator(const BackprojectionProblem& pr, const NamedPolygon* start, CandidateSearch search) : pr_(pr) {
     eps_ = std::max(pr.velocity_cone, 1e-9);
     phi_ = pr.friction_cone;
     Collect(start);
+    if (search == CandidateSearch::kIndexed) {
+      const Eigen::AlignedBox2d extent(pr.bounds_min, pr.bounds_max);
+      const double pad = 1e-9 * (pr.bounds_max - pr.bounds_min).norm();
+      cb_.Index(extent, pad);
+      seg_grid_.Build(segs_, extent, pad);
+      indexed_ = true;
+    }
   }
 
   std::vector<CriticalOrientation> Run(CriticalCounts* counts, bool r_only = false) {
@@ -343,9 +548,13 @@ class Generator {
         const double h = len / (2 * std::tan(two_eps));
         for (double side : {-1.0, 1.0}) {
           const Vector2d c = m + side * h * nrm;
-          for (const auto& s : segs_) {
-            if (r_only_ && s.kind != SegKind::kStart) continue;
-            CircleMeetsSegment(i, j, c, r, s);
+          auto meet = [&](const Seg& s) {
+            if (!r_only_ || s.kind == SegKind::kStart) CircleMeetsSegment(i, j, c, r, s);
+          };
+          if (indexed_) {
+            for (int k : seg_grid_.NearCircle(c, r)) meet(segs_[k]);
+          } else {
+            for (const auto& s : segs_) meet(s);
           }
         }
       }
@@ -384,6 +593,8 @@ class Generator {
   std::vector<std::array<Vector2d, 3>> ring_vertices_;
   std::vector<std::string> ring_vertex_refs_;
   ObstacleRegion cb_;
+  SegmentGrid seg_grid_;  // every segment (the circles of free vertices meet them)
+  bool indexed_ = false;
   std::int64_t visible_pairs_ = 0;
   std::vector<CriticalOrientation> out_;
 };
@@ -425,12 +636,13 @@ double WrapAngle(double theta) {
 }
 
 std::vector<CriticalOrientation> CriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon* start,
-                                                    CriticalCounts* counts) {
-  return Generator(problem, start).Run(counts);
+                                                    CriticalCounts* counts, CandidateSearch search) {
+  return Generator(problem, start, search).Run(counts);
 }
 
-std::vector<CriticalOrientation> RCriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon& start) {
-  return Generator(problem, &start).Run(nullptr, true);
+std::vector<CriticalOrientation> RCriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon& start,
+                                                     CandidateSearch search) {
+  return Generator(problem, &start, search).Run(nullptr, true);
 }
 
 }  // namespace visco::planning

@@ -55,15 +55,21 @@ struct CriticalCounts {
   std::int64_t total() const;
 };
 
+/// How the generator finds the segments near a segment, circle or point: through a uniform grid (the default) or by
+/// scanning all of them (the obvious reference the tests compare with; O(n³)). Both give the same candidates.
+enum class CandidateSearch : std::uint8_t { kIndexed, kScan };
+
 /// Every candidate critical orientation of the problem's B_θ(G) and B_vcθ(G) over all θ (problem.theta is ignored),
 /// sorted by θ in [−π, π), exact duplicates (same θ, kind and refs) removed. `start` (may be null) adds the
 /// R-critical orientations of that region. A superset: the nondirectional backprojection (nondirectional.h) keeps
 /// those where the structure really changes. Not real-time safe.
 std::vector<CriticalOrientation> CriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon* start,
-                                                    CriticalCounts* counts = nullptr);
+                                                    CriticalCounts* counts = nullptr,
+                                                    CandidateSearch search = CandidateSearch::kIndexed);
 
 /// Only the R-critical candidates of region `start` (the same as CriticalCandidates's of kind R).
-std::vector<CriticalOrientation> RCriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon& start);
+std::vector<CriticalOrientation> RCriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon& start,
+                                                     CandidateSearch search = CandidateSearch::kIndexed);
 
 /// θ wrapped to [−π, π).
 double WrapAngle(double theta);

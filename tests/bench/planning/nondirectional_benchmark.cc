@@ -1,8 +1,9 @@
 // Cost of the nondirectional backprojection (planning/nondirectional.h) and of the planner built on it.
 //
-// BM_Candidates/n: the candidate critical orientations of the pentagon grid with n obstacle vertices (closed forms
-//   over the static arrangement: the number grows with the pairs of visible features). Scaling exponent: compare two
-//   sizes, log(t2 / t1) / log(n2 / n1); the counter `candidates` gives the count next to the time.
+// BM_Candidates/search/n: the candidate critical orientations of the pentagon grid with n obstacle vertices (closed
+//   forms over the static arrangement: the number grows with the pairs of visible features), found through the grid
+//   index (search 0, the default) or by scanning every segment (search 1, the reference). Scaling exponent: compare
+//   two sizes, log(t2 / t1) / log(n2 / n1); the counters give the count by kind next to the time.
 // BM_Nondirectional/method/n: the whole nondirectional backprojection, kinetic (method 0, the default: a sweep only
 //   where an event involves the regions' free edges) against the critical-slice baseline (method 1: a sweep in every
 //   interval between candidates), same problem, same run: the ratio of the two is the kinetic method's gain; the
@@ -28,17 +29,28 @@ namespace visco::planning {
 namespace {
 
 void BM_Candidates(benchmark::State& state) {
-  const BackprojectionProblem pr = bench::PentagonGrid(static_cast<int>(state.range(0)) / 5);
+  const BackprojectionProblem pr = bench::PentagonGrid(static_cast<int>(state.range(1)) / 5);
+  const CandidateSearch search = state.range(0) == 0 ? CandidateSearch::kIndexed : CandidateSearch::kScan;
+  CriticalCounts counts;
   size_t n = 0;
   for (auto _ : state) {
-    const auto c = CriticalCandidates(pr, nullptr);
+    const auto c = CriticalCandidates(pr, nullptr, &counts, search);
     n = c.size();
     benchmark::DoNotOptimize(c.data());
   }
+  state.SetLabel(state.range(0) == 0 ? "indexed" : "scan");
   state.counters["vertices"] = bench::Vertices(pr);
   state.counters["candidates"] = static_cast<double>(n);
+  state.counters["visible_pairs"] = static_cast<double>(counts.visible_pairs);
+  for (int k = 0; k < 6; ++k) {
+    state.counters[CriticalKindName(static_cast<CriticalKind>(k))] = static_cast<double>(counts.by_kind[k]);
+  }
 }
-BENCHMARK(BM_Candidates)->Arg(20)->Arg(40)->Arg(80)->Arg(160)->Arg(320)->Unit(benchmark::kMillisecond);
+// Indexed (the default) at n = 20 ... 2000 vertices, and the scan over every segment (the reference) up to 320.
+BENCHMARK(BM_Candidates)
+    ->ArgsProduct({{0}, {20, 40, 80, 160, 320, 640, 1280, 2000}})
+    ->ArgsProduct({{1}, {20, 40, 80, 160, 320}})
+    ->Unit(benchmark::kMillisecond);
 
 void BM_Nondirectional(benchmark::State& state) {
   const BackprojectionProblem pr = bench::PentagonGrid(static_cast<int>(state.range(1)) / 5);
