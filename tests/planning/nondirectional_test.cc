@@ -201,6 +201,44 @@ TEST(NondirectionalExamples, StructureIsConstantBetweenConsecutiveOrientations) 
   EXPECT_EQ(t.broken, 0);
 }
 
+// The R-critical kind changes what the planner asks about: on fig13 the interval of orientations where the start
+// region fits inside B_vcθ(G) begins at an R-critical orientation, where the region's structure stays the same but
+// the start region goes from sticking out to fitting.
+TEST(NondirectionalExamples, AnRCriticalOrientationIsWhereTheStartRegionStartsToFit) {
+  const Scene s = LoadScene("data/scenes/fig13.json");
+  ASSERT_TRUE(s.start.has_value());
+  const CSpace cspace(s);
+  const VcRays rays = ComputeVcRays(s, cspace);
+  const BackprojectionProblem pr = SceneProblem(s, cspace, rays);
+  NamedPolygon start;
+  start.vertices = s.start->polygon.vertices;
+  const auto nd = ComputeNondirectional(pr, &start, Options());
+  const auto intervals = IntervalsContaining(nd, pr, start, /*vc=*/true);
+  ASSERT_FALSE(intervals.empty());
+  const double size = (pr.bounds_max - pr.bounds_min).norm();
+  auto fits = [&](double theta) {
+    BackprojectionProblem p = pr;
+    p.theta = WrapAngle(theta);
+    return RegionContainsPolygon(VcEnlargedBackprojection(p).region, start.vertices, 1e-9 * size, nullptr);
+  };
+  int r_ends = 0;
+  for (const auto& in : intervals) {
+    for (double end : {in.lo, in.hi}) {
+      const bool is_r = std::any_of(nd.orientations.begin(), nd.orientations.end(), [&](const CriticalOrientation& o) {
+        return o.kind == CriticalKind::kR && std::abs(WrapAngle(o.theta - end)) < 1e-9;
+      });
+      if (!is_r) continue;
+      ++r_ends;
+      const double inward = end == in.lo ? 1.0 : -1.0, step = 1e-4;
+      EXPECT_TRUE(fits(end + inward * step)) << end * 180 / M_PI;
+      EXPECT_FALSE(fits(end - inward * step)) << end * 180 / M_PI;
+      EXPECT_EQ(StructureAt(pr, WrapAngle(end - step)), StructureAt(pr, WrapAngle(end + step)))
+          << "at " << end * 180 / M_PI << "° the region itself changes: not an R-only event";
+    }
+  }
+  EXPECT_GE(r_ends, 1) << "no interval where the start region fits ends at an R-critical orientation";
+}
+
 // Donald's critical-slice baseline and the kinetic method report the same orientations and slices.
 TEST(NondirectionalProperty, KineticAgreesWithTheCriticalSliceBaseline) {
   int compared = 0;

@@ -15,11 +15,15 @@
 #include <string>
 #include <vector>
 
+#include "planning/backproject_command.h"
 #include "planning/critical.h"
+#include "planning/cspace.h"
 #include "planning/nondirectional.h"
 #include "planning/scene.h"
 #include "planning/strategy.h"
+#include "planning/vc_rays.h"
 #include "tests/bench/planning/pentagon_grid.h"
+#include "tests/planning/random_vc_scenes.h"
 
 #ifndef VISCO_SOURCE_DIR
 #define VISCO_SOURCE_DIR "."
@@ -51,6 +55,36 @@ BENCHMARK(BM_Candidates)
     ->ArgsProduct({{0}, {20, 40, 80, 160, 320, 640, 1280, 2000}})
     ->ArgsProduct({{1}, {20, 40, 80, 160, 320}})
     ->Unit(benchmark::kMillisecond);
+
+// Candidate counts by kind on growing whole random scenes with a camera (k x k cells of 4 m, star-shaped obstacles,
+// some overlapping, the camera on the bounds; the real pipeline scene -> C-space -> CVC rays): the table against the
+// papers' bounds in docs/planning_nondirectional.md. n = C-obstacle vertices, rays = CVC ray segments.
+void BM_CandidateCounts(benchmark::State& state) {
+  const int k = static_cast<int>(state.range(0));
+  Scene scene;
+  double theta = 0;
+  std::uint64_t seed = 2;  // the camera on the bounds (seed % 3 != 0)
+  while (!testing::RandomWholeScene(seed, scene, theta, k, k)) seed += 3;
+  const CSpace cspace(scene);
+  const VcRays rays = ComputeVcRays(scene, cspace);
+  const BackprojectionProblem pr = ProblemFromScene(scene, cspace, &rays, theta, /*kernel=*/false);
+  CriticalCounts counts;
+  for (auto _ : state) {
+    const auto c = CriticalCandidates(pr, nullptr, &counts);
+    benchmark::DoNotOptimize(c.data());
+  }
+  double n = 0, segments = 0;
+  for (const auto& o : pr.obstacles) n += static_cast<double>(o.vertices.size());
+  for (const auto& r : pr.rays) segments += static_cast<double>(r.segments.size());
+  state.counters["n"] = n;
+  state.counters["rays"] = segments;
+  state.counters["points"] = static_cast<double>(counts.points);
+  state.counters["visible_pairs"] = static_cast<double>(counts.visible_pairs);
+  for (int kind = 0; kind < 6; ++kind) {
+    state.counters[CriticalKindName(static_cast<CriticalKind>(kind))] = static_cast<double>(counts.by_kind[kind]);
+  }
+}
+BENCHMARK(BM_CandidateCounts)->DenseRange(2, 12, 2)->Unit(benchmark::kMillisecond)->Iterations(1);
 
 void BM_Nondirectional(benchmark::State& state) {
   const BackprojectionProblem pr = bench::PentagonGrid(static_cast<int>(state.range(1)) / 5);
