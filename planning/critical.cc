@@ -127,8 +127,13 @@ class SegmentGrid {
   }
 
  private:
-  int Column(double x) const { return std::clamp(static_cast<int>(std::floor((x - lo_.x()) / cell_.x())), 0, nx_ - 1); }
-  int Row(double y) const { return std::clamp(static_cast<int>(std::floor((y - lo_.y()) / cell_.y())), 0, ny_ - 1); }
+  // Clamped in floating point first: far-away coordinates (a huge circle's extent, NaN) never overflow the cast.
+  static int Index(double x, double lo, double cell, int n) {
+    const double i = std::floor((x - lo) / cell);
+    return i >= 0 ? (i < n ? static_cast<int>(i) : n - 1) : 0;
+  }
+  int Column(double x) const { return Index(x, lo_.x(), cell_.x(), nx_); }
+  int Row(double y) const { return Index(y, lo_.y(), cell_.y(), ny_); }
   size_t Cell(int i, int j) const { return static_cast<size_t>(j) * nx_ + i; }
 
   // Calls f(cell) for every cell within `pad` of segment ab, strip by strip along the segment's longer axis from a

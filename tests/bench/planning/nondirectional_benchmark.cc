@@ -8,10 +8,12 @@
 //   where an event involves the regions' free edges) against the critical-slice baseline (method 1: a sweep in every
 //   interval between candidates), same problem, same run: the ratio of the two is the kinetic method's gain; the
 //   counters give the sweeps (backprojections) and the orientations found (equal for both).
+// Every benchmark but BM_Plan reports its peak resident memory (`peak_MiB`).
 // BM_Plan/scene: `visco plan` on the example scenes (one thread), with the nondirectional backprojections it needed.
 
 #include <benchmark/benchmark.h>
 
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -32,17 +34,36 @@
 namespace visco::planning {
 namespace {
 
+// Peak memory of one benchmark: Linux resets the process's peak resident set (VmHWM) when "5" is written to
+// /proc/self/clear_refs, so each benchmark reports its own peak, not the largest of the run so far. 0 where unknown.
+void ResetPeakMemory() { std::ofstream("/proc/self/clear_refs") << "5"; }
+double PeakMemoryMiB() {
+  std::ifstream status("/proc/self/status");
+  std::string key;
+  while (status >> key) {
+    if (key == "VmHWM:") {
+      double kib = 0;
+      status >> kib;
+      return kib / 1024.0;
+    }
+    status.ignore(1 << 20, '\n');
+  }
+  return 0.0;
+}
+
 void BM_Candidates(benchmark::State& state) {
   const BackprojectionProblem pr = bench::PentagonGrid(static_cast<int>(state.range(1)) / 5);
   const CandidateSearch search = state.range(0) == 0 ? CandidateSearch::kIndexed : CandidateSearch::kScan;
   CriticalCounts counts;
   size_t n = 0;
+  ResetPeakMemory();
   for (auto _ : state) {
     const auto c = CriticalCandidates(pr, nullptr, &counts, search);
     n = c.size();
     benchmark::DoNotOptimize(c.data());
   }
   state.SetLabel(state.range(0) == 0 ? "indexed" : "scan");
+  state.counters["peak_MiB"] = PeakMemoryMiB();
   state.counters["vertices"] = bench::Vertices(pr);
   state.counters["candidates"] = static_cast<double>(n);
   state.counters["visible_pairs"] = static_cast<double>(counts.visible_pairs);
@@ -69,6 +90,7 @@ void BM_CandidateCounts(benchmark::State& state) {
   const VcRays rays = ComputeVcRays(scene, cspace);
   const BackprojectionProblem pr = ProblemFromScene(scene, cspace, &rays, theta, /*kernel=*/false);
   CriticalCounts counts;
+  ResetPeakMemory();
   for (auto _ : state) {
     const auto c = CriticalCandidates(pr, nullptr, &counts);
     benchmark::DoNotOptimize(c.data());
@@ -76,6 +98,7 @@ void BM_CandidateCounts(benchmark::State& state) {
   double n = 0, segments = 0;
   for (const auto& o : pr.obstacles) n += static_cast<double>(o.vertices.size());
   for (const auto& r : pr.rays) segments += static_cast<double>(r.segments.size());
+  state.counters["peak_MiB"] = PeakMemoryMiB();
   state.counters["n"] = n;
   state.counters["rays"] = segments;
   state.counters["points"] = static_cast<double>(counts.points);
@@ -92,6 +115,7 @@ void BM_Nondirectional(benchmark::State& state) {
   o.method = state.range(0) == 0 ? SliceMethod::kKinetic : SliceMethod::kBaseline;
   NondirectionalStats stats;
   size_t orientations = 0;
+  ResetPeakMemory();
   for (auto _ : state) {
     const auto nd = ComputeNondirectional(pr, nullptr, o);
     stats = nd.stats;
@@ -99,6 +123,7 @@ void BM_Nondirectional(benchmark::State& state) {
     benchmark::DoNotOptimize(nd.slices.data());
   }
   state.SetLabel(state.range(0) == 0 ? "kinetic" : "baseline");
+  state.counters["peak_MiB"] = PeakMemoryMiB();
   state.counters["vertices"] = bench::Vertices(pr);
   state.counters["candidates"] = static_cast<double>(stats.candidates);
   state.counters["backprojections"] = static_cast<double>(stats.backprojections);
