@@ -358,10 +358,11 @@ class Generator {
   }
 
  private:
-  void Add(double theta, CriticalKind kind, std::vector<std::string> refs, std::vector<Vector2d> sources = {}) {
+  void Add(double theta, CriticalKind kind, std::vector<std::string> refs, std::vector<Vector2d> sources = {},
+           std::vector<std::int8_t> signs = {}) {
     if (!std::isfinite(theta)) return;
     if (r_only_ && kind != CriticalKind::kR) return;
-    out_.push_back({theta, kind, std::move(refs), std::move(sources)});
+    out_.push_back({theta, kind, std::move(refs), std::move(sources), std::move(signs)});
   }
 
   void Collect(const NamedPolygon* start) {
@@ -524,10 +525,12 @@ class Generator {
         const double beta = std::atan2(d.y(), d.x());
         const CriticalKind kind = points_[i].start || points_[j].start ? CriticalKind::kR : CriticalKind::kVgraph;
         if (r_only_ && kind != CriticalKind::kR) continue;
-        // Along β the free edge runs from b (its direction θ + π ± ε_v is β + π); along β + π from a.
+        // Along β the free edge runs from b (its direction θ + π ± ε_v is β + π); along β + π from a. At
+        // θ = β + se·ε_v (+π) that is the free edge of sign −se.
         for (double se : {-1.0, 1.0}) {
-          Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p});
-          Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p});
+          const std::int8_t sign = se > 0 ? -1 : 1;
+          Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p}, {sign});
+          Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p}, {sign});
         }
       }
     }
@@ -586,7 +589,7 @@ class Generator {
       if (s.kind == SegKind::kStart) kind = CriticalKind::kR;
       // A ray that cannot be relied on at θ is never active: its crossings change nothing.
       if (s.kind == SegKind::kRay && !IsReliableRay(s.a, s.b, theta, pr_.velocity_cone)) continue;
-      Add(theta, kind, {points_[i].ref, points_[j].ref, s.ref}, {a, b});
+      Add(theta, kind, {points_[i].ref, points_[j].ref, s.ref}, {a, b}, {1, -1});
     }
   }
 

@@ -44,6 +44,9 @@ struct CriticalOrientation {
   /// vertex); the event can change the structure only where they are vertices of the region. Empty for the kinds that
   /// act on the whole region (sliding, vc, selection).
   std::vector<Eigen::Vector2d> sources;
+  /// For each source, which of its two free edges the event involves: +1 the one of direction θ + π + ε_v, −1 the
+  /// one of θ + π − ε_v.
+  std::vector<std::int8_t> source_signs;
 };
 
 /// Counts of the candidates by kind, before any filtering (indexed by CriticalKind).

@@ -235,15 +235,36 @@ class Builder {
     return s;
   }
 
+  // A static point where a free edge of the slice's regions starts, and which of its two free edges that is (+1:
+  // direction θ + π + ε_v, −1: θ + π − ε_v, 0: not told apart, e.g. an edge too short to tell its direction).
+  struct FreeEnd {
+    Vector2d p;
+    int sign = 0;
+  };
+
   // The ends of the free edges of the slice's regions: a free edge starts at a static point, and only events at
-  // those points can change the structure.
-  std::vector<Vector2d> VerticesOf(const Slice& s) const {
-    std::vector<Vector2d> v;
+  // those points, involving that free edge, can change the structure.
+  std::vector<FreeEnd> VerticesOf(const Slice& s) const {
+    std::vector<FreeEnd> v;
+    const double eps = pr_.velocity_cone;
+    auto sign_of = [&](const Vector2d& from, const Vector2d& to) {
+      const Vector2d d = to - from;
+      if (eps < 1e-6 || d.norm() <= 1e-9 * size_) return 0;
+      const double a = std::atan2(d.y(), d.x());
+      const double plus = std::abs(WrapAngle(a - (s.theta + M_PI + eps)));
+      const double minus = std::abs(WrapAngle(a - (s.theta + M_PI - eps)));
+      // Free edges have exactly one of the two directions; anything else is told apart only when clear.
+      if (plus < 0.25 * eps && minus > 0.75 * eps) return 1;
+      if (minus < 0.25 * eps && plus > 0.75 * eps) return -1;
+      return 0;
+    };
     auto add = [&](const RegionRing& r) {
       const size_t n = r.vertices.size();
       for (size_t i = 0; i < n; ++i) {
-        if (r.edges[i].kind == EdgeKind::kFree || r.edges[(i + n - 1) % n].kind == EdgeKind::kFree) {
-          v.push_back(r.vertices[i]);
+        const size_t prev = (i + n - 1) % n, next = (i + 1) % n;
+        if (r.edges[i].kind == EdgeKind::kFree) v.push_back({r.vertices[i], sign_of(r.vertices[i], r.vertices[next])});
+        if (r.edges[prev].kind == EdgeKind::kFree) {
+          v.push_back({r.vertices[i], sign_of(r.vertices[i], r.vertices[prev])});
         }
       }
     };
@@ -252,19 +273,23 @@ class Builder {
     return v;
   }
 
-  // An event matters only where every free edge it involves is one of the regions' (a free vertex needs both).
-  bool Relevant(const CriticalOrientation& c, const std::vector<Vector2d>& vertices) const {
+  // An event matters only where every free edge it involves is one of the regions' (a free vertex needs both): its
+  // source is a free-edge end there with the same sign (or one not told apart).
+  bool Relevant(const CriticalOrientation& c, const std::vector<FreeEnd>& ends) const {
     if (c.sources.empty()) return true;
     const double tol = 1e-9 * size_;
-    for (const auto& src : c.sources) {
+    for (size_t k = 0; k < c.sources.size(); ++k) {
+      const int want = k < c.source_signs.size() ? c.source_signs[k] : 0;
       bool found = false;
-      for (const auto& v : vertices) found = found || (v - src).norm() <= tol;
+      for (const auto& e : ends) {
+        found = found || ((e.p - c.sources[k]).norm() <= tol && (e.sign == 0 || want == 0 || e.sign == want));
+      }
       if (!found) return false;
     }
     return true;
   }
 
-  bool EventRelevant(size_t k, const std::vector<Vector2d>& vertices) const {
+  bool EventRelevant(size_t k, const std::vector<FreeEnd>& vertices) const {
     for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
       if (Relevant(structural_[i], vertices)) return true;
     }
@@ -315,7 +340,7 @@ class Builder {
         if (!(out[mid].structure == out[hi].structure)) locate(mid, hi);
       };
       sweep(begin);
-      std::vector<Vector2d> vertices = VerticesOf(out[begin]);
+      std::vector<FreeEnd> vertices = VerticesOf(out[begin]);
       size_t last = begin;
       for (size_t k = begin + 1; k < end; ++k) {
         if (!EventRelevant(k, vertices) && k - last < kPeriod && k + 1 < end) continue;

@@ -32,6 +32,10 @@ void ExpectSameCandidates(const std::string& name, const BackprojectionProblem& 
     ASSERT_EQ(indexed[k].kind, scan[k].kind) << name << " candidate " << k;
     ASSERT_EQ(indexed[k].refs, scan[k].refs) << name << " candidate " << k;
     ASSERT_EQ(indexed[k].sources.size(), scan[k].sources.size()) << name << " candidate " << k;
+    ASSERT_EQ(indexed[k].source_signs, scan[k].source_signs) << name << " candidate " << k;
+    if (!scan[k].sources.empty()) {
+      ASSERT_EQ(scan[k].source_signs.size(), scan[k].sources.size()) << name;
+    }
     for (size_t s = 0; s < scan[k].sources.size(); ++s) {
       ASSERT_EQ(indexed[k].sources[s], scan[k].sources[s]) << name << " candidate " << k;
     }
