@@ -17,13 +17,21 @@
 #include "planning/apo_command.h"
 #include "planning/commands.h"
 
+#ifdef VISCO_MIMALLOC
+#include <mimalloc.h>  // linked for its malloc; --version names it (and so the program really links it)
+#endif
+
 #ifndef VISCO_VERSION
 #define VISCO_VERSION "unknown"
 #endif
 
 int main(int argc, char** argv) {
   CLI::App app{"visco: the planner's commands (the full program, visco-full, runs the others).", "visco"};
-  app.set_version_flag("--version", std::string("visco ") + VISCO_VERSION);
+  std::string version = std::string("visco ") + VISCO_VERSION;
+#ifdef VISCO_MIMALLOC
+  version += " (allocator: mimalloc " + std::to_string(mi_version()) + ")";
+#endif
+  app.set_version_flag("--version", version);
   app.require_subcommand(1);
   app.fallthrough(false);
   visco::planning::RegisterCommands(app);
