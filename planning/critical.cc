@@ -543,8 +543,10 @@ class Generator {
     const size_t n = points_.size();
     const double two_eps = 2 * eps_;
     if (two_eps < 1e-6) return;  // parallel free edges: no free vertex inside the bounds
+    // The circles of (a, b) and of (b, a) are the same two, bit for bit (the midpoint, the negated normal and the
+    // sign of the side cancel exactly): the index walks each once for both orders; the scan keeps every order.
     for (size_t i = 0; i < n; ++i) {
-      for (size_t j = 0; j < n; ++j) {
+      for (size_t j = indexed_ ? i + 1 : 0; j < n; ++j) {
         if (i == j) continue;
         const Vector2d a = points_[i].p, b = points_[j].p;
         const Vector2d ab = b - a;
@@ -560,7 +562,11 @@ class Generator {
             if (!r_only_ || s.kind == SegKind::kStart) CircleMeetsSegment(i, j, c, r, s);
           };
           if (indexed_) {
-            for (int k : seg_grid_.NearCircle(c, r)) meet(segs_[k]);
+            for (int k : seg_grid_.NearCircle(c, r)) {
+              if (r_only_ && segs_[k].kind != SegKind::kStart) continue;
+              CircleMeetsSegment(i, j, c, r, segs_[k]);
+              CircleMeetsSegment(j, i, c, r, segs_[k]);
+            }
           } else {
             for (const auto& s : segs_) meet(s);
           }
