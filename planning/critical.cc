@@ -67,8 +67,7 @@ class SegmentGrid {
   }
 
   // The pieces whose bounding boxes overlap each cell (for point-in-CB tests).
-  template <typename Box>
-  void AddBoxes(const std::vector<Box>& boxes) {
+  void AddBoxes(const std::vector<Eigen::AlignedBox2d>& boxes) {
     piece_cells_.assign(cells_.size(), {});
     for (size_t k = 0; k < boxes.size(); ++k) {
       if (boxes[k].isEmpty()) continue;
@@ -115,7 +114,7 @@ class SegmentGrid {
         for (int j = j0; j <= j1; ++j) Collect(Cell(i, j));
       }
     }
-    return Finish();
+    return found_;
   }
 
   // Segments and pieces within `pad` of point p (and some more; one cell: no repeats, any order).
@@ -181,7 +180,6 @@ class SegmentGrid {
       found_.push_back(k);
     }
   }
-  const std::vector<int>& Finish() const { return found_; }
 
   double pad_ = 0;
   Vector2d lo_ = Vector2d::Zero(), cell_ = Vector2d::Ones();
