@@ -75,10 +75,9 @@ bool IsGood(Label l) { return l == Label::kGoal || l == Label::kGood; }
 bool IsFree(Label l) { return l == Label::kGood || l == Label::kBad; }
 Label Status(bool good) { return good ? Label::kGood : Label::kBad; }
 
-// Point equality that skips the exact evaluation when both are one shared point (the common case in the sweep: an
-// equality of equal points is never decided by the interval filter, and each undecided filter costs an exception).
 // Point equality and (y, x) order, decided on the interval approximations when they are apart and otherwise on the
-// exact values directly. The same answers as CGAL's filtered `==` and compare_yx, without their cost on ties: there
+// exact values directly (one shared point, the common case in the sweep, is equal at once). The same answers as
+// CGAL's filtered `==` and compare_yx, without their cost on ties: there
 // the interval predicate cannot decide and CGAL throws and catches an exception before it computes exactly (12 % of
 // `visco plan` went to throwing and unwinding, mostly for points that are equal).
 CGAL::Comparison_result CompareApprox(const CGAL::Interval_nt<false>& a, const CGAL::Interval_nt<false>& b) {

@@ -257,38 +257,31 @@ struct ObstacleRegion {
   bool Sees(const Vector2d& p, const Vector2d& q) const {
     const Vector2d d = q - p;
     const double dn = d.norm();
-    auto blocks = [&](const Seg& e) {
-      const Vector2d f = e.b - e.a;
-      const double den = Cross(d, f);
-      if (std::abs(den) < 1e-6 * dn * f.norm()) return false;
-      const double t = Cross(e.a - p, f) / den;
-      const double u = Cross(e.a - p, d) / den;
-      return t > 1e-8 && t < 1 - 1e-8 && u > 1e-8 && u < 1 - 1e-8;
-    };
     std::vector<double> cuts = {0.0, 1.0};
-    auto cut = [&](const Seg& e) {
+    // One edge: false when it certifies the block; else its cut, if it meets the segment.
+    auto visit = [&](const Seg& e) {
       const Vector2d f = e.b - e.a;
       const double den = Cross(d, f);
-      if (std::abs(den) < 1e-300) return;
+      if (std::abs(den) < 1e-300) return true;
       const double t = Cross(e.a - p, f) / den;
       const double u = Cross(e.a - p, d) / den;
+      if (std::abs(den) >= 1e-6 * dn * f.norm() && t > 1e-8 && t < 1 - 1e-8 && u > 1e-8 && u < 1 - 1e-8) return false;
       if (t > 0 && t < 1 && u >= -1e-12 && u <= 1 + 1e-12) cuts.push_back(t);
+      return true;
     };
+    bool blocked = false;
     if (indexed) {
-      bool blocked = false;
-      near_.clear();
       grid.ForNearSegment(p, q, [&](int k) {
-        blocked = blocks(edges[k]);
-        near_.push_back(k);
+        blocked = !visit(edges[k]);
         return !blocked;
       });
-      if (blocked) return false;
-      for (int k : near_) cut(edges[k]);
     } else {
-      for (const auto& e : edges)
-        if (blocks(e)) return false;
-      for (const auto& e : edges) cut(e);
+      for (const auto& e : edges) {
+        blocked = !visit(e);
+        if (blocked) break;
+      }
     }
+    if (blocked) return false;
     std::sort(cuts.begin(), cuts.end());
     for (size_t i = 0; i + 1 < cuts.size(); ++i) {
       if (cuts[i + 1] - cuts[i] < 1e-12) continue;
@@ -296,7 +289,6 @@ struct ObstacleRegion {
     }
     return true;
   }
-  mutable std::vector<int> near_;
 };
 
 // The crossing of two segments, if they meet in one point (collinear overlaps add nothing new: their ends are
@@ -557,14 +549,12 @@ class Generator {
         for (double side : {-1.0, 1.0}) {
           const Vector2d c = m + side * h * nrm;
           auto meet = [&](const Seg& s) {
-            if (!r_only_ || s.kind == SegKind::kStart) CircleMeetsSegment(i, j, c, r, s);
+            if (r_only_ && s.kind != SegKind::kStart) return;
+            CircleMeetsSegment(i, j, c, r, s);
+            if (indexed_) CircleMeetsSegment(j, i, c, r, s);  // (b, a): the same circle, not walked on its own
           };
           if (indexed_) {
-            for (int k : seg_grid_.NearCircle(c, r)) {
-              if (r_only_ && segs_[k].kind != SegKind::kStart) continue;
-              CircleMeetsSegment(i, j, c, r, segs_[k]);
-              CircleMeetsSegment(j, i, c, r, segs_[k]);
-            }
+            for (int k : seg_grid_.NearCircle(c, r)) meet(segs_[k]);
           } else {
             for (const auto& s : segs_) meet(s);
           }

@@ -203,7 +203,7 @@ class Builder {
     nd.stats.unexplained_at = unexplained_at_;
     for (auto& c : r_candidates) {
       const Slice& s = SliceAt(nd, c.theta);
-      if (!Relevant(c, VerticesOf(s))) continue;
+      if (!Relevant(c, FreeEndsOf(s))) continue;
       c.sources.clear();
       nd.orientations.push_back(std::move(c));
       ++nd.stats.r_critical;
@@ -244,7 +244,7 @@ class Builder {
 
   // The ends of the free edges of the slice's regions: a free edge starts at a static point, and only events at
   // those points, involving that free edge, can change the structure.
-  std::vector<FreeEnd> VerticesOf(const Slice& s) const {
+  std::vector<FreeEnd> FreeEndsOf(const Slice& s) const {
     std::vector<FreeEnd> v;
     const double eps = pr_.velocity_cone;
     auto sign_of = [&](const Vector2d& from, const Vector2d& to) {
@@ -289,9 +289,9 @@ class Builder {
     return true;
   }
 
-  bool EventRelevant(size_t k, const std::vector<FreeEnd>& vertices) const {
+  bool EventRelevant(size_t k, const std::vector<FreeEnd>& ends) const {
     for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
-      if (Relevant(structural_[i], vertices)) return true;
+      if (Relevant(structural_[i], ends)) return true;
     }
     return false;
   }
@@ -340,14 +340,14 @@ class Builder {
         if (!(out[mid].structure == out[hi].structure)) locate(mid, hi);
       };
       sweep(begin);
-      std::vector<FreeEnd> vertices = VerticesOf(out[begin]);
+      std::vector<FreeEnd> ends = FreeEndsOf(out[begin]);
       size_t last = begin;
       for (size_t k = begin + 1; k < end; ++k) {
-        if (!EventRelevant(k, vertices) && k - last < kPeriod && k + 1 < end) continue;
+        if (!EventRelevant(k, ends) && k - last < kPeriod && k + 1 < end) continue;
         sweep(k);
         if (!(out[k].structure == out[last].structure)) locate(last, k);
         last = k;
-        vertices = VerticesOf(out[k]);
+        ends = FreeEndsOf(out[k]);
       }
       // Intervals not swept have the structure of the last swept one before them.
       size_t source = begin;
@@ -366,7 +366,7 @@ class Builder {
 
   // The candidate of event k to report: the first whose sources are vertices on either side.
   int PickCandidate(size_t k, const Slice& before, const Slice& after) const {
-    auto vb = VerticesOf(before), va = VerticesOf(after);
+    auto vb = FreeEndsOf(before), va = FreeEndsOf(after);
     // Prefer the specific kinds (a free edge parallel to a ray is also parallel to the segment of its two ends).
     static const CriticalKind priority[] = {CriticalKind::kVc, CriticalKind::kFreeEdge, CriticalKind::kVertex,
                                             CriticalKind::kSliding, CriticalKind::kVgraph};
