@@ -1,13 +1,14 @@
 // `visco demo`: the whole system on the embedded default scene (or --scene FILE). It plans (`visco plan`), then
 // executes the strategy in closed loop as separate processes talking LCM, as on real hardware:
-//   visco sim    the simulated robot behind its driver (the motion model of docs/semantics.md with a seeded adversary)
-//   and
-//                the rendered camera (the AprilTags of robot and obstacles, published as images);
+//   visco-rt driver  the robot driver driving the simulated robot (drivers/simulated_robot.h: the motion model of
+//                docs/semantics.md with a seeded adversary) among the scene's C-obstacles (DIR/world.json), with
+//                the robot's true state on VISCO_SIM_TRUTH;
+//   visco sim --no-driver  the rendered camera (the AprilTags of robot and obstacles at that true state, as images);
 //   visco track  the vision pipeline (detection, tracking, poses, CM vertices, visual events);
 //   visco run    the controller (visual guarded and compliant motions, contact, goal);
 //   lcm-logger   every channel into DIR/run.lcmlog.
 // The demo supervises them: Ctrl-C or any failure stops all of them (they also die with the demo: PR_SET_PDEATHSIG).
-// Outputs in DIR: scene.json, rays.json, plan.json, plan.svg, run.svg, run.lcmlog, summary.json, and each
+// Outputs in DIR: scene.json, world.json, rays.json, plan.json, plan.svg, run.svg, run.lcmlog, summary.json, and each
 // process's output and log.
 
 #include "app/demo.h"
@@ -39,9 +40,12 @@
 #include <vector>
 
 #include "app/netns_hosts.h"
+#include "app/parameter_file.h"
 #include "app/paths.h"
 #include "common/error.h"
 #include "common/write_output.h"
+#include "control/sim_world.h"
+#include "drivers/simulated_robot_options.h"
 #include "lcmtypes/channels.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
@@ -103,6 +107,21 @@ Child Spawn(const std::string& name, const std::vector<std::string>& argv, const
     _exit(127);
   }
   return {name, pid, -1, false};
+}
+
+// The command line of `exe command args...` that takes its options from a parameter file (app/parameter_file.h),
+// written to `params`: the positionals stay on the command line. A user repeats the run from these files.
+std::vector<std::string> WithParameterFile(const std::string& exe, const std::string& command,
+                                           const std::vector<std::string>& args, const fs::path& params) {
+  WriteTextOutput(ParameterFileJson(command, args), params.string());
+  std::vector<std::string> argv = {exe, command};
+  for (const std::string& a : args) {
+    if (a.rfind("--", 0) == 0) break;
+    argv.push_back(a);
+  }
+  argv.push_back("--config");
+  argv.push_back(params.string());
+  return argv;
 }
 
 bool Poll(Child& c) {
@@ -268,6 +287,7 @@ struct Setup {
   const planning::Strategy* strategy = nullptr;
   fs::path dir;
   std::string self;  // this visco executable
+  std::string rt;    // visco-rt beside it (the driver process)
   bool rendered = false;
   std::vector<std::string> cam;  // camera files of the rendered default scene
 };
@@ -333,7 +353,7 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
   fs::create_directories(rd);
   // The host each process runs on (with --netns).
   const std::vector<std::pair<std::string, std::string>> host_of = {
-      {"lcm-logger", "logger"}, {"sim", "robot"}, {"track", "vision"}, {"run", "controller"}};
+      {"lcm-logger", "logger"}, {"driver", "robot"}, {"camera", "camera"}, {"track", "vision"}, {"run", "controller"}};
   auto on_host = [&](const std::string& name, const std::vector<std::string>& argv) {
     if (hosts == nullptr) return argv;
     for (const auto& [process, host] : host_of) {
@@ -342,46 +362,70 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
     return argv;
   };
   std::vector<Child> children;
-  children.push_back(Spawn(
+  nlohmann::json commands = nlohmann::json::object();  // what ran, for summary.json (repeatable by hand)
+  auto spawn = [&commands](const std::string& name, const std::vector<std::string>& argv, const fs::path& out,
+                           const fs::path& err) {
+    commands[name] = argv;
+    return Spawn(name, argv, out, err);
+  };
+  children.push_back(spawn(
       "lcm-logger",
       on_host("lcm-logger", {"lcm-logger", "--lcm-url=" + bus, "--quiet", "--force", (rd / "run.lcmlog").string()}),
       rd / "logger.out", rd / "logger.log"));
-  std::vector<std::string> sim = {su.self,
-                                  "sim",
-                                  (dir / "scene.json").string(),
-                                  "--rays",
-                                  (dir / "rays.json").string(),
-                                  "--start",
-                                  fmt::format("{}", start.x()),
-                                  fmt::format("{}", start.y()),
-                                  "--seed",
-                                  std::to_string(seed),
-                                  "--lcm-url",
-                                  bus,
-                                  "--duration",
-                                  fmt::format("{}", a.timeout_s + 30),
-                                  "--watchdog-ms",
-                                  "500"};
+  // The robot: the driver process (the real-time binary) driving the simulated robot among the scene's C-obstacles
+  // (the world file), publishing the robot's true state for the camera.
+  std::vector<std::string> driver = {"--world",
+                                     (dir / "world.json").string(),
+                                     "--start",
+                                     fmt::format("{}", start.x()),
+                                     fmt::format("{}", start.y()),
+                                     "--seed",
+                                     std::to_string(seed),
+                                     "--lcm-url",
+                                     bus,
+                                     "--duration",
+                                     fmt::format("{}", a.timeout_s + 30),
+                                     "--watchdog-ms",
+                                     "500",
+                                     "--truth-hz",
+                                     "200"};
+  if (a.can) {
+    driver.push_back("--can");
+    driver.push_back("vcan0");
+  }
+  fs::create_directories(rd / "params");
+  children.push_back(spawn("driver",
+                           on_host("driver", WithParameterFile(su.rt, "driver", driver, rd / "params" / "driver.json")),
+                           rd / "driver.json", rd / "driver.log"));
+  // The camera: renders the tags at the robot's true pose (or, for other scenes, reports visual events directly).
+  std::vector<std::string> camera = {(dir / "scene.json").string(),
+                                     "--no-driver",
+                                     "--rays",
+                                     (dir / "rays.json").string(),
+                                     "--seed",
+                                     std::to_string(seed),
+                                     "--lcm-url",
+                                     bus,
+                                     "--duration",
+                                     fmt::format("{}", a.timeout_s + 30)};
   if (su.rendered) {
-    sim.insert(sim.end(), su.cam.begin(), su.cam.end());
+    camera.insert(camera.end(), su.cam.begin(), su.cam.end());
     for (const char* o :
          {"--camera-hz", "15", "--latency-ms", "5", "--supersample", "2", "--image-noise", "2", "--blur-px", "0.5"}) {
-      sim.push_back(o);
+      camera.push_back(o);
     }
   }
-  if (a.can) {
-    sim.push_back("--can");
-    sim.push_back("vcan0");
-  }
-  children.push_back(Spawn("sim", on_host("sim", sim), rd / "sim.json", rd / "sim.log"));
+  children.push_back(spawn("camera",
+                           on_host("camera", WithParameterFile(su.self, "sim", camera, rd / "params" / "camera.json")),
+                           rd / "camera.json", rd / "camera.log"));
   if (su.rendered) {
-    std::vector<std::string> track = {su.self, "track", "--lcm", "--lcm-url", bus};
+    std::vector<std::string> track = {"--lcm", "--lcm-url", bus};
     track.insert(track.end(), su.cam.begin(), su.cam.end());
-    children.push_back(Spawn("track", on_host("track", track), rd / "track.jsonl", rd / "track.log"));
+    children.push_back(spawn("track",
+                             on_host("track", WithParameterFile(su.self, "track", track, rd / "params" / "track.json")),
+                             rd / "track.jsonl", rd / "track.log"));
   }
-  std::vector<std::string> run = {su.self,
-                                  "run",
-                                  (dir / "plan.json").string(),
+  std::vector<std::string> run = {(dir / "plan.json").string(),
                                   "--scene",
                                   (dir / "scene.json").string(),
                                   "--rays",
@@ -413,7 +457,8 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
     run.push_back("--can");
     run.push_back("vcan0");
   }
-  Child controller = Spawn("run", on_host("run", run), rd / "run.json", rd / "run.log");
+  Child controller = spawn("run", on_host("run", WithParameterFile(su.self, "run", run, rd / "params" / "run.json")),
+                           rd / "run.json", rd / "run.log");
   const auto started = Clock::now();
   int last_report = -1;
   bool failed_early = false;
@@ -442,14 +487,14 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
   Stop(all);
   const double run_s = std::chrono::duration<double>(Clock::now() - started).count();
   const nlohmann::json run_json = ReadJson(rd / "run.json");
-  const nlohmann::json sim_json = ReadJson(rd / "sim.json");
+  const nlohmann::json driver_json = ReadJson(rd / "driver.json");  // the robot's true final position
   RunOutcome out;
   out.trace = ReadTrace(rd / "run.lcmlog");
   const Trace& trace = out.trace;
   if (a.runs == 1) WriteTextOutput(RunSvg(*su.scene, *su.cspace, *su.strategy, trace), (rd / "run.svg").string());
   Eigen::Vector2d final_pos(NAN, NAN);
-  if (sim_json.contains("position")) {
-    final_pos = Eigen::Vector2d(sim_json["position"][0].get<double>(), sim_json["position"][1].get<double>());
+  if (driver_json.contains("position")) {
+    final_pos = Eigen::Vector2d(driver_json["position"][0].get<double>(), driver_json["position"][1].get<double>());
   }
   const double error = std::isfinite(final_pos.x()) ? DistanceToPolygon(su.scene->goal.polygon, final_pos) : INFINITY;
   const bool done = run_json.value("result", "") == "done";
@@ -471,7 +516,8 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
               {"final_position",
                std::isfinite(final_pos.x()) ? nlohmann::json({final_pos.x(), final_pos.y()}) : nlohmann::json()},
               {"goal_error_m", number_or_null(error)},
-              {"success", out.ok}};
+              {"success", out.ok},
+              {"commands", commands}};
   if (failed_early) out.item["reason"] = "a process ended early (see its log in " + rd.string() + ")";
   if (hosts != nullptr) {
     // Where each process ran: its host's namespace (name, address, inode) and the namespace it was seen in.
@@ -623,6 +669,8 @@ int Run(const Args& a) {
   su.strategy = &strategy;
   su.dir = dir;
   su.self = (ExecutableDir() / "visco").string();
+  su.rt = (ExecutableDir() / "visco-rt").string();
+  WriteTextOutput(drivers::WorldFileJson(control::MakeWorldFile(scene)), (dir / "world.json").string());
   // The rendered camera for the default scene; other scenes get the synthetic camera (visual events without images).
   const fs::path data = VISCO_SOURCE_DATA_DIR;
   su.rendered = a.scene.empty() && fs::exists(data / "sim" / "slot_camera.xml");
@@ -646,8 +694,8 @@ int Run(const Args& a) {
   if (a.netns) {
     for (size_t j = 0; j < job_hosts.size(); ++j) {
       job_hosts[j] = std::make_unique<app::NetnsHosts>(
-          fmt::format("visco{}j{}", getpid(), j), std::vector<std::string>{"robot", "vision", "controller", "logger"},
-          static_cast<int>(j) + 1);
+          fmt::format("visco{}j{}", getpid(), j),
+          std::vector<std::string>{"robot", "camera", "vision", "controller", "logger"}, static_cast<int>(j) + 1);
     }
     std::fprintf(stderr,
                  "visco demo: every process on a host of its own (network namespaces such as %s at %s, LCM "

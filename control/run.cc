@@ -1,6 +1,5 @@
 #include "control/run.h"
 
-#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <chrono>
@@ -173,13 +172,6 @@ ExecutorConfig ExecutorConfigFromJson(const std::string& text, const std::string
   } catch (const nlohmann::json::exception& e) {
     throw InputError(source, "executor", std::string("bad controller configuration: ") + e.what());
   }
-}
-
-void LogToStderr() {
-  auto logger = spdlog::get("visco");
-  if (!logger) logger = spdlog::stderr_color_mt("visco");
-  spdlog::set_default_logger(logger);
-  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
 }
 
 std::string RunResult::ToJson() const {

@@ -9,6 +9,7 @@
 #include "common/event_log.h"
 #include "control/executor.h"
 #include "control/task.h"
+#include "drivers/commands.h"
 
 namespace visco::control {
 
@@ -60,9 +61,9 @@ struct RunResult {
   std::string ToJson() const;
 };
 
-/// Sends spdlog's default logger to stderr (the commands print their JSON summary alone on stdout). Not real-time
-/// safe.
-void LogToStderr();
+/// Sends spdlog's default logger to stderr (drivers/commands.h; the commands print their JSON summary alone on
+/// stdout).
+using drivers::LogToStderr;
 
 /// Loads the task named by the options (strategy file or LCM message, rays, scene). @throws InputError, JobFailed.
 Task LoadTask(const RunOptions& options);

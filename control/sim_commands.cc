@@ -13,8 +13,12 @@
 
 #include "common/error.h"
 #include "common/event_log.h"
+#include "common/write_output.h"
 #include "control/run.h"
 #include "control/sim_session.h"
+#include "control/sim_world.h"
+#include "drivers/simulated_robot_options.h"
+#include "planning/scene.h"
 
 namespace visco::control {
 namespace {
@@ -29,6 +33,7 @@ void OnRelease(int) {
 
 struct SimCli {
   SimOptions sim;
+  drivers::SimulatedRobotOptions robot;  // its world, cone and start come from the scene
   std::vector<double> start;
   double latency_ms = 20;
   double watchdog_ms = 100;
@@ -36,6 +41,7 @@ struct SimCli {
   std::vector<double> occlude, blackout, stale;
   double stale_ms = 500;
   std::string log;
+  std::string write_world;
 };
 
 FaultWindow Window(const std::vector<double>& v, const char* option) {
@@ -49,6 +55,17 @@ FaultWindow Window(const std::vector<double>& v, const char* option) {
 void RunSim(SimCli& cli) {
   LogToStderr();  // stdout carries only the JSON summary
   SimOptions& o = cli.sim;
+  o.robot = cli.robot.robot;
+  if (!cli.write_world.empty()) {
+    // The scene's physics for a driver process (`visco-rt driver --world`), which links no planner.
+    drivers::WorldFile world = MakeWorldFile(planning::LoadScene(o.scene_path));
+    if (!cli.start.empty()) {
+      world.have_start = true;
+      world.start = {cli.start[0], cli.start[1]};
+    }
+    WriteTextOutput(drivers::WorldFileJson(world), cli.write_world);
+    return;
+  }
   if (!cli.start.empty()) {
     o.have_start = true;
     o.start = {cli.start[0], cli.start[1]};
@@ -119,10 +136,7 @@ void RegisterSimCommands(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--start", cli->start, "initial reference point X Y, metres (default: the start region's centroid)")
       ->expected(2);
-  cmd->add_option("--seed", o.seed, "seed of the adversary and the camera noise")->capture_default_str();
-  cmd->add_option("--mean-hold", o.mean_hold_m, "mean travel between the adversary's direction changes, m")
-      ->capture_default_str();
-  cmd->add_option("--max-acceleration", o.max_acceleration, "robot acceleration limit, m/s^2")->capture_default_str();
+  drivers::AddSimulatedRobotOptions(*cmd, cli->robot, /*with_world=*/false);  // --seed also seeds the camera noise
   cmd->add_option("--lcm-url", o.lcm_url, "LCM provider URL (LCM's default when empty)");
   cmd->add_option("--log", cli->log,
                   "write an LCM event log (lcm-logger format) of the bus: every channel it publishes and receives "
@@ -162,6 +176,13 @@ void RegisterSimCommands(CLI::App& app) {
   cmd->add_option("--stale", cli->stale, "fault: frames from START for DURATION seconds carry an old capture time")
       ->expected(2);
   cmd->add_option("--stale-ms", cli->stale_ms, "age of the stale frames' capture time, ms")->capture_default_str();
+  cmd->add_flag("--no-driver", o.no_driver,
+                "the camera alone: the robot and its driver run in another process (`visco-rt driver --world FILE "
+                "--truth-hz HZ`), whose true state on VISCO_SIM_TRUTH the camera renders (node --node)")
+      ->excludes("--can");
+  cmd->add_option("--write-world", cli->write_world,
+                  "write the scene's world file (C-obstacles, bounds, friction, velocity cone; the start with "
+                  "--start) for `visco-rt driver --world`, and exit");
   cmd->add_option("--duration", cli->duration_s, "stop after this many seconds (0: until a signal)")
       ->check(CLI::NonNegativeNumber);
   cmd->callback([cli] { RunSim(*cli); });

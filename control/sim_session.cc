@@ -1,34 +1,59 @@
 #include "control/sim_session.h"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <chrono>
 #include <cmath>
 #include <lcm/lcm-cpp.hpp>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <random>
 
 #include "common/error.h"
 #include "control/control_loop.h"
-#include "control/sim_robot.h"
+#include "control/sim_world.h"
 #include "drivers/driver_transport.h"
 #include "lcmtypes/channels.h"
-#include "planning/motion_model.h"
 #include "planning/scene.h"
 #include "visco/robot_estimate_t.hpp"
+#include "visco/sim_truth_t.hpp"
 #include "visco/visual_events_t.hpp"
 
 namespace visco::control {
 
 struct SimSession::Impl {
   planning::Scene scene;
-  std::unique_ptr<planning::MotionModel> model;
-  std::unique_ptr<SimRobot> robot;
+  std::unique_ptr<drivers::SimulatedRobot> robot;
   std::unique_ptr<drivers::DriverTransport> transport;
   std::unique_ptr<drivers::Driver> driver;
   std::unique_ptr<lcm::LCM> lcm;
   std::unique_ptr<SyntheticCamera> camera;
   std::unique_ptr<RenderedCamera> rendered;
+  // --no-driver: the robot is simulated by a driver process; its truth arrives on VISCO_SIM_TRUTH.
+  std::unique_ptr<lcm::LCM> truth_lcm;
+  LatestValue<drivers::RobotTruth> remote_truth;
+  std::atomic<std::uint64_t> truths{0};
+  std::mutex last_mutex;
+  drivers::RobotTruth last_truth;  // for Summary()
+  std::thread truth_thread;
+  int truth_node = 1;
+
+  void OnTruth(const lcm::ReceiveBuffer*, const std::string&, const sim_truth_t* m) {
+    if (m->node_id != truth_node) return;
+    drivers::RobotTruth t;
+    t.time_ns = MonotonicNs() - (WallUtime() - m->utime) * 1000;
+    for (int i = 0; i < 2; ++i) {
+      t.position[i] = m->position[i];
+      t.velocity[i] = m->velocity[i];
+    }
+    t.contact = m->contact;
+    t.mode = static_cast<std::uint8_t>(m->mode);
+    remote_truth.Publish(t);
+    truths.fetch_add(1);
+    std::lock_guard<std::mutex> lock(last_mutex);
+    last_truth = t;
+  }
 };
 
 std::string SimSummary::ToJson() const {
@@ -39,6 +64,10 @@ std::string SimSummary::ToJson() const {
   j["dropped_frames"] = dropped_frames;
   j["camera"] = rendered ? "rendered" : "events";
   if (rendered) j["mean_render_ms"] = mean_render_ms;
+  if (!have_driver) {
+    j["truth_messages"] = truths;  // the robot was simulated by a driver process
+    return j.dump();
+  }
   j["driver"] = {{"state", driver_state},
                  {"commands_applied", driver.commands_applied},
                  {"bad_commands", driver.bad_commands},
@@ -74,14 +103,13 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
     c /= static_cast<double>(scene.start->polygon.vertices.size());
     start = {c.x(), c.y()};
   }
-  impl_->model = std::make_unique<planning::MotionModel>(MakeMotionWorld(scene));
-  SimRobotConfig robot_config;
-  robot_config.start = start;
-  robot_config.velocity_cone = scene.uncertainty.velocity_cone_rad;
-  robot_config.seed = o.seed;
-  robot_config.mean_hold_m = o.mean_hold_m;
-  robot_config.max_acceleration = o.max_acceleration;
-  impl_->robot = std::make_unique<SimRobot>(*impl_->model, robot_config);
+  if (!o.no_driver) {
+    drivers::SimulatedRobotConfig robot_config = o.robot;
+    robot_config.start = {start.x, start.y};
+    robot_config.world = MakeMotionWorld(scene);
+    robot_config.velocity_cone = scene.uncertainty.velocity_cone_rad;
+    impl_->robot = std::make_unique<drivers::SimulatedRobot>(robot_config);
+  }
 
   if (!o.rays_path.empty()) {
     rays_.rays = LoadRays(o.rays_path);
@@ -99,39 +127,55 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
   if (!(o.stale_s > 0)) throw InputError("command line", "--stale-ms", "must be positive");
   if (!o.render.objects_path.empty()) {
     RenderedCameraConfig render = o.render;
-    render.seed = o.seed ^ 0x1a9e5ULL;
+    render.seed = o.robot.seed ^ 0x1a9e5ULL;
     impl_->rendered = std::make_unique<RenderedCamera>(render);
   }
   SyntheticCameraConfig camera_config{o.focal_px, o.on_line_band_px, o.noise_px};
-  impl_->camera = std::make_unique<SyntheticCamera>(rays_, camera_config, o.seed ^ 0x5eedcafeULL);
+  impl_->camera = std::make_unique<SyntheticCamera>(rays_, camera_config, o.robot.seed ^ 0x5eedcafeULL);
 
-  drivers::DriverTransportConfig transport_config;
-  transport_config.node_id = o.node_id;
-  transport_config.lcm_url = o.lcm_url;
-  transport_config.can_interface = o.can_interface;
-  impl_->transport = o.can_interface.empty() ? drivers::MakeLcmDriverTransport(transport_config)
-                                             : drivers::MakeSocketCanDriverTransport(transport_config);
-  impl_->driver = std::make_unique<drivers::Driver>(o.driver, *impl_->transport, *impl_->robot);
+  if (impl_->robot) {
+    drivers::DriverTransportConfig transport_config;
+    transport_config.node_id = o.node_id;
+    transport_config.lcm_url = o.lcm_url;
+    transport_config.can_interface = o.can_interface;
+    impl_->transport = o.can_interface.empty() ? drivers::MakeLcmDriverTransport(transport_config)
+                                               : drivers::MakeSocketCanDriverTransport(transport_config);
+    impl_->driver = std::make_unique<drivers::Driver>(o.driver, *impl_->transport, *impl_->robot);
+  } else {
+    impl_->truth_lcm = std::make_unique<lcm::LCM>(o.lcm_url);
+    if (!impl_->truth_lcm->good()) throw JobFailed("LCM: cannot initialise provider '" + o.lcm_url + "'");
+    impl_->truth_node = o.node_id;
+    impl_->truth_lcm->subscribe(channels::kSimTruth, &Impl::OnTruth, impl_.get());
+  }
   impl_->lcm = std::make_unique<lcm::LCM>(o.lcm_url);
   if (!impl_->lcm->good()) throw JobFailed("LCM: cannot initialise provider '" + o.lcm_url + "'");
-  spdlog::info(
-      "sim: scene {} ({} C-obstacle part(s)), robot at ({:.3f}, {:.3f}), cone {:.1f} deg, seed {}, {} CVC "
-      "ray(s), camera {:.0f} Hz ({})",
-      scene.name, impl_->model->world().obstacles.size(), start.x, start.y,
-      scene.uncertainty.velocity_cone_rad * 180 / M_PI, o.seed, rays_.rays.size(), o.camera_hz,
-      impl_->rendered ? "rendered " + std::to_string(impl_->rendered->width()) + "x" +
-                            std::to_string(impl_->rendered->height()) + " images on " + channels::kCameraImage
-                      : std::string("synthetic visual events"));
+  spdlog::info("sim: scene {}, {}, cone {:.1f} deg, seed {}, {} CVC ray(s), camera {:.0f} Hz ({})", scene.name,
+               impl_->robot ? fmt::format("{} C-obstacle part(s), robot at ({:.3f}, {:.3f})",
+                                          impl_->robot->model().world().obstacles.size(), start.x, start.y)
+                            : fmt::format("the robot simulated elsewhere (its truth from {}, node {})",
+                                          channels::kSimTruth, o.node_id),
+               scene.uncertainty.velocity_cone_rad * 180 / M_PI, o.robot.seed, rays_.rays.size(), o.camera_hz,
+               impl_->rendered ? "rendered " + std::to_string(impl_->rendered->width()) + "x" +
+                                     std::to_string(impl_->rendered->height()) + " images on " + channels::kCameraImage
+                               : std::string("synthetic visual events"));
 }
 
 SimSession::~SimSession() { Stop(); }
 
 void SimSession::Start() {
-  driver_thread_ = std::thread([this] { impl_->driver->Run(stop_driver_); });
+  if (impl_->driver) {
+    driver_thread_ = std::thread([this] { impl_->driver->Run(stop_driver_); });
+  } else {
+    impl_->truth_thread = std::thread([this] {
+      while (!stop_camera_.load()) impl_->truth_lcm->handleTimeout(50);
+    });
+  }
   camera_thread_ = std::thread([this] { CameraLoop(); });
 }
 
-void SimSession::ReleaseEStop() { impl_->driver->RequestOperatorRelease(); }
+void SimSession::ReleaseEStop() {
+  if (impl_->driver) impl_->driver->RequestOperatorRelease();
+}
 
 void SimSession::KillDriver() {
   stop_driver_.store(true);
@@ -141,6 +185,7 @@ void SimSession::KillDriver() {
 void SimSession::Stop() {
   stop_camera_.store(true);
   if (camera_thread_.joinable()) camera_thread_.join();
+  if (impl_->truth_thread.joinable()) impl_->truth_thread.join();
   KillDriver();
 }
 
@@ -148,14 +193,21 @@ SimSummary SimSession::Summary() const {
   SimSummary s;
   // The driver's thread steps the robot and updates the driver while the session runs: read both through the
   // driver's snapshot (lock-free), never the robot or the driver's own variables.
-  const drivers::DriverSnapshot d = impl_->driver->Snapshot();
-  s.position = {d.robot.position[0], d.robot.position[1]};
-  s.contact = d.robot.contact;
   s.frames = frames_.load();
   s.dropped_frames = dropped_.load();
   s.rendered = impl_->rendered != nullptr;
-  const std::uint64_t rendered_frames = s.frames;
-  s.mean_render_ms = rendered_frames > 0 ? static_cast<double>(render_us_.load()) / 1e3 / rendered_frames : 0.0;
+  s.mean_render_ms = s.frames > 0 ? static_cast<double>(render_us_.load()) / 1e3 / s.frames : 0.0;
+  if (!impl_->driver) {
+    std::lock_guard<std::mutex> lock(impl_->last_mutex);
+    s.position = {impl_->last_truth.position[0], impl_->last_truth.position[1]};
+    s.contact = impl_->last_truth.contact;
+    s.have_driver = false;
+    s.truths = impl_->truths.load();
+    return s;
+  }
+  const drivers::DriverSnapshot d = impl_->driver->Snapshot();
+  s.position = {d.robot.position[0], d.robot.position[1]};
+  s.contact = d.robot.contact;
   s.driver = d.stats;
   s.driver_state = drivers::ToString(d.state);
   return s;
@@ -163,7 +215,7 @@ SimSummary SimSession::Summary() const {
 
 void SimSession::CameraLoop() {
   const SimOptions& o = options_;
-  std::mt19937_64 rng(o.seed ^ 0xca3e7aULL);
+  std::mt19937_64 rng(o.robot.seed ^ 0xca3e7aULL);
   std::bernoulli_distribution drop(o.drop_rate);
   std::normal_distribution<double> noise(0.0, 1.0);
   using Clock = std::chrono::steady_clock;
@@ -171,7 +223,7 @@ void SimSession::CameraLoop() {
   const auto latency = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.latency_s));
   const auto t0 = Clock::now();
   auto next = t0;
-  SimTruth truth;
+  drivers::RobotTruth truth;
   bool have_truth = false;
   std::int64_t seq = 0;
   VisualFrame frame;
@@ -186,7 +238,7 @@ void SimSession::CameraLoop() {
     const auto now = Clock::now();
     if (next < now - period) next = now;  // fell behind (slow rendering): no burst of catch-up frames
     std::this_thread::sleep_until(next);
-    have_truth |= impl_->robot->truth().TryTake(truth);
+    have_truth |= impl_->robot ? impl_->robot->truth().TryTake(truth) : impl_->remote_truth.TryTake(truth);
     if (!have_truth || !camera_on_.load()) continue;
     const double t = std::chrono::duration<double>(Clock::now() - t0).count();
     const bool occluded = o.occlude.Active(t), blackout = o.blackout.Active(t), stale = o.stale.Active(t);
@@ -202,7 +254,8 @@ void SimSession::CameraLoop() {
     const std::int64_t capture_utime =
         WallUtime() - (stale ? static_cast<std::int64_t>(o.stale_s * 1e6) : std::int64_t{0});
     if (impl_->rendered) {
-      impl_->rendered->Capture(truth.position, capture_utime, seq, CaptureConditions{occluded}, image);
+      impl_->rendered->Capture({truth.position[0], truth.position[1]}, capture_utime, seq, CaptureConditions{occluded},
+                               image);
       render_us_.fetch_add(static_cast<std::uint64_t>(
           std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - capture_time).count()));
       std::this_thread::sleep_until(capture_time + latency);
@@ -210,7 +263,7 @@ void SimSession::CameraLoop() {
       frames_.fetch_add(1);
       continue;
     }
-    impl_->camera->Observe(truth.position, seq, MonotonicNs(), frame);
+    impl_->camera->Observe({truth.position[0], truth.position[1]}, seq, MonotonicNs(), frame);
     std::this_thread::sleep_until(capture_time + latency);
     const std::int64_t now_utime = WallUtime();
     if (!rays_.rays.empty()) {
@@ -238,8 +291,8 @@ void SimSession::CameraLoop() {
     estimate.utime = capture_utime;
     estimate.frame_seq = seq;
     estimate.valid = !occluded;
-    estimate.position[0] = truth.position.x + o.position_noise_m * noise(rng);
-    estimate.position[1] = truth.position.y + o.position_noise_m * noise(rng);
+    estimate.position[0] = truth.position[0] + o.position_noise_m * noise(rng);
+    estimate.position[1] = truth.position[1] + o.position_noise_m * noise(rng);
     estimate.position_stddev = o.position_noise_m;
     estimate.heading = 0.0;
     impl_->lcm->publish(channels::kRobotEstimate, &estimate);

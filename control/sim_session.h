@@ -17,6 +17,7 @@
 #include "control/synthetic_camera.h"
 #include "control/task.h"
 #include "drivers/driver.h"
+#include "drivers/simulated_robot.h"
 
 namespace visco::control {
 
@@ -34,10 +35,10 @@ struct SimOptions {
   std::string can_interface;  // non-empty: the driver listens on SocketCAN instead of LCM
   int node_id = 1;
   bool have_start = false;
-  Vec2 start;                     // metres; default: the centroid of the scene's start region
-  std::uint64_t seed = 1;         // the adversary's and the camera noise's seed
-  double mean_hold_m = 0.05;      // metres between the adversary's direction changes (mean)
-  double max_acceleration = 4.0;  // m/s^2
+  Vec2 start;  // metres; default: the centroid of the scene's start region
+  // The simulated robot's parameters (seed, adversary, rates); its world, cone and start come from the scene.
+  // robot.seed also seeds the camera noise.
+  drivers::SimulatedRobotConfig robot;
   double camera_hz = 30.0;
   double latency_s = 0.02;        // capture to publication
   double noise_px = 0.0;          // 1-sigma noise of the signed distances
@@ -53,6 +54,9 @@ struct SimOptions {
   FaultWindow stale;     // frames carry a capture time `stale_s` in the past
   double stale_s = 0.5;
   drivers::DriverConfig driver;
+  // The camera alone: no robot and no driver here; the robot is simulated by a driver process (`visco-rt driver
+  // --truth-hz`), whose true state (VISCO_SIM_TRUTH of node node_id) the camera renders.
+  bool no_driver = false;
 };
 
 struct SimSummary {
@@ -64,6 +68,8 @@ struct SimSummary {
   double mean_render_ms = 0.0;
   drivers::DriverStats driver;
   std::string driver_state;
+  bool have_driver = true;  // false: --no-driver (then `truths` counts the truth messages received)
+  std::uint64_t truths = 0;
   std::string ToJson() const;
 };
 

@@ -1,12 +1,15 @@
 #include "drivers/commands.h"
 
 #include <signal.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <lcm/lcm-cpp.hpp>
 #include <memory>
 #include <thread>
 #include <vector>
@@ -15,7 +18,11 @@
 #include "common/event_log.h"
 #include "drivers/driver.h"
 #include "drivers/driver_transport.h"
+#include "drivers/robot_link.h"
 #include "drivers/simulated_robot.h"
+#include "drivers/simulated_robot_options.h"
+#include "lcmtypes/channels.h"
+#include "visco/sim_truth_t.hpp"
 
 namespace visco::drivers {
 namespace {
@@ -37,14 +44,39 @@ struct DriverOptions {
   double status_period_ms = 10.0;
   double heartbeat_ms = 100.0;
   double max_speed = 1.0;
-  double max_acceleration = 2.0;
-  double quick_stop_deceleration = 50.0;
-  std::vector<double> start = {0.0, 0.0};
-  std::vector<double> bounds;
-  std::vector<double> workspace;
+  SimulatedRobotOptions robot;
   double duration_s = 0.0;
+  double truth_hz = 0.0;
   std::string log;
 };
+
+// Publishes the simulated robot's true state on VISCO_SIM_TRUTH at `hz` for a simulated camera in another process
+// (off the driver's thread: it only takes the latest value the robot published).
+std::thread StartTruthPublisher(SimulatedRobot& robot, double hz, const std::string& lcm_url, int node) {
+  auto lcm = std::make_shared<lcm::LCM>(lcm_url);
+  if (!lcm->good()) throw JobFailed("LCM: cannot initialise provider '" + lcm_url + "' for --truth-hz");
+  return std::thread([&robot, hz, lcm, node] {
+    const auto period =
+        std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(1.0 / hz));
+    auto next = std::chrono::steady_clock::now();
+    RobotTruth truth;
+    while (!g_stop.load()) {
+      next += period;
+      std::this_thread::sleep_until(next);
+      if (!robot.truth().TryTake(truth)) continue;
+      sim_truth_t m;
+      m.utime = WallMicros() - (MonotonicMicros() - truth.time_ns / 1000);  // the step's time on the wall clock
+      m.node_id = node;
+      for (int i = 0; i < 2; ++i) {
+        m.position[i] = truth.position[i];
+        m.velocity[i] = truth.velocity[i];
+      }
+      m.contact = truth.contact;
+      m.mode = static_cast<std::int8_t>(truth.mode);
+      lcm->publish(channels::kSimTruth, &m);
+    }
+  });
+}
 
 std::int64_t Micros(double ms, const char* option) {
   if (!std::isfinite(ms) || ms <= 0.0) throw InputError("command line", option, "must be a positive number");
@@ -52,6 +84,7 @@ std::int64_t Micros(double ms, const char* option) {
 }
 
 void RunDriver(const DriverOptions& o) {
+  LogToStderr();  // stdout carries only the JSON summary
   DriverConfig config;
   config.watchdog_us = Micros(o.watchdog_ms, "--watchdog-ms");
   config.period_us = o.period_us;
@@ -59,26 +92,7 @@ void RunDriver(const DriverOptions& o) {
   config.heartbeat_period_us = Micros(o.heartbeat_ms, "--heartbeat-ms");
   config.max_speed = o.max_speed;
 
-  SimulatedRobotConfig robot_config;
-  robot_config.start[0] = o.start[0];
-  robot_config.start[1] = o.start[1];
-  robot_config.max_acceleration = o.max_acceleration;
-  robot_config.quick_stop_deceleration = o.quick_stop_deceleration;
-  if (!o.bounds.empty()) {
-    robot_config.walls = true;
-    robot_config.bounds_min[0] = o.bounds[0];
-    robot_config.bounds_min[1] = o.bounds[1];
-    robot_config.bounds_max[0] = o.bounds[2];
-    robot_config.bounds_max[1] = o.bounds[3];
-  }
-  if (!o.workspace.empty()) {
-    robot_config.workspace = true;
-    robot_config.workspace_min[0] = o.workspace[0];
-    robot_config.workspace_min[1] = o.workspace[1];
-    robot_config.workspace_max[0] = o.workspace[2];
-    robot_config.workspace_max[1] = o.workspace[3];
-  }
-  SimulatedRobot robot(robot_config);
+  SimulatedRobot robot(ToConfig(o.robot));
   std::unique_ptr<EventLogTap> log = OpenEventLog(o.log, o.lcm_url);
 
   DriverTransportConfig transport_config;
@@ -98,6 +112,9 @@ void RunDriver(const DriverOptions& o) {
   release.sa_handler = OnRelease;
   release.sa_flags = SA_RESTART;
   sigaction(SIGUSR1, &release, nullptr);
+  if (!(o.truth_hz >= 0.0 && o.truth_hz <= 1000.0))
+    throw InputError("command line", "--truth-hz", "must be in [0, 1000]");
+  std::thread truth = o.truth_hz > 0.0 ? StartTruthPublisher(robot, o.truth_hz, o.lcm_url, o.node) : std::thread();
   std::thread timer;
   if (o.duration_s > 0.0) {
     timer = std::thread([d = o.duration_s] {
@@ -108,14 +125,17 @@ void RunDriver(const DriverOptions& o) {
       g_stop.store(true);
     });
   }
-  spdlog::info("driver: node {} on {}, watchdog {} ms, simulated robot at ({}, {})", o.node,
+  const RobotFeedback at = robot.Read();
+  spdlog::info("driver: node {} on {}, watchdog {} ms, simulated robot at ({}, {}) among {} C-obstacle(s)", o.node,
                o.can_interface.empty() ? "LCM " + (o.lcm_url.empty() ? std::string("(default)") : o.lcm_url)
                                        : "CAN " + o.can_interface,
-               o.watchdog_ms, o.start[0], o.start[1]);
+               o.watchdog_ms, at.position[0], at.position[1], robot.model().world().obstacles.size());
   driver.Run(g_stop);
   signal(SIGUSR1, SIG_IGN);
   g_driver.store(nullptr);
+  g_stop.store(true);
   if (timer.joinable()) timer.join();
+  if (truth.joinable()) truth.join();
   if (log) spdlog::info("driver: {}", log->Close());
   const DriverStats& s = driver.stats();
   std::printf(
@@ -124,7 +144,7 @@ void RunDriver(const DriverOptions& o) {
       "\"operator_releases\": %llu, \"quick_stops\": %llu, \"watchdog_stops\": %llu, "
       "\"bounds_stops\": %llu, \"estops\": %llu, \"resets\": %llu, \"bus_offs\": %llu, \"statuses_sent\": %llu, "
       "\"faults_sent\": %llu, "
-      "\"send_failures\": %llu, \"state\": \"%s\"}\n",
+      "\"send_failures\": %llu, \"state\": \"%s\", \"position\": [%.9g, %.9g], \"contact\": %s}\n",
       static_cast<unsigned long long>(s.commands_applied), static_cast<unsigned long long>(s.bad_commands),
       static_cast<unsigned long long>(s.out_of_sequence), static_cast<unsigned long long>(s.wrong_session),
       static_cast<unsigned long long>(s.sessions), static_cast<unsigned long long>(s.refused_resets),
@@ -134,11 +154,19 @@ void RunDriver(const DriverOptions& o) {
       static_cast<unsigned long long>(s.estops), static_cast<unsigned long long>(s.resets),
       static_cast<unsigned long long>(s.bus_offs), static_cast<unsigned long long>(s.statuses_sent),
       static_cast<unsigned long long>(s.faults_sent), static_cast<unsigned long long>(s.send_failures),
-      ToString(driver.state()));
+      ToString(driver.state()), robot.Read().position[0], robot.Read().position[1],
+      robot.Read().contact ? "true" : "false");
   std::fflush(stdout);
 }
 
 }  // namespace
+
+void LogToStderr() {
+  auto logger = spdlog::get("visco");
+  if (!logger) logger = spdlog::stderr_color_mt("visco");
+  spdlog::set_default_logger(logger);
+  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
+}
 
 void RegisterCommands(CLI::App& app) {
   auto options = std::make_shared<DriverOptions>();
@@ -165,18 +193,11 @@ void RegisterCommands(CLI::App& app) {
   cmd->add_option("--heartbeat-ms", options->heartbeat_ms, "heartbeat period, ms")->capture_default_str();
   cmd->add_option("--max-speed", options->max_speed, "speed limit, m/s (faster commands are clamped and reported)")
       ->capture_default_str();
-  cmd->add_option("--max-acceleration", options->max_acceleration, "simulated robot's acceleration limit, m/s^2")
+  AddSimulatedRobotOptions(*cmd, options->robot, /*with_world=*/true);
+  cmd->add_option("--truth-hz", options->truth_hz,
+                  "simulation: publish the robot's true state on VISCO_SIM_TRUTH (LCM) at this rate, for a simulated "
+                  "camera in another process (`visco sim --no-driver`); 0: off")
       ->capture_default_str();
-  cmd->add_option("--quick-stop-deceleration", options->quick_stop_deceleration,
-                  "simulated robot's deceleration on a safety stop, m/s^2")
-      ->capture_default_str();
-  cmd->add_option("--start", options->start, "initial position of the simulated robot, metres")->expected(2);
-  cmd->add_option("--bounds", options->bounds, "walls of the simulated robot: XMIN YMIN XMAX YMAX, metres")
-      ->expected(4);
-  cmd->add_option("--workspace", options->workspace,
-                  "workspace of the simulated robot: XMIN YMIN XMAX YMAX, metres; leaving it stops the robot with "
-                  "the bounds fault (EMCY 0x8612)")
-      ->expected(4);
   cmd->add_option("--duration", options->duration_s, "stop after this many seconds (0: run until a signal)")
       ->check(CLI::NonNegativeNumber);
   cmd->callback([options] { RunDriver(*options); });

@@ -1,86 +1,145 @@
 #include "drivers/simulated_robot.h"
 
+#include <time.h>
+
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "common/error.h"
 
 namespace visco::drivers {
+namespace {
 
-SimulatedRobot::SimulatedRobot(const SimulatedRobotConfig& config) : config_(config) {
-  if (!(config.max_acceleration > 0.0) || !(config.quick_stop_deceleration > 0.0)) {
-    throw InputError("command line", "--max-acceleration",
-                     "must be positive, not " + std::to_string(config.max_acceleration));
-  }
-  if (config.walls) {
-    for (int i = 0; i < 2; ++i) {
-      if (!(config.bounds_min[i] < config.bounds_max[i])) {
-        throw InputError("command line", "--bounds", "the bounds are empty (min must be below max on both axes)");
-      }
-      if (config.start[i] < config.bounds_min[i] || config.start[i] > config.bounds_max[i]) {
-        throw InputError("command line", "--start", "the start position lies outside the bounds");
-      }
+std::int64_t MonotonicNanos() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+// The configuration's world with its bounds filled in, checked before the motion model sees it.
+MotionWorld CheckedWorld(const SimulatedRobotConfig& config) {
+  auto positive = [](double value, const char* option) {
+    if (!(value > 0.0) || !std::isfinite(value)) {
+      throw InputError("command line", option, "must be a positive number, not " + std::to_string(value));
     }
+  };
+  positive(config.max_acceleration, "--max-acceleration");
+  positive(config.quick_stop_deceleration, "--quick-stop-deceleration");
+  positive(config.mean_hold_m, "--mean-hold");
+  if (!(config.contact_damping >= 0.0)) throw InputError("command line", "--contact-damping", "must be >= 0");
+  if (!(config.velocity_cone >= 0.0 && config.velocity_cone < M_PI / 2)) {
+    throw InputError("command line", "--velocity-cone", "must be in [0, 90) degrees");
   }
-  if (config.workspace) {
-    for (int i = 0; i < 2; ++i) {
-      if (!(config.workspace_min[i] < config.workspace_max[i])) {
-        throw InputError("command line", "--workspace", "the workspace is empty (min must be below max on both axes)");
-      }
-      if (config.start[i] < config.workspace_min[i] || config.start[i] > config.workspace_max[i]) {
-        throw InputError("command line", "--start", "the start position lies outside the workspace");
-      }
-    }
+  if (config.fixed_offset && !(std::abs(*config.fixed_offset) < M_PI / 2)) {
+    throw InputError("command line", "--fixed-offset", "must be below 90 degrees in magnitude");
   }
-  state_.position[0] = config.start[0];
-  state_.position[1] = config.start[1];
+  MotionWorld world = config.world;
+  world.goal.clear();
+  world.active_rays.clear();
+  world.active_ray_open_ends.clear();
+  world.ray_landing_offset = 0.0;
+  const bool no_bounds = world.bounds_min == world.bounds_max;
+  if (no_bounds) {
+    world.bounds_min = Eigen::Vector2d::Constant(-kFreePlaneHalfWidth);
+    world.bounds_max = Eigen::Vector2d::Constant(kFreePlaneHalfWidth);
+  }
+  if (!(world.bounds_min.array() < world.bounds_max.array()).all()) {
+    throw InputError("command line", "--workspace", "the workspace is empty (min must be below max on both axes)");
+  }
+  return world;
+}
+
+MotionModel BuildModel(const SimulatedRobotConfig& config) {
+  try {
+    return MotionModel(CheckedWorld(config));
+  } catch (const std::invalid_argument& e) {
+    throw InputError("simulated robot", "world", e.what());
+  }
+}
+
+}  // namespace
+
+std::vector<std::vector<Eigen::Vector2d>> WallsAround(const Eigen::Vector2d& min, const Eigen::Vector2d& max,
+                                                      double thickness) {
+  const double t = thickness;
+  auto box = [](double x0, double y0, double x1, double y1) {
+    return std::vector<Eigen::Vector2d>{{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}};
+  };
+  return {box(min.x() - t, min.y() - t, max.x() + t, min.y()),  // floor
+          box(min.x() - t, max.y(), max.x() + t, max.y() + t),  // ceiling
+          box(min.x() - t, min.y(), min.x(), max.y()),          // left
+          box(max.x(), min.y(), max.x() + t, max.y())};         // right
+}
+
+SimulatedRobot::SimulatedRobot(const SimulatedRobotConfig& config)
+    : config_(config),
+      model_(BuildModel(config)),
+      random_(config.seed, config.mean_hold_m),
+      fixed_(config.fixed_offset.value_or(0.0)) {
+  if (!config.start.allFinite() || !model_.InBounds(config.start)) {
+    throw InputError("command line", "--start", "the start position lies outside the workspace bounds");
+  }
+  if (model_.InObstacleInterior(config.start)) {
+    throw InputError("command line", "--start", "the start position lies inside a C-obstacle");
+  }
+  state_.position = config.start;
+  feedback_.position[0] = config.start.x();
+  feedback_.position[1] = config.start.y();
 }
 
 void SimulatedRobot::SetVelocity(const double velocity[2]) {
-  command_[0] = std::isfinite(velocity[0]) ? velocity[0] : 0.0;
-  command_[1] = std::isfinite(velocity[1]) ? velocity[1] : 0.0;
+  command_ =
+      Eigen::Vector2d(std::isfinite(velocity[0]) ? velocity[0] : 0.0, std::isfinite(velocity[1]) ? velocity[1] : 0.0);
   quick_stop_ = false;
 }
 
 void SimulatedRobot::QuickStop() {
-  command_[0] = 0.0;
-  command_[1] = 0.0;
+  command_.setZero();
   quick_stop_ = true;
 }
 
 void SimulatedRobot::Step(double dt) {
   if (!(dt > 0.0)) return;
-  const double max_dv = (quick_stop_ ? config_.quick_stop_deceleration : config_.max_acceleration) * dt;
-  state_.contact = false;
-  for (int i = 0; i < 2; ++i) {
-    // Velocity follows the command within the acceleration limit, then the position integrates (semi-implicit).
-    const double dv = std::clamp(command_[i] - state_.velocity[i], -max_dv, max_dv);
-    state_.velocity[i] += dv;
-    state_.position[i] += state_.velocity[i] * dt;
-    state_.contact_force[i] = 0.0;
-  }
-  if (config_.workspace) {
-    state_.out_of_bounds = false;
-    for (int i = 0; i < 2; ++i) {
-      state_.out_of_bounds |=
-          state_.position[i] < config_.workspace_min[i] || state_.position[i] > config_.workspace_max[i];
+  // The velocity follows the command within the acceleration (or quick-stop deceleration) limit, by norm.
+  const double limit = (quick_stop_ ? config_.quick_stop_deceleration : config_.max_acceleration) * dt;
+  const Eigen::Vector2d change = command_ - velocity_cmd_;
+  velocity_cmd_ += change.norm() > limit ? Eigen::Vector2d((limit / change.norm()) * change) : change;
+  const double speed = velocity_cmd_.norm();
+  const Eigen::Vector2d before = state_.position;
+  Eigen::Vector2d actual = Eigen::Vector2d::Zero();
+  if (speed > 1e-12) {
+    const double theta = std::atan2(velocity_cmd_.y(), velocity_cmd_.x());
+    if (hold_left_m_ <= 0.0 || state_.mode != last_mode_) {
+      Adversary& adversary = config_.fixed_offset ? static_cast<Adversary&>(fixed_) : random_;
+      const AdversaryChoice choice = adversary.Choose(model_, state_, theta, config_.velocity_cone);
+      offset_ = config_.fixed_offset ? *config_.fixed_offset
+                                     : std::clamp(choice.offset, -config_.velocity_cone, config_.velocity_cone);
+      hold_left_m_ = choice.hold;
     }
+    last_mode_ = state_.mode;
+    actual = speed * Eigen::Vector2d(std::cos(theta + offset_), std::sin(theta + offset_));
+    const StepResult result = model_.Advance(state_, actual, dt);
+    feedback_.out_of_bounds = result.event == MotionEvent::kLeftBounds;
+    hold_left_m_ -= speed * dt;
+    feedback_.contact = state_.mode == MotionMode::kSliding || state_.mode == MotionMode::kStopped;
   }
-  if (!config_.walls) return;
+  const Eigen::Vector2d velocity = (state_.position - before) / dt;
+  // At rest the contact is kept as it was (the robot still touches what it touched).
+  const Eigen::Vector2d force =
+      feedback_.contact ? Eigen::Vector2d(config_.contact_damping * (velocity - actual)) : Eigen::Vector2d::Zero();
+  RobotTruth truth;
+  truth.time_ns = MonotonicNanos();
   for (int i = 0; i < 2; ++i) {
-    const bool below = state_.position[i] <= config_.bounds_min[i];
-    const bool above = state_.position[i] >= config_.bounds_max[i];
-    if (!below && !above) continue;
-    state_.position[i] = std::clamp(state_.position[i], config_.bounds_min[i], config_.bounds_max[i]);
-    state_.velocity[i] = 0.0;
-    // Pushing into the wall: the wall pushes back.
-    const double into = below ? -command_[i] : command_[i];
-    if (into >= 0.0) {
-      state_.contact = true;
-      state_.contact_force[i] = (below ? 1.0 : -1.0) * config_.wall_damping * into;
-    }
+    feedback_.position[i] = truth.position[i] = state_.position[i];
+    feedback_.velocity[i] = truth.velocity[i] = velocity[i];
+    feedback_.contact_force[i] = force[i];
   }
+  truth.contact = feedback_.contact;
+  truth.mode = static_cast<std::uint8_t>(state_.mode);
+  truth_.Publish(truth);
 }
 
 }  // namespace visco::drivers

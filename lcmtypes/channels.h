@@ -17,5 +17,7 @@ inline constexpr char kEstop[] = "VISCO_ESTOP";  // visco::fault_t: an e-stop re
 inline constexpr char kHeartbeatController[] = "VISCO_HEARTBEAT_CONTROLLER";  // visco::heartbeat_t
 inline constexpr char kHeartbeatDriver[] = "VISCO_HEARTBEAT_DRIVER";          // visco::heartbeat_t
 inline constexpr char kHeartbeatVision[] = "VISCO_HEARTBEAT_VISION";          // visco::heartbeat_t
+// Simulation only: the simulated robot's true state, for a simulated camera in another process.
+inline constexpr char kSimTruth[] = "VISCO_SIM_TRUTH";  // visco::sim_truth_t
 
 }  // namespace visco::channels

@@ -48,8 +48,8 @@
 #include <unordered_map>
 #include <utility>
 
+#include "common/motion_model.h"
 #include "planning/geometry.h"
-#include "planning/motion_model.h"
 
 namespace visco::planning {
 namespace {

@@ -125,19 +125,6 @@ bool IsSimple(const Polygon& polygon) {
   return PolygonOrientation(polygon) != 0;
 }
 
-bool InsideEvenOdd(const std::vector<Point>& ring, const Point& p) {
-  bool inside = false;
-  for (std::size_t i = 0, j = ring.size() - 1; i < ring.size(); j = i++) {
-    const Point& a = ring[i];
-    const Point& b = ring[j];
-    if ((a.y() > p.y()) != (b.y() > p.y())) {
-      const double x = a.x() + (p.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
-      if (p.x() < x) inside = !inside;
-    }
-  }
-  return inside;
-}
-
 Location Locate(const Polygon& polygon, const Point& p) {
   const std::vector<KPoint> points = ToCgal(polygon);
   switch (CGAL::bounded_side_2(points.begin(), points.end(), ToCgal(p), Kernel())) {

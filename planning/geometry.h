@@ -14,6 +14,8 @@
 #include <cstddef>
 #include <vector>
 
+#include "common/even_odd.h"
+
 namespace visco::planning {
 
 /// A point of the plane (world frame, metres).
@@ -93,7 +95,8 @@ Location Locate(const Polygon& polygon, const Point& p);
 
 /// Even-odd (crossing-number) test of p against a closed ring of vertices, in rounded arithmetic: for sampling and
 /// simulation, where a point within rounding of an edge may go either way (use Locate when it must not). O(n).
-bool InsideEvenOdd(const std::vector<Point>& ring, const Point& p);
+/// (common/even_odd.h: the motion model uses it too.)
+using visco::InsideEvenOdd;
 
 /// Whether the direction from `apex` towards `towards` points strictly into the open angular sector that is swept
 /// counter-clockwise from the direction apex->first to the direction apex->second (the interior angle at a vertex of

@@ -11,9 +11,9 @@
 #include <set>
 
 #include "common/error.h"
+#include "common/motion_model.h"
 #include "planning/backproject_command.h"
 #include "planning/cspace.h"
-#include "planning/motion_model.h"
 #include "planning/nondirectional.h"
 #include "planning/svg.h"
 #include "planning/vc_rays.h"

@@ -44,7 +44,8 @@ const std::set<std::string>& KnownChannels() {
       channels::kCameraImage,     channels::kTagDetections,   channels::kObjectPoses, channels::kRobotEstimate,
       channels::kVisualEvents,    channels::kStrategy,        channels::kCommand,     channels::kStatus,
       channels::kTelemetry,       channels::kFault,           channels::kEstop,       channels::kHeartbeatController,
-      channels::kHeartbeatDriver, channels::kHeartbeatVision, control::kCycleChannel, control::kAnnotationChannel};
+      channels::kHeartbeatDriver, channels::kHeartbeatVision, control::kCycleChannel, control::kAnnotationChannel,
+      channels::kSimTruth};
   return known;
 }
 

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # `visco demo` as a user runs it: the embedded default scene is planned and executed in closed loop by separate
-# processes over LCM (simulated robot and driver, rendered camera, vision, controller, lcm-logger); exit 0 with the
+# processes over LCM (the driver process with the simulated robot, the rendered camera, vision, controller,
+# lcm-logger), each from a parameter file; exit 0 with the
 # goal recognisably reached, every output written (the pictures drawn, the log readable by LCM's own tools). Ctrl-C
 # stops every process it started (no orphans) and exits non-zero.
 set -uo pipefail
@@ -15,7 +16,7 @@ status=$?
 [[ $status -eq 0 ]] || { fail "visco demo exited $status"; cat "$tmp/out.txt" "$tmp/err.txt"; tail -20 "$tmp"/d/*.log; }
 grep -q "1 of 1 run(s) reached the goal recognisably" "$tmp/out.txt" || fail "summary line: $(cat "$tmp/out.txt")"
 grep -q "visco demo: planning" "$tmp/err.txt" || fail "no progress on stderr"
-for f in scene.json rays.json plan.json plan.svg run.svg run.lcmlog summary.json run.log sim.json track.jsonl; do
+for f in scene.json world.json rays.json plan.json plan.svg run.svg run.lcmlog summary.json run.log driver.json camera.json track.jsonl; do
   [[ -s "$tmp/d/$f" ]] || fail "$f missing or empty"
 done
 python3 - "$tmp/d" <<'PY' || fail "outputs are not what the summary says"
@@ -33,6 +34,22 @@ svg = open(d + "/run.svg").read()
 ET.fromstring(svg.split("?>", 1)[1])
 assert len(re.findall('class="trajectory"', svg)) > 10, "run.svg draws no trajectory"
 ET.fromstring(open(d + "/plan.svg").read().split("?>", 1)[1])
+# Each process ran as its own program from its parameter file, kept in params/; the driver is the real-time binary.
+cmds = run["commands"]
+assert set(cmds) == {"lcm-logger", "driver", "camera", "track", "run"}, cmds
+assert cmds["driver"][0].endswith("visco-rt") and cmds["driver"][1] == "driver", cmds["driver"]
+for name, command in (("driver", "driver"), ("camera", "sim"), ("track", "track"), ("run", "run")):
+    argv = cmds[name]
+    params = argv[argv.index("--config") + 1]
+    assert params == d + "/params/" + name + ".json", argv
+    p = json.load(open(params))
+    assert list(p) == [command] and p[command], p
+assert json.load(open(d + "/params/driver.json"))["driver"]["world"] == d + "/world.json"
+world = json.load(open(d + "/world.json"))
+assert world["format"] == "visco-world-1" and len(world["obstacles"]) >= 1, world
+# The driver's summary holds the robot's true final position: the one the demo judged.
+drv = json.load(open(d + "/driver.json"))
+assert drv["position"] == run["final_position"], (drv, run)
 PY
 # The log is lcm-logger's format: LCM's own player reads it.
 if command -v lcm-logplayer >/dev/null; then

@@ -39,17 +39,17 @@ assert s["netns"] is True, s
 run = s["runs"][0]
 assert run["success"] and run["result"] == "done", run
 n = run["netns"]
-assert set(n) == {"lcm-logger", "sim", "track", "run"}, n
+assert set(n) == {"lcm-logger", "driver", "camera", "track", "run"}, n
 inodes = [p["namespace_inode"] for p in n.values()]
-assert all(inodes) and len(set(inodes)) == 4, n
+assert all(inodes) and len(set(inodes)) == 5, n
 for name, p in n.items():
     assert p["seen_in_inode"] == p["namespace_inode"], (name, p)
     assert p["seen_in_inode"] != run["demo_netns_inode"], (name, p)
-assert len({p["address"] for p in n.values()}) == 4, n
+assert len({p["address"] for p in n.values()}) == 5, n
 assert run["logged_messages"] > 100 and run["commands_sent"] > 100, run
 print(" ".join(p["namespace"] for p in n.values()))
 PY
-prefix=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["runs"][0]["netns"]["sim"]["namespace"].rsplit("-", 1)[0])' "$tmp/d/summary.json" 2>/dev/null)
+prefix=$(python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["runs"][0]["netns"]["driver"]["namespace"].rsplit("-", 1)[0])' "$tmp/d/summary.json" 2>/dev/null)
 if [[ -n "$prefix" ]]; then
   left=$(ip netns list | grep -c "^$prefix-")
   [[ $left -eq 0 ]] || fail "$left namespace(s) left: $(ip netns list | grep "^$prefix-")"

@@ -17,6 +17,15 @@ for prog in "$visco" "$rt"; do
   fi
 done
 grep -qiE 'gmp|mpfr' <<<"$(readelf -d "$rt" | grep NEEDED)" && fail "visco-rt links the planner (GMP/MPFR)"
+# Statically linked code too: no planner (visco::planning, CGAL), no vision (visco::vision, cv::, vp*) in visco-rt's
+# symbols. Its simulated robot runs the motion model (visco::MotionModel, common/), which is not the planner.
+symbols=$(nm -C "$rt" 2>/dev/null)
+[[ -n "$symbols" ]] || fail "nm printed no symbols of visco-rt"
+for pattern in 'visco::planning::' 'CGAL::' 'visco::vision::' 'cv::' 'vpImage' 'SyntheticCamera' 'RenderedCamera'; do
+  count=$(grep -c -- "$pattern" <<<"$symbols")
+  [[ $count -eq 0 ]] || fail "visco-rt holds $count symbol(s) matching $pattern: $(grep -m2 -- "$pattern" <<<"$symbols")"
+done
+grep -q 'visco::MotionModel::Advance' <<<"$symbols" || fail "visco-rt lacks the simulated robot's motion model"
 libs=$(ldd "$visco" | wc -l)
 full_libs=$(ldd "$full" | wc -l)
 [[ $libs -lt 40 ]] || fail "visco loads $libs shared libraries"

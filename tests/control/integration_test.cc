@@ -77,7 +77,7 @@ SimOptions Sim(const std::string& url) {
   o.lcm_url = url;
   o.have_start = true;
   o.start = {1.84, 1.55};
-  o.seed = 7;
+  o.robot.seed = 7;
   o.noise_px = 0.2;
   o.latency_s = 0.01;
   return o;

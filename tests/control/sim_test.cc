@@ -12,11 +12,11 @@
 
 #include "common/error.h"
 #include "control/sim_camera.h"
-#include "control/sim_robot.h"
+#include "control/sim_world.h"
 #include "drivers/can_protocol.h"
 #include "drivers/driver.h"
 #include "drivers/driver_transport.h"
-#include "planning/motion_model.h"
+#include "drivers/simulated_robot.h"
 #include "planning/scene.h"
 #include "visco/fault_t.hpp"
 #include "vision/camera.h"
@@ -72,15 +72,15 @@ class FakeTransport final : public drivers::DriverTransport {
   std::vector<drivers::DriverFault> faults;
 };
 
-TEST(SimRobot, LeavingTheBoundsStopsTheRobotWithTheBoundsFault) {
+TEST(SimulatedRobotInTheScene, LeavingTheBoundsStopsTheRobotWithTheBoundsFault) {
   const planning::Scene scene = planning::LoadScene("data/scenes/slot.json");  // bounds [0, 10] x [0, 8]
-  const planning::MotionModel model(MakeMotionWorld(scene));
   for (std::uint64_t seed = 1; seed <= 5; ++seed) {
-    SimRobotConfig config;
+    drivers::SimulatedRobotConfig config;
+    config.world = MakeMotionWorld(scene);
     config.start = {9.0, 6.0};
     config.velocity_cone = scene.uncertainty.velocity_cone_rad;
     config.seed = seed;
-    SimRobot robot(model, config);
+    drivers::SimulatedRobot robot(config);
     FakeTransport transport;
     drivers::Driver driver(drivers::DriverConfig{}, transport, robot);
     std::int64_t now = 1'000'000;

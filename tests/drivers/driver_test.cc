@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cmath>
 #include <deque>
+#include <fstream>
 #include <set>
 #include <string>
 #include <thread>
@@ -17,6 +18,7 @@
 
 #include "common/error.h"
 #include "drivers/simulated_robot.h"
+#include "drivers/simulated_robot_options.h"
 
 namespace visco::drivers {
 namespace {
@@ -671,11 +673,8 @@ TEST(DriverAttack, ForgedNmtStartDuringAnEStopChangesNothing) {
 
 TEST(Driver, LeavingTheWorkspaceStopsAndReportsOncePerEpisode) {
   SimulatedRobotConfig robot_config;
-  robot_config.workspace = true;
-  robot_config.workspace_max[0] = 1.0;
-  robot_config.workspace_max[1] = 1.0;
-  robot_config.start[0] = 0.95;
-  robot_config.start[1] = 0.5;
+  robot_config.world.bounds_max = {1.0, 1.0};
+  robot_config.start = {0.95, 0.5};
   FakeTransport transport;
   SimulatedRobot robot(robot_config);
   Driver driver(Config(3), transport, robot);
@@ -694,8 +693,7 @@ TEST(Driver, LeavingTheWorkspaceStopsAndReportsOncePerEpisode) {
   EXPECT_TRUE(driver.fault_bits() & fault_bits::kBounds);
   EXPECT_EQ(driver.stats().bounds_stops, 1U);
   const RobotFeedback f = robot.Read();
-  EXPECT_GT(f.position[0], 1.0);
-  EXPECT_LT(f.position[0], 1.0 + 0.2 * 0.002 + 0.2 * 0.2 / (2 * 50.0) + 1e-9);  // detected within a period
+  EXPECT_NEAR(f.position[0], 1.0, 1e-8);  // the motion stops on the border (docs/semantics.md: leaving fails)
   EXPECT_EQ(f.velocity[0], 0.0);
   ASSERT_FALSE(transport.faults.empty());
   const DriverFault* fault = nullptr;
@@ -799,20 +797,75 @@ TEST(Driver, SnapshotsReadWhileTheDriverThreadRunsAreWholeAndMonotonic) {
 
 TEST(SimulatedRobot, WallsGiveContactAndForce) {
   SimulatedRobotConfig config;
-  config.walls = true;
-  config.bounds_max[0] = 1.0;
-  config.bounds_max[1] = 1.0;
-  config.start[0] = 0.5;
-  config.start[1] = 0.05;
+  config.world.obstacles = WallsAround({0.0, 0.0}, {1.0, 1.0});
+  config.world.friction_cone = 0.3;  // a push straight down sticks
+  config.start = {0.5, 0.05};
   SimulatedRobot robot(config);
   const double down[2] = {0.0, -0.1};
   robot.SetVelocity(down);
   for (int i = 0; i < 1000; ++i) robot.Step(0.001);
-  const RobotFeedback f = robot.Read();
+  RobotFeedback f = robot.Read();
   EXPECT_TRUE(f.contact);
-  EXPECT_EQ(f.position[1], 0.0);
-  EXPECT_NEAR(f.contact_force[1], 200.0 * 0.1, 1e-9);
-  EXPECT_EQ(f.contact_force[0], 0.0);
+  EXPECT_NEAR(f.position[1], 0.0, 1e-9);
+  EXPECT_NEAR(f.contact_force[1], 200.0 * 0.1, 1e-6);  // the damping times the blocked velocity
+  EXPECT_NEAR(f.contact_force[0], 0.0, 1e-9);
+  // Pushing at 45 degrees (outside the 0.3 rad friction cone) slides along the floor at the tangential speed.
+  const double slant[2] = {0.1, -0.1};
+  robot.SetVelocity(slant);
+  for (int i = 0; i < 500; ++i) robot.Step(0.001);
+  f = robot.Read();
+  EXPECT_TRUE(f.contact);
+  EXPECT_NEAR(f.position[1], 0.0, 1e-9);
+  EXPECT_NEAR(f.velocity[0], 0.1, 1e-9);
+  EXPECT_NEAR(f.velocity[1], 0.0, 1e-9);
+}
+
+TEST(SimulatedRobot, FollowsTheCommandWithinTheAccelerationLimitByNorm) {
+  SimulatedRobotConfig config;
+  config.max_acceleration = 2.0;
+  SimulatedRobot robot(config);
+  const double diagonal[2] = {0.3, 0.4};  // |v| = 0.5 m/s: 0.25 s at 2 m/s^2, the direction kept all the way
+  robot.SetVelocity(diagonal);
+  for (int i = 0; i < 100; ++i) {
+    robot.Step(0.001);
+    const RobotFeedback f = robot.Read();
+    EXPECT_NEAR(f.velocity[0] * 0.4 - f.velocity[1] * 0.3, 0.0, 1e-12);
+    EXPECT_NEAR(std::hypot(f.velocity[0], f.velocity[1]), 2.0 * 0.001 * (i + 1), 1e-9);
+  }
+  for (int i = 0; i < 200; ++i) robot.Step(0.001);
+  EXPECT_NEAR(robot.Read().velocity[0], 0.3, 1e-12);
+  robot.QuickStop();  // 50 m/s^2: stopped within 10 ms
+  for (int i = 0; i < 10; ++i) robot.Step(0.001);
+  EXPECT_NEAR(std::hypot(robot.Read().velocity[0], robot.Read().velocity[1]), 0.0, 1e-12);
+}
+
+TEST(SimulatedRobot, TheAdversaryTurnsTheDirectionInsideTheCone) {
+  SimulatedRobotConfig config;
+  config.velocity_cone = 0.2;
+  config.seed = 7;
+  config.mean_hold_m = 0.01;
+  SimulatedRobot robot(config);
+  const double right[2] = {0.5, 0.0};
+  robot.SetVelocity(right);
+  double min_angle = 1.0, max_angle = -1.0;
+  for (int i = 0; i < 4000; ++i) {
+    robot.Step(0.001);
+    const RobotFeedback f = robot.Read();
+    if (std::hypot(f.velocity[0], f.velocity[1]) < 1e-9) continue;
+    const double angle = std::atan2(f.velocity[1], f.velocity[0]);
+    min_angle = std::min(min_angle, angle);
+    max_angle = std::max(max_angle, angle);
+  }
+  EXPECT_GE(min_angle, -0.2 - 1e-12);
+  EXPECT_LE(max_angle, 0.2 + 1e-12);
+  EXPECT_LT(min_angle, -0.1);  // both sides visited, the extremes too (the random adversary takes them half the time)
+  EXPECT_GT(max_angle, 0.1);
+  // A fixed offset is a known disturbance.
+  config.fixed_offset = 0.1;
+  SimulatedRobot fixed(config);
+  fixed.SetVelocity(right);
+  for (int i = 0; i < 400; ++i) fixed.Step(0.001);
+  EXPECT_NEAR(std::atan2(fixed.Read().velocity[1], fixed.Read().velocity[0]), 0.1, 1e-9);
 }
 
 TEST(SimulatedRobot, RejectsBadConfiguration) {
@@ -820,14 +873,59 @@ TEST(SimulatedRobot, RejectsBadConfiguration) {
   config.max_acceleration = 0.0;
   EXPECT_THROW(SimulatedRobot{config}, InputError);
   config.max_acceleration = 1.0;
-  config.walls = true;
+  config.world.bounds_max = {1.0, 0.0};  // empty on y
   EXPECT_THROW(SimulatedRobot{config}, InputError);
-  config.walls = false;
-  config.workspace = true;  // empty
+  config.world.bounds_max = {1.0, 1.0};
+  config.start = {2.0, 0.5};  // outside
   EXPECT_THROW(SimulatedRobot{config}, InputError);
-  config.workspace_max[0] = config.workspace_max[1] = 1.0;
-  config.start[0] = 2.0;  // outside
+  config.start = {0.5, 0.5};
+  config.world.obstacles = {{{0.4, 0.4}, {0.6, 0.4}, {0.6, 0.6}, {0.4, 0.6}}};  // the start inside a C-obstacle
   EXPECT_THROW(SimulatedRobot{config}, InputError);
+  config.world.obstacles = {{{0.0, 0.0}, {1.0, 0.0}}};  // degenerate
+  EXPECT_THROW(SimulatedRobot{config}, InputError);
+  config.world.obstacles.clear();
+  config.fixed_offset = 2.0;
+  EXPECT_THROW(SimulatedRobot{config}, InputError);
+}
+
+TEST(WorldFile, RoundTripsAndRejectsUnknownKeys) {
+  WorldFile w;
+  w.world.bounds_min = {0.0, -1.0};
+  w.world.bounds_max = {10.0, 8.0 / 3.0};
+  w.world.friction_cone = 0.1234567890123;
+  w.velocity_cone = 0.2;
+  w.have_start = true;
+  w.start = {1.0 / 3.0, 2.0};
+  w.world.obstacles = {{{1.0, 1.0}, {2.0, 1.0}, {1.5, 1.0 + 1e-7}}};
+  const std::string dir = ::testing::TempDir();
+  auto write = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir + name) << text;
+    return dir + name;
+  };
+  const WorldFile r = LoadWorldFile(write("world.json", WorldFileJson(w)));
+  EXPECT_EQ(r.world.bounds_max.y(), w.world.bounds_max.y());
+  EXPECT_EQ(r.world.friction_cone, w.world.friction_cone);
+  EXPECT_EQ(r.velocity_cone, w.velocity_cone);
+  EXPECT_EQ(r.start.x(), w.start.x());
+  ASSERT_EQ(r.world.obstacles.size(), 1U);
+  EXPECT_EQ(r.world.obstacles[0][2].y(), 1.0 + 1e-7);
+  auto message = [&](const std::string& text) {
+    try {
+      LoadWorldFile(write("bad.json", text));
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  const std::string head = R"({"format": "visco-world-1", "bounds": {"min": [0, 0], "max": [1, 1]})";
+  EXPECT_NE(message(head + R"(, "speed": 3})").find("speed: unknown key"), std::string::npos)
+      << message(head + R"(, "speed": 3})");
+  EXPECT_NE(message(R"({"bounds": {"min": [0, 0], "max": [1, 1]}})").find("format"), std::string::npos);
+  EXPECT_NE(message(head + R"(, "obstacles": [[[0, 0], [1, 0]]]})").find("obstacles[0]"), std::string::npos);
+  EXPECT_NE(message(head + R"(, "obstacles": [[[0, 0], [1, "x"], [0, 1]]]})").find("obstacles[0][1][1]"),
+            std::string::npos);
+  EXPECT_NE(message(head + R"(, "friction_cone_deg": 95})").find("friction_cone_deg"), std::string::npos);
+  EXPECT_NE(message("{").find("not valid JSON"), std::string::npos);
 }
 
 }  // namespace

@@ -237,4 +237,15 @@ inline void Fill(log_annotation_t& m) {
   m.text = "{\"rate_hz\": 500}";
 }
 
+inline void Fill(sim_truth_t& m) {
+  m.utime = 1700000000000021;
+  m.node_id = 3;
+  m.position[0] = 4.25;
+  m.position[1] = -2.5;
+  m.velocity[0] = 0.125;
+  m.velocity[1] = -0.375;
+  m.contact = true;
+  m.mode = sim_truth_t::MODE_SLIDING;
+}
+
 }  // namespace visco::testing

@@ -8,8 +8,8 @@
 #include <cstdio>
 #include <random>
 
+#include "common/motion_model.h"
 #include "planning/backprojection.h"
-#include "planning/motion_model.h"
 #include "tests/planning/random_scenes.h"
 
 namespace visco::planning {

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "planning/motion_model.h"
+#include "common/motion_model.h"
 #include "tests/planning/random_scenes.h"
 
 namespace visco::planning {

@@ -24,10 +24,10 @@
 #include <string>
 #include <vector>
 
+#include "common/motion_model.h"
 #include "planning/backproject_command.h"
 #include "planning/critical.h"
 #include "planning/cspace.h"
-#include "planning/motion_model.h"
 #include "planning/vc_rays.h"
 #include "tests/planning/random_scenes.h"
 #include "tests/planning/random_vc_scenes.h"

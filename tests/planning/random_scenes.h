@@ -12,9 +12,9 @@
 #include <utility>
 #include <vector>
 
+#include "common/motion_model.h"
 #include "planning/backprojection.h"
 #include "planning/cspace.h"
-#include "planning/motion_model.h"
 
 namespace visco::planning {
 

@@ -12,8 +12,8 @@
 #include <random>
 #include <string>
 
+#include "common/motion_model.h"
 #include "planning/backprojection.h"
-#include "planning/motion_model.h"
 #include "tests/planning/random_scenes.h"
 
 namespace visco::planning {

@@ -17,10 +17,10 @@
 #include <string>
 #include <vector>
 
+#include "common/motion_model.h"
 #include "planning/backproject_command.h"
 #include "planning/backprojection.h"
 #include "planning/cspace.h"
-#include "planning/motion_model.h"
 #include "planning/scene.h"
 #include "planning/vc_rays.h"
 #include "tests/bench/planning/pentagon_grid.h"

@@ -1,13 +1,13 @@
-// Unit tests of docs/semantics.md's motion model (planning/motion_model.h): free motion, sticking (inclusive at φ),
+// Unit tests of docs/semantics.md's motion model (common/motion_model.h): free motion, sticking (inclusive at φ),
 // sliding, vertex rules, bounds, goal, active CVC rays, the step-wise API and the adversaries.
 
-#include "planning/motion_model.h"
+#include "common/motion_model.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-namespace visco::planning {
+namespace visco {
 namespace {
 
 using Eigen::Vector2d;
@@ -303,4 +303,4 @@ TEST(MotionModel, RejectsBadWorlds) {
 }
 
 }  // namespace
-}  // namespace visco::planning
+}  // namespace visco

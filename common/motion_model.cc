@@ -1,13 +1,13 @@
-#include "planning/motion_model.h"
+#include "common/motion_model.h"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <utility>
 
-#include "planning/geometry.h"
+#include "common/even_odd.h"
 
-namespace visco::planning {
+namespace visco {
 namespace {
 
 using Eigen::Vector2d;
@@ -734,4 +734,4 @@ SimulationResult SimulateAdversarially(const MotionModel& model, const Vector2d&
   return last;
 }
 
-}  // namespace visco::planning
+}  // namespace visco

@@ -26,7 +26,7 @@
 #include <string>
 #include <vector>
 
-namespace visco::planning {
+namespace visco {
 
 /// Angular slack of the sticking test (radians): an angle up to φ + kAngleTol between v and -n sticks.
 inline constexpr double kStickAngleTolerance = 1e-12;
@@ -258,4 +258,4 @@ SimulationResult Simulate(const MotionModel& model, const MotionState& start, do
 SimulationResult SimulateAdversarially(const MotionModel& model, const Eigen::Vector2d& start, double theta,
                                        double velocity_cone, std::uint64_t seed = 1, bool greedy = true);
 
-}  // namespace visco::planning
+}  // namespace visco
