@@ -16,9 +16,9 @@ namespace visco::drivers {
 
 /// Flag-friendly values (degrees, lists); ToConfig turns them into a SimulatedRobotConfig.
 struct SimulatedRobotOptions {
-  std::string world_path;        // a world file (C-obstacles, bounds, friction, velocity cone); "" = free plane
-  std::vector<double> start;     // X Y; empty: the world's start, else the origin
-  std::vector<double> walls;     // XMIN YMIN XMAX YMAX: walls around this box (C-obstacles added to the world)
+  std::string world_path;         // a world file (C-obstacles, bounds, friction, velocity cone); "" = free plane
+  std::vector<double> start;      // X Y; empty: the world's start, else the origin
+  std::vector<double> walls;      // XMIN YMIN XMAX YMAX: walls around this box (C-obstacles added to the world)
   std::vector<double> workspace;  // XMIN YMIN XMAX YMAX: the bounds (overrides the world's)
   double friction_deg = -1;       // φ; < 0: the world's (0 without a world)
   double velocity_cone_deg = -1;  // ε_v; < 0: the world's (0 without a world)
