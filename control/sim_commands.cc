@@ -17,6 +17,7 @@
 #include "control/run.h"
 #include "control/sim_session.h"
 #include "control/sim_world.h"
+#include "drivers/commands.h"
 #include "drivers/simulated_robot_options.h"
 #include "planning/scene.h"
 
@@ -36,7 +37,7 @@ struct SimCli {
   drivers::SimulatedRobotOptions robot;  // its world, cone and start come from the scene
   std::vector<double> start;
   double latency_ms = 20;
-  double watchdog_ms = 100;
+  drivers::DriverOptions driver;
   double duration_s = 0;
   std::vector<double> occlude, blackout, stale;
   double stale_ms = 500;
@@ -82,8 +83,8 @@ void RunSim(SimCli& cli) {
   if (r.objects_path.empty() && (!r.calibration_path.empty() || !r.extrinsics_path.empty())) {
     throw InputError("command line", "--camera", "give --objects too (the models of what the camera renders)");
   }
-  if (!(cli.watchdog_ms > 0)) throw InputError("command line", "--watchdog-ms", "must be positive");
-  o.driver.watchdog_us = static_cast<std::int64_t>(cli.watchdog_ms * 1000);
+  o.driver = drivers::ToDriverConfig(cli.driver);
+  o.node_id = cli.driver.node;
   std::unique_ptr<EventLogTap> log = OpenEventLog(cli.log, o.lcm_url);
   SimSession session(o);
   struct sigaction action {};
@@ -142,8 +143,7 @@ void RegisterSimCommands(CLI::App& app) {
                   "write an LCM event log (lcm-logger format) of the bus: every channel it publishes and receives "
                   "(needs a udpm:// bus; docs/replay.md)");
   cmd->add_option("--can", o.can_interface, "the driver listens on this SocketCAN interface instead of LCM");
-  cmd->add_option("--node", o.node_id, "robot node id")->check(CLI::Range(1, 127))->capture_default_str();
-  cmd->add_option("--watchdog-ms", cli->watchdog_ms, "driver command watchdog, ms")->capture_default_str();
+  drivers::AddDriverOptions(*cmd, cli->driver);  // the same options as `visco driver`
   cmd->add_option("--camera-hz", o.camera_hz, "camera frame rate, Hz")->capture_default_str();
   cmd->add_option("--latency-ms", cli->latency_ms, "capture-to-publication latency, ms")->capture_default_str();
   cmd->add_option("--noise-px", o.noise_px, "synthetic events: 1-sigma noise of the signed image distances, px")

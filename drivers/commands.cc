@@ -35,15 +35,10 @@ void OnRelease(int) {
   if (Driver* driver = g_driver.load()) driver->RequestOperatorRelease();
 }
 
-struct DriverOptions {
+struct DriverCommand {
   std::string can_interface;
   std::string lcm_url;
-  int node = 1;
-  double watchdog_ms = 100.0;
-  int period_us = 1000;
-  double status_period_ms = 10.0;
-  double heartbeat_ms = 100.0;
-  double max_speed = 1.0;
+  DriverOptions driver;
   SimulatedRobotOptions robot;
   double duration_s = 0.0;
   double truth_hz = 0.0;
@@ -83,20 +78,15 @@ std::int64_t Micros(double ms, const char* option) {
   return static_cast<std::int64_t>(std::llround(ms * 1000.0));
 }
 
-void RunDriver(const DriverOptions& o) {
+void RunDriver(const DriverCommand& o) {
   LogToStderr();  // stdout carries only the JSON summary
-  DriverConfig config;
-  config.watchdog_us = Micros(o.watchdog_ms, "--watchdog-ms");
-  config.period_us = o.period_us;
-  config.status_period_us = Micros(o.status_period_ms, "--status-period-ms");
-  config.heartbeat_period_us = Micros(o.heartbeat_ms, "--heartbeat-ms");
-  config.max_speed = o.max_speed;
+  const DriverConfig config = ToDriverConfig(o.driver);
 
   SimulatedRobot robot(ToConfig(o.robot));
   std::unique_ptr<EventLogTap> log = OpenEventLog(o.log, o.lcm_url);
 
   DriverTransportConfig transport_config;
-  transport_config.node_id = o.node;
+  transport_config.node_id = o.driver.node;
   transport_config.can_interface = o.can_interface;
   transport_config.lcm_url = o.lcm_url;
   std::unique_ptr<DriverTransport> transport = o.can_interface.empty() ? MakeLcmDriverTransport(transport_config)
@@ -114,7 +104,8 @@ void RunDriver(const DriverOptions& o) {
   sigaction(SIGUSR1, &release, nullptr);
   if (!(o.truth_hz >= 0.0 && o.truth_hz <= 1000.0))
     throw InputError("command line", "--truth-hz", "must be in [0, 1000]");
-  std::thread truth = o.truth_hz > 0.0 ? StartTruthPublisher(robot, o.truth_hz, o.lcm_url, o.node) : std::thread();
+  std::thread truth =
+      o.truth_hz > 0.0 ? StartTruthPublisher(robot, o.truth_hz, o.lcm_url, o.driver.node) : std::thread();
   std::thread timer;
   if (o.duration_s > 0.0) {
     timer = std::thread([d = o.duration_s] {
@@ -126,10 +117,11 @@ void RunDriver(const DriverOptions& o) {
     });
   }
   const RobotFeedback at = robot.Read();
-  spdlog::info("driver: node {} on {}, watchdog {} ms, simulated robot at ({}, {}) among {} C-obstacle(s)", o.node,
+  spdlog::info("driver: node {} on {}, watchdog {} ms, simulated robot at ({}, {}) among {} C-obstacle(s)",
+               o.driver.node,
                o.can_interface.empty() ? "LCM " + (o.lcm_url.empty() ? std::string("(default)") : o.lcm_url)
                                        : "CAN " + o.can_interface,
-               o.watchdog_ms, at.position[0], at.position[1], robot.model().world().obstacles.size());
+               o.driver.watchdog_ms, at.position[0], at.position[1], robot.model().world().obstacles.size());
   driver.Run(g_stop);
   signal(SIGUSR1, SIG_IGN);
   g_driver.store(nullptr);
@@ -161,6 +153,39 @@ void RunDriver(const DriverOptions& o) {
 
 }  // namespace
 
+void AddDriverOptions(CLI::App& cmd, DriverOptions& o) {
+  const std::string group = "Driver";
+  cmd.add_option("--node", o.node, "CAN node id of the robot, 1..127")
+      ->check(CLI::Range(1, 127))
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--watchdog-ms", o.watchdog_ms, "command watchdog period, ms")->capture_default_str()->group(group);
+  cmd.add_option("--period-us", o.period_us, "robot update period, microseconds")
+      ->check(CLI::Range(50, 1'000'000))
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--status-period-ms", o.status_period_ms, "status period when no command arrives, ms")
+      ->capture_default_str()
+      ->group(group);
+  cmd.add_option("--heartbeat-ms", o.heartbeat_ms, "heartbeat period, ms")->capture_default_str()->group(group);
+  cmd.add_option("--max-speed", o.max_speed, "speed limit, m/s (faster commands are clamped and reported)")
+      ->capture_default_str()
+      ->group(group);
+}
+
+DriverConfig ToDriverConfig(const DriverOptions& o) {
+  DriverConfig config;
+  config.watchdog_us = Micros(o.watchdog_ms, "--watchdog-ms");
+  config.period_us = o.period_us;
+  config.status_period_us = Micros(o.status_period_ms, "--status-period-ms");
+  config.heartbeat_period_us = Micros(o.heartbeat_ms, "--heartbeat-ms");
+  if (!(o.max_speed > 0.0) || !std::isfinite(o.max_speed)) {
+    throw InputError("command line", "--max-speed", "must be a positive number");
+  }
+  config.max_speed = o.max_speed;
+  return config;
+}
+
 void LogToStderr() {
   auto logger = spdlog::get("visco");
   if (!logger) logger = spdlog::stderr_color_mt("visco");
@@ -169,7 +194,7 @@ void LogToStderr() {
 }
 
 void RegisterCommands(CLI::App& app) {
-  auto options = std::make_shared<DriverOptions>();
+  auto options = std::make_shared<DriverCommand>();
   CLI::App* cmd = app.add_subcommand(
       "driver",
       "Robot driver process: receives velocity commands over SocketCAN (--can IFACE) or LCM (default), drives the "
@@ -183,16 +208,7 @@ void RegisterCommands(CLI::App& app) {
   cmd->add_option("--log", options->log,
                   "write an LCM event log (lcm-logger format) of the bus: every channel it publishes and receives "
                   "(needs a udpm:// bus; docs/replay.md)");
-  cmd->add_option("--node", options->node, "CAN node id of the robot, 1..127")->check(CLI::Range(1, 127));
-  cmd->add_option("--watchdog-ms", options->watchdog_ms, "command watchdog period, ms")->capture_default_str();
-  cmd->add_option("--period-us", options->period_us, "robot update period, microseconds")
-      ->check(CLI::Range(50, 1'000'000))
-      ->capture_default_str();
-  cmd->add_option("--status-period-ms", options->status_period_ms, "status period when no command arrives, ms")
-      ->capture_default_str();
-  cmd->add_option("--heartbeat-ms", options->heartbeat_ms, "heartbeat period, ms")->capture_default_str();
-  cmd->add_option("--max-speed", options->max_speed, "speed limit, m/s (faster commands are clamped and reported)")
-      ->capture_default_str();
+  AddDriverOptions(*cmd, options->driver);
   AddSimulatedRobotOptions(*cmd, options->robot, /*with_world=*/true);
   cmd->add_option("--truth-hz", options->truth_hz,
                   "simulation: publish the robot's true state on VISCO_SIM_TRUTH (LCM) at this rate, for a simulated "
