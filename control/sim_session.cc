@@ -98,9 +98,7 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
   Vec2 start = o.start;
   if (!o.have_start && !o.no_driver) {  // the camera alone needs no start: the driver process has the robot
     if (!scene.start) throw InputError(o.scene_path, "start", "the scene has no start region: give --start X Y");
-    Eigen::Vector2d c = Eigen::Vector2d::Zero();
-    for (const auto& v : scene.start->polygon.vertices) c += v;
-    c /= static_cast<double>(scene.start->polygon.vertices.size());
+    const Eigen::Vector2d c = StartRegionCentroid(scene);
     start = {c.x(), c.y()};
   }
   if (!o.no_driver) {

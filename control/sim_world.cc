@@ -20,14 +20,18 @@ MotionWorld MakeMotionWorld(const planning::Scene& scene) {
   return world;
 }
 
+Eigen::Vector2d StartRegionCentroid(const planning::Scene& scene) {
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (const auto& v : scene.start->polygon.vertices) c += v;
+  return c / static_cast<double>(scene.start->polygon.vertices.size());
+}
+
 drivers::WorldFile MakeWorldFile(const planning::Scene& scene) {
   drivers::WorldFile file;
   file.world = MakeMotionWorld(scene);
   file.velocity_cone = scene.uncertainty.velocity_cone_rad;
   if (scene.start) {
-    Eigen::Vector2d c = Eigen::Vector2d::Zero();
-    for (const auto& v : scene.start->polygon.vertices) c += v;
-    file.start = c / static_cast<double>(scene.start->polygon.vertices.size());
+    file.start = StartRegionCentroid(scene);
     file.have_start = true;
   }
   return file;

@@ -15,6 +15,9 @@ namespace visco::control {
 /// C-obstacles, bounds and friction of a scene; no goal, no rays (visual compliance is the controller's job).
 MotionWorld MakeMotionWorld(const planning::Scene& scene);
 
+/// The mean of the start region's vertices: where a simulated run starts by default. The scene must have one.
+Eigen::Vector2d StartRegionCentroid(const planning::Scene& scene);
+
 /// The scene's world file: MakeMotionWorld, ε_v, and the start region's centroid as the start (if it has one).
 drivers::WorldFile MakeWorldFile(const planning::Scene& scene);
 

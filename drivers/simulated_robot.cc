@@ -78,7 +78,8 @@ SimulatedRobot::SimulatedRobot(const SimulatedRobotConfig& config)
     : config_(config),
       model_(BuildModel(config)),
       random_(config.seed, config.mean_hold_m),
-      fixed_(config.fixed_offset.value_or(0.0)) {
+      fixed_(config.fixed_offset.value_or(0.0)),
+      adversary_(config.fixed_offset ? static_cast<Adversary*>(&fixed_) : &random_) {
   if (!config.start.allFinite() || !model_.InBounds(config.start)) {
     throw InputError("command line", "--start", "the start position lies outside the workspace bounds");
   }
@@ -113,9 +114,9 @@ void SimulatedRobot::Step(double dt) {
   if (speed > 1e-12) {
     const double theta = std::atan2(velocity_cmd_.y(), velocity_cmd_.x());
     if (hold_left_m_ <= 0.0 || state_.mode != last_mode_) {
-      Adversary& adversary = config_.fixed_offset ? static_cast<Adversary&>(fixed_) : random_;
-      const AdversaryChoice choice = adversary.Choose(model_, state_, theta, config_.velocity_cone);
-      offset_ = config_.fixed_offset ? *config_.fixed_offset
+      const AdversaryChoice choice = adversary_->Choose(model_, state_, theta, config_.velocity_cone);
+      // A fixed offset is the test's disturbance as given; the random one stays inside the cone.
+      offset_ = config_.fixed_offset ? choice.offset
                                      : std::clamp(choice.offset, -config_.velocity_cone, config_.velocity_cone);
       hold_left_m_ = choice.hold;
     }

@@ -83,6 +83,7 @@ class SimulatedRobot final : public RobotInterface {
   MotionModel model_;
   RandomAdversary random_;
   FixedAdversary fixed_;
+  Adversary* adversary_;  // fixed_ with a fixed offset, else random_
   MotionState state_;
   Eigen::Vector2d command_{0.0, 0.0};
   Eigen::Vector2d velocity_cmd_{0.0, 0.0};  // the command after the acceleration limit
