@@ -118,12 +118,28 @@ std::uint8_t FrameCrc(std::uint32_t id, const std::uint8_t* data7) {
   return Crc8SaeJ1850(bytes, 9);
 }
 
+namespace {
+std::uint32_t Fmix32(std::uint32_t h) {
+  h ^= h >> 16;
+  h *= 0x85EBCA6BU;
+  h ^= h >> 13;
+  h *= 0xC2B2AE35U;
+  h ^= h >> 16;
+  return h;
+}
+}  // namespace
+
+std::uint32_t SessionKey(std::uint32_t id, std::uint32_t session, std::uint32_t counter) {
+  return Fmix32(session ^ Fmix32(counter ^ Fmix32(id & kSffMask)));
+}
+
 std::uint8_t SessionCrc(std::uint32_t id, std::uint32_t session, std::uint32_t counter, const std::uint8_t* data7) {
   std::uint8_t bytes[16];
   const std::uint32_t sff = id & kSffMask;
   bytes[0] = static_cast<std::uint8_t>(sff & 0xFF);
   bytes[1] = static_cast<std::uint8_t>(sff >> 8);
-  for (int i = 0; i < 4; ++i) bytes[2 + i] = static_cast<std::uint8_t>(session >> (8 * i));
+  const std::uint32_t key = SessionKey(sff, session, counter);
+  for (int i = 0; i < 4; ++i) bytes[2 + i] = static_cast<std::uint8_t>(key >> (8 * i));
   for (int i = 0; i < 3; ++i) bytes[6 + i] = static_cast<std::uint8_t>(counter >> (8 * (i + 1)));
   for (int i = 0; i < 7; ++i) bytes[9 + i] = data7[i];
   return Crc8SaeJ1850(bytes, 16);

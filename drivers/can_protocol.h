@@ -107,10 +107,17 @@ const char* ToString(EncodeStatus status);
 /// followed by data[0..6]: byte 7 of the session frame. Covering the id catches a frame that arrives under the wrong
 /// id. Real-time safe.
 std::uint8_t FrameCrc(std::uint32_t id, const std::uint8_t* data7);
+/// The session key of one frame: f(nonce ^ f(counter ^ f(id))), f = murmur3's 32-bit finaliser, id the 11-bit
+/// identifier. A CRC is linear: over the raw nonce, the CRC of a frame of another session would differ from the valid
+/// one by a constant that depends only on the two nonces, so 1 session in 256 would have every frame valid in the
+/// current one (and 1 counter offset in 256 every replayed frame). Through this mix a frame of another session, or of
+/// another counter, passes the 8-bit CRC by chance independently of every other frame (1 in 256 each; the three
+/// frames of a status update too, since the id is mixed in). Not cryptographic: the nonce is on the bus.
+std::uint32_t SessionKey(std::uint32_t id, std::uint32_t session, std::uint32_t counter);
 /// The CRC of command and status frames (byte 7): CRC-8/SAE-J1850 of the 11-bit id (two bytes, little-endian), the
-/// session nonce (four bytes, little-endian), the counter's upper 24 bits (`counter >> 8`, three bytes,
-/// little-endian; byte 0 of the frame carries `counter & 0xFF`) and data[0..6]. A frame of another session, or one
-/// replayed 256 or more counts later, fails it. Real-time safe.
+/// session key SessionKey(id, nonce, counter) (four bytes, little-endian), the counter's upper 24 bits (`counter >> 8`,
+/// three bytes, little-endian; byte 0 of the frame carries `counter & 0xFF`) and data[0..6]. A frame of another
+/// session, or one replayed 256 or more counts later, fails it (but for 1 in 256 by chance). Real-time safe.
 std::uint8_t SessionCrc(std::uint32_t id, std::uint32_t session, std::uint32_t counter, const std::uint8_t* data7);
 /// Plain CRC-8/SAE-J1850 of `size` bytes (check value of "123456789" is 0x4B). Real-time safe.
 std::uint8_t Crc8SaeJ1850(const std::uint8_t* bytes, int size);

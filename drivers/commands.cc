@@ -134,7 +134,8 @@ void RunDriver(const DriverCommand& o) {
       "{\"commands_applied\": %llu, \"bad_commands\": %llu, \"out_of_sequence\": %llu, \"wrong_session\": %llu, "
       "\"sessions\": %llu, \"refused_resets\": %llu, \"nmt_starts\": %llu, \"nmt_resets\": %llu, "
       "\"operator_releases\": %llu, \"quick_stops\": %llu, \"watchdog_stops\": %llu, "
-      "\"bounds_stops\": %llu, \"estops\": %llu, \"resets\": %llu, \"bus_offs\": %llu, \"statuses_sent\": %llu, "
+      "\"bounds_stops\": %llu, \"estops\": %llu, \"resets\": %llu, \"bus_offs\": %llu, \"frames_dropped\": %llu, "
+      "\"statuses_sent\": %llu, "
       "\"faults_sent\": %llu, "
       "\"send_failures\": %llu, \"state\": \"%s\", \"position\": [%.9g, %.9g], \"contact\": %s}\n",
       static_cast<unsigned long long>(s.commands_applied), static_cast<unsigned long long>(s.bad_commands),
@@ -144,10 +145,10 @@ void RunDriver(const DriverCommand& o) {
       static_cast<unsigned long long>(s.operator_releases), static_cast<unsigned long long>(s.quick_stops),
       static_cast<unsigned long long>(s.watchdog_stops), static_cast<unsigned long long>(s.bounds_stops),
       static_cast<unsigned long long>(s.estops), static_cast<unsigned long long>(s.resets),
-      static_cast<unsigned long long>(s.bus_offs), static_cast<unsigned long long>(s.statuses_sent),
-      static_cast<unsigned long long>(s.faults_sent), static_cast<unsigned long long>(s.send_failures),
-      ToString(driver.state()), robot.Read().position[0], robot.Read().position[1],
-      robot.Read().contact ? "true" : "false");
+      static_cast<unsigned long long>(s.bus_offs), static_cast<unsigned long long>(s.frames_dropped),
+      static_cast<unsigned long long>(s.statuses_sent), static_cast<unsigned long long>(s.faults_sent),
+      static_cast<unsigned long long>(s.send_failures), ToString(driver.state()), robot.Read().position[0],
+      robot.Read().position[1], robot.Read().contact ? "true" : "false");
   std::fflush(stdout);
 }
 

@@ -122,13 +122,22 @@ void Driver::Update(std::int64_t now_us) {
           Announce(can::kEmcyNoError, fault_t::CODE_CAN_ERROR, false, true, "CAN back to error active");
         }
         break;
-      case DriverEventKind::kFramesDropped: {
-        char message[80];
-        std::snprintf(message, sizeof(message), "kernel dropped %u received frames", event.count);
-        Announce(can::kEmcyCanOverrun, fault_t::CODE_CAN_ERROR, false, false, message);
+      case DriverEventKind::kFramesDropped:
+        // Counted at once, reported at most once per kDropReportIntervalUs (below): a flood must not become a flood
+        // of EMCY frames and log lines.
+        stats_.frames_dropped += event.count;
+        drops_unreported_ += event.count;
         break;
-      }
     }
+  }
+
+  if (drops_unreported_ > 0 && now_us - last_drop_report_us_ >= kDropReportIntervalUs) {
+    char message[96];
+    std::snprintf(message, sizeof(message), "kernel dropped %llu received frames (receive queue full)",
+                  static_cast<unsigned long long>(drops_unreported_));
+    Announce(can::kEmcyCanOverrun, fault_t::CODE_CAN_ERROR, false, false, message);
+    drops_unreported_ = 0;
+    last_drop_report_us_ = now_us;
   }
 
   // Watchdog, once every pending event has been looked at (a valid command may still wait in the queue).
@@ -189,7 +198,9 @@ void Driver::OnCommand(const DriverEvent& event, std::int64_t now_us) {
   }
   if (verdict != can::CommandVerdict::kAccept) {
     Reject(verdict, event, seq);
-    SendStatus(now_us);  // the answer shows the fault bit and the last accepted number
+    // The answer shows the fault bit and the last accepted number; at most one per kRejectAnswerIntervalUs, so that
+    // a flood of bad frames does not become three times as many status frames on the bus.
+    if (now_us - last_status_us_ >= kRejectAnswerIntervalUs) SendStatus(now_us);
     return;
   }
   stats_.sequence_gaps += (seq + modulus - last_seq_) % modulus - 1;
@@ -394,6 +405,7 @@ void Driver::SendStatus(std::int64_t now_us) {
     ++stats_.send_failures;
   }
   next_status_us_ = now_us + config_.status_period_us;
+  last_status_us_ = now_us;
 }
 
 void Driver::PublishSnapshot(const RobotFeedback& robot) {

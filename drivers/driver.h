@@ -23,6 +23,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <limits>
 
 #include "common/shared_snapshot.h"
 #include "drivers/driver_transport.h"
@@ -58,6 +59,7 @@ struct DriverStats {
   std::uint64_t operator_releases = 0;
   std::uint64_t sessions = 0;  // sessions issued
   std::uint64_t bus_offs = 0;
+  std::uint64_t frames_dropped = 0;  // by the kernel: the receive queue was full (SO_RXQ_OVFL)
   std::uint64_t statuses_sent = 0;
   std::uint64_t send_failures = 0;
   std::uint64_t faults_sent = 0;
@@ -143,6 +145,11 @@ class Driver {
   std::int64_t last_valid_us_ = -1;  // -1: watchdog not armed
   std::int64_t last_update_us_ = -1;
   std::int64_t next_status_us_ = 0;
+  std::int64_t last_status_us_ = std::numeric_limits<std::int64_t>::min() / 2;  // when the last status went out
+  std::uint64_t drops_unreported_ = 0;  // frames the kernel dropped since the last report
+  std::int64_t last_drop_report_us_ = std::numeric_limits<std::int64_t>::min() / 2;
+  static constexpr std::int64_t kRejectAnswerIntervalUs = 1'000;  // rejected frames: at most one answer per ms
+  static constexpr std::int64_t kDropReportIntervalUs = 100'000;  // kernel drops: at most one EMCY per 100 ms
   std::int64_t next_heartbeat_us_ = 0;
   std::uint32_t status_seq_ = 0;
   DriverStats stats_;

@@ -153,6 +153,7 @@ const char* ToString(PeerState state);
 
 /// Monotonically increasing counters of one link (all since creation).
 struct LinkCounters {
+  std::uint64_t frames_read = 0;  // SocketCAN: frames (data and error) read from the receive socket; LCM: 0
   std::uint64_t commands_sent = 0;
   std::uint64_t send_failures = 0;      // SendCommand calls that did not send
   std::uint64_t statuses_received = 0;  // complete status updates
@@ -302,6 +303,13 @@ struct RobotLinkConfig {
 /// @throws visco::JobFailed if the socket cannot be opened or bound (the message names the interface and errno).
 /// @throws visco::InputError if the node id is outside 1..127.
 std::unique_ptr<RobotLink> MakeSocketCanRobotLink(const RobotLinkConfig& config);
+
+class CanPort;  // drivers/socketcan.h
+/// The same link over given ports instead of sockets on `config.can_interface`: `receive` delivers the frames of
+/// the bus (no kernel filter: the link ignores other nodes' frames itself), commands go to `send`. For tests and
+/// fuzzers of the link's protocol logic on machines without CAN. @throws visco::InputError on a bad node id.
+std::unique_ptr<RobotLink> MakeCanRobotLink(const RobotLinkConfig& config, std::unique_ptr<CanPort> receive,
+                                            std::unique_ptr<CanPort> send);
 
 /// Opens an LCM robot link (publishes VISCO_COMMAND, subscribes VISCO_STATUS, VISCO_HEARTBEAT_DRIVER,
 /// VISCO_FAULT) and starts its I/O thread. Not real-time safe.

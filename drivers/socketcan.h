@@ -39,26 +39,37 @@ struct ReceivedFrame {
   std::int64_t utime = 0;  // SO_TIMESTAMP: wall-clock microseconds when the kernel received it
 };
 
-class CanSocket {
+/// What a CAN link reads and writes: a CanSocket, or frames in memory (tests and fuzzers on machines without CAN).
+/// All three calls are real-time safe and never block.
+class CanPort {
+ public:
+  virtual ~CanPort() = default;
+  virtual CanIo Write(const can::Frame& frame) = 0;
+  virtual CanIo Read(ReceivedFrame& out) = 0;
+  /// Frames dropped before they could be read since the port was opened (the kernel's SO_RXQ_OVFL count).
+  virtual std::uint32_t dropped() const = 0;
+};
+
+class CanSocket final : public CanPort {
  public:
   /// Opens, configures and binds a raw CAN socket. Not real-time safe.
   /// @throws visco::JobFailed naming the interface and the failing call with its errno text (e.g. when AF_CAN is
   /// not supported by the kernel or the interface does not exist).
   explicit CanSocket(const CanSocketOptions& options);
-  ~CanSocket();
+  ~CanSocket() override;
   CanSocket(const CanSocket&) = delete;
   CanSocket& operator=(const CanSocket&) = delete;
 
   /// Writes one frame without blocking. Real-time safe.
-  CanIo Write(const can::Frame& frame);
+  CanIo Write(const can::Frame& frame) override;
   /// Reads one frame without blocking (kWouldBlock when none is queued). Updates dropped(). Real-time safe.
-  CanIo Read(ReceivedFrame& out);
+  CanIo Read(ReceivedFrame& out) override;
   /// Waits up to `timeout_us` for a frame to read (poll(2)); true if one is ready. Blocking: not for the
   /// controller's loop.
   bool WaitReadable(std::int64_t timeout_us);
 
   /// Frames the kernel dropped for this socket since it was opened (SO_RXQ_OVFL; the newest count seen).
-  std::uint32_t dropped() const { return dropped_; }
+  std::uint32_t dropped() const override { return dropped_; }
   int last_errno() const { return last_errno_; }
   int fd() const { return fd_; }
   const std::string& interface() const { return interface_; }

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cstdio>
 #include <memory>
+#include <stdexcept>
+#include <utility>
 
 #include "common/error.h"
 #include "drivers/can_protocol.h"
@@ -70,10 +72,15 @@ class BusTracker {
 class SocketCanRobotLink final : public RobotLink {
  public:
   explicit SocketCanRobotLink(const RobotLinkConfig& config)
-      : node_(config.node_id),
+      : SocketCanRobotLink(config, std::make_unique<CanSocket>(RxOptions(config)),
+                           std::make_unique<CanSocket>(CanSocketOptions{config.can_interface, false, {}, 0, 0})) {}
+  SocketCanRobotLink(const RobotLinkConfig& config, std::unique_ptr<CanPort> receive, std::unique_ptr<CanPort> send)
+      : node_((CheckNode(config.node_id), config.node_id)),
         heartbeat_timeout_us_(config.heartbeat_timeout_us),
-        rx_(RxOptions(config)),
-        tx_(CanSocketOptions{config.can_interface, false, {}, 0, 0}) {}
+        rx_holder_(std::move(receive)),
+        tx_holder_(std::move(send)),
+        rx_(*rx_holder_),
+        tx_(*tx_holder_) {}
 
   LinkResult SendCommand(const VelocityCommand& command, std::int64_t now_us) override {
     // Without a session only an e-stop goes out (the driver honours its flag whatever the session).
@@ -126,6 +133,7 @@ class SocketCanRobotLink final : public RobotLink {
         ++counters_.io_errors;
         break;
       }
+      ++counters_.frames_read;
       Handle(in, now_us);
     }
     if (rx_.dropped() != dropped_seen_) {
@@ -404,8 +412,10 @@ class SocketCanRobotLink final : public RobotLink {
 
   const int node_;
   const std::int64_t heartbeat_timeout_us_;
-  CanSocket rx_;
-  CanSocket tx_;
+  std::unique_ptr<CanPort> rx_holder_;
+  std::unique_ptr<CanPort> tx_holder_;
+  CanPort& rx_;
+  CanPort& tx_;
   BusTracker bus_;
   SessionView session_;
   std::uint32_t dropped_seen_ = 0;
@@ -640,6 +650,12 @@ class SocketCanDriverTransport final : public DriverTransport {
 
 std::unique_ptr<RobotLink> MakeSocketCanRobotLink(const RobotLinkConfig& config) {
   return std::make_unique<SocketCanRobotLink>(config);
+}
+
+std::unique_ptr<RobotLink> MakeCanRobotLink(const RobotLinkConfig& config, std::unique_ptr<CanPort> receive,
+                                            std::unique_ptr<CanPort> send) {
+  if (!receive || !send) throw std::invalid_argument("MakeCanRobotLink: both ports are required");
+  return std::make_unique<SocketCanRobotLink>(config, std::move(receive), std::move(send));
 }
 
 std::unique_ptr<DriverTransport> MakeSocketCanDriverTransport(const DriverTransportConfig& config) {

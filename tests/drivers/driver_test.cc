@@ -509,6 +509,52 @@ TEST(Driver, BusOffStopsAndRecoveryNeedsReset) {
   EXPECT_EQ(rig.driver.state(), RobotState::kReady);
 }
 
+// Issue 15, a flood: the kernel's drops (SO_RXQ_OVFL) are counted at once and reported at most once per 100 ms
+// with the number lost; a flood of rejected frames is answered with at most one status per millisecond (not three
+// frames per bad frame), while a single bad frame still gets its answer.
+TEST(Driver, AFloodIsCountedAndReportedWithoutAmplifyingIt) {
+  Rig rig(true);
+  rig.Enable();
+  const std::size_t faults_before = rig.transport.faults.size();
+  for (int ms = 0; ms < 300; ++ms) {
+    DriverEvent drop;
+    drop.kind = DriverEventKind::kFramesDropped;
+    drop.count = 7;
+    rig.transport.events.push_back(drop);
+    rig.Run(1);
+  }
+  EXPECT_EQ(rig.driver.stats().frames_dropped, 300U * 7U);
+  int reports = 0;
+  for (std::size_t i = faults_before; i < rig.transport.faults.size(); ++i) {
+    reports += rig.transport.faults[i].emcy_code == can::kEmcyCanOverrun;
+  }
+  EXPECT_GE(reports, 3);
+  EXPECT_LE(reports, 4);
+  EXPECT_NE(std::string(rig.transport.faults.back().message).find("dropped"), std::string::npos);
+
+  // One bad frame: answered at once.
+  const std::size_t statuses_before = rig.transport.statuses.size();
+  rig.Run(20);  // past the status period: the periodic status is out of the way
+  const std::size_t after_idle = rig.transport.statuses.size();
+  can::Frame bad = rig.transport.CommandAs(rig.transport.session ^ 0x5A5A5A5Au, 1, 0.3, 0.0);
+  (void)bad;
+  rig.now += 1000;
+  rig.driver.Update(rig.now);
+  EXPECT_EQ(rig.transport.statuses.size(), after_idle + 1) << "a single bad frame is answered";
+  EXPECT_GT(after_idle, statuses_before);
+  // 2000 bad frames within 10 ms (16 per update, updates 50 us apart): a handful of answers, not 2000.
+  for (int i = 0; i < 2000; ++i) rig.transport.CommandAs(rig.transport.session ^ 0x5A5A5A5Au, 2 + i, 0.3, 0.0);
+  const std::size_t before_flood = rig.transport.statuses.size();
+  while (!rig.transport.events.empty()) {
+    rig.now += 50;
+    rig.driver.Update(rig.now);
+  }
+  const std::size_t answers = rig.transport.statuses.size() - before_flood;
+  EXPECT_LE(answers, 12U) << "statuses sent during the flood (1 per ms at most, plus the periodic ones)";
+  EXPECT_NE(rig.driver.state(), RobotState::kMoving);  // (its watchdog stopped it: no valid command for 300 ms)
+  EXPECT_EQ(rig.Speed(), 0.0);
+}
+
 // Each bus state by its own code: error warning is reported (EMCY 0xFF03) and nothing else, error passive sets the
 // bus bit (EMCY 0x8120) without a stop, bus-off stops (EMCY 0x8100).
 TEST(Driver, BusWarningAndPassiveAreReportedWithoutAStop) {

@@ -81,6 +81,9 @@ class DriverProcess {
   void ReleaseEStop() {
     if (pid_ > 0) kill(pid_, SIGUSR1);
   }
+  void Signal(int signal) {
+    if (pid_ > 0) kill(pid_, signal);
+  }
 
  private:
   pid_t pid_ = -1;
@@ -334,6 +337,67 @@ TEST_F(CanHil, MalformedAndOutOfSequenceFramesAreIgnoredAndReported) {
   EXPECT_GE(took, kWatchdogUs - kPeriodUs);
   EXPECT_LE(took, kWatchdogUs + kQuickStopUs + kStatusPeriodUs + kSlackUs);
   EXPECT_TRUE(last_.fault_bits & fault_bits::kWatchdog);
+  Reset();
+  Move(0.1, 0.0);
+}
+
+// Issue 15: an SO_RXQ_OVFL flood. Command frames of no session (the driver must read and reject each) are written
+// faster than they are read: first while the driver process is stalled (SIGSTOP for the first burst, as a
+// preempted process), so that its receive queue overflows whatever the speed of the emulated CPU; then for 0.6 s
+// while the controller is stalled (not polling), so that its queue overflows with the driver's answers and
+// statuses. Each side counts the kernel's drops (SO_RXQ_OVFL) and reports them: the driver with EMCY 0x8110 (at most
+// one per 100 ms, with the number lost; it answers rejected frames at most once per ms, so the flood is not
+// amplified), the link with a local stopping fault (its view of the driver has holes). Nothing in the flood moves the
+// robot, and a reset recovers.
+TEST_F(CanHil, AFloodOverflowsBothReceiveQueuesAndTheDropsAreCountedAndReported) {
+  Move(0.1, 0.0);
+  const LinkCounters before = link_->counters();
+  const std::size_t first_status = seen_.statuses.size();
+  can::CommandFrame wire;
+  wire.seq = link_->last_command_seq() + 1;
+  wire.session = link_->session();
+  wire.velocity[0] = 0.5;
+  can::Frame command;
+  ASSERT_EQ(can::EncodeCommand(kNode, wire, command), can::EncodeStatus::kOk);
+  command.data[6] = static_cast<std::uint8_t>(command.data[6] ^ 0x55);  // never of the session (its tag differs)
+  int written = 0, would_block = 0;
+  const auto write = [&](int i) {
+    command.data[2] = static_cast<std::uint8_t>(i);
+    const CanIo io = injector_->Write(command);
+    written += io == CanIo::kOk ? 1 : 0;
+    would_block += io == CanIo::kWouldBlock ? 1 : 0;
+  };
+  const std::int64_t flood_start = Now();
+  driver_->Signal(SIGSTOP);
+  constexpr int kBurst = 3000;  // the default receive buffer holds a few hundred CAN frames
+  for (int i = 0; i < kBurst; ++i) write(i);
+  driver_->Signal(SIGCONT);
+  const std::int64_t stalled_us = Now() - flood_start;
+  int frames = kBurst;
+  while (Now() - flood_start < stalled_us + 600'000) write(frames++);
+  const std::int64_t flood_us = Now() - flood_start;
+  const auto reported = [&] {
+    return SawFault(can::kEmcyCanOverrun, false) && link_->counters().rx_overflow_drops > before.rx_overflow_drops;
+  };
+  const bool both = RunUntil(3'000'000, reported, true);
+  const LinkCounters c = link_->counters();
+  std::printf(
+      "hil: flood of %d frames in %.1f ms (driver stalled for the first %d, %.1f ms; %d written, %d ENOBUFS): the "
+      "link's kernel dropped %llu frames, the driver reported its drops with EMCY 0x8110: %s\n",
+      frames, flood_us / 1e3, kBurst, stalled_us / 1e3, written, would_block,
+      static_cast<unsigned long long>(c.rx_overflow_drops - before.rx_overflow_drops),
+      SawFault(can::kEmcyCanOverrun, false) ? "yes" : "no");
+  EXPECT_TRUE(both) << Faults();
+  EXPECT_TRUE(SawLocal("dropped received frames")) << Faults();
+  for (std::size_t i = first_status; i < seen_.statuses.size(); ++i) {
+    ASSERT_LE(std::abs(seen_.statuses[i].velocity[0]), 0.1 + 1e-3) << "the flood moved the robot";
+    ASSERT_LE(std::abs(seen_.statuses[i].velocity[1]), 1e-3) << "the flood moved the robot";
+  }
+  // Reported, not repeated: at most one EMCY 0x8110 per 100 ms from the driver, however many frames it lost.
+  const auto overrun_reports = std::count_if(seen_.faults.begin(), seen_.faults.end(), [](const LinkFault& f) {
+    return !f.local && f.emcy_code == can::kEmcyCanOverrun;
+  });
+  EXPECT_LE(overrun_reports, 2 + (Now() - flood_start) / 100'000) << Faults();
   Reset();
   Move(0.1, 0.0);
 }

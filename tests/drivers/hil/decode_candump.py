@@ -79,10 +79,18 @@ def plain_crc(can_id, data):
     return crc8_j1850(struct.pack("<H", can_id & 0x7FF) + bytes(data[:7]))
 
 
+def fmix32(h):
+    """murmur3's 32-bit finaliser."""
+    h = ((h ^ (h >> 16)) * 0x85EBCA6B) & 0xFFFFFFFF
+    h = ((h ^ (h >> 13)) * 0xC2B2AE35) & 0xFFFFFFFF
+    return h ^ (h >> 16)
+
+
 def session_crc(can_id, session, counter, data):
-    """README: CRC-8/SAE-J1850 over the id (2 bytes LE), the nonce (4 bytes LE), the counter's bits 8..31 (3 bytes
-    LE) and bytes 0..6."""
-    return crc8_j1850(struct.pack("<HI", can_id & 0x7FF, session & 0xFFFFFFFF) +
+    """README: CRC-8/SAE-J1850 over the id (2 bytes LE), the session key fmix32(nonce ^ fmix32(counter ^ fmix32(id)))
+    (4 bytes LE), the counter's bits 8..31 (3 bytes LE) and bytes 0..6."""
+    key = fmix32((session ^ fmix32((counter ^ fmix32(can_id & 0x7FF)) & 0xFFFFFFFF)) & 0xFFFFFFFF)
+    return crc8_j1850(struct.pack("<HI", can_id & 0x7FF, key) +
                       ((counter >> 8) & 0xFFFFFF).to_bytes(3, "little") + bytes(data[:7]))
 
 
@@ -137,6 +145,7 @@ def main():
 
 
 def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
+    lines = list(lines)  # (a file or a list: looked ahead into)
     problems = []
     counts = {}
     verdicts = {}
@@ -155,7 +164,15 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
     def node_of(n):
         return nodes.setdefault(n, Node())
 
-    for line in lines:
+    def lookahead(index, wanted_id, reach=60):
+        """Data of the next frame with `wanted_id` within `reach` lines after `index`, or None."""
+        for later in lines[index + 1:index + 1 + reach]:
+            mm = re.match(r"^\(\S+\) \w+ ([0-9A-Fa-f]{3})#([0-9A-Fa-f]*)", later)
+            if mm and int(mm.group(1), 16) == wanted_id:
+                return bytes.fromhex(mm.group(2)) + bytes(8)
+        return None
+
+    for index, line in enumerate(lines):
         m = re.match(r"^\((\d+\.\d+)\) (\w+) ([0-9A-Fa-f]+)#([0-9A-Fa-f]*)", line)
         if not m:
             continue
@@ -231,21 +248,30 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
                 continue
             if name == "Status":
                 low = data[0]
-                if node.status_counter is not None:
-                    k = (low - node.status_counter) & 0xFF
-                    behind = node.status_counter + (k if k else 256) - 256
-                    if session_crc(can_id, node.session, behind, data) == data[7]:
-                        # A copy of an earlier status of this session: injected (a replay), not the driver's.
-                        verdicts["replayed status (injected)"] = verdicts.get("replayed status (injected)", 0) + 1
-                        node.replay_triple = (behind, "Position")
-                        continue
-                if node.triple is not None:
-                    problems.append("node %d: incomplete status triple before %.3f" % (n, t))
                 if node.status_counter is None:
                     candidates = [(node.epoch << 8) | low, ((node.epoch + 1) << 8) | low]
                 else:
+                    k = (low - node.status_counter) & 0xFF
                     candidates = [node.status_counter + (k if k else 256)]
-                counter = next((c for c in candidates if session_crc(can_id, node.session, c, data) == data[7]), None)
+                # A copy of an earlier status of this session (a replay) has its counter 1..256 behind.
+                behind = [candidates[0] - 256] if node.status_counter is not None else []
+                # Every reading the CRC passes: with the session key a wrong one passes by chance (1 in 256), so the
+                # triple's next frame (the position frame, which the driver sends right after) decides.
+                passing = [c for c in candidates + behind if session_crc(can_id, node.session, c, data) == data[7]]
+                if len(passing) > 1:
+                    position = lookahead(index, 0x280 + n)
+                    if position is not None:
+                        confirmed = [c for c in passing if session_crc(0x280 + n, node.session, c, position) ==
+                                     position[7]]
+                        passing = confirmed or passing
+                if passing and passing[0] in behind:
+                    # Injected (a replay), not the driver's.
+                    verdicts["replayed status (injected)"] = verdicts.get("replayed status (injected)", 0) + 1
+                    node.replay_triple = ([passing[0]], "Position")
+                    continue
+                if node.triple is not None:
+                    problems.append("node %d: incomplete status triple before %.3f" % (n, t))
+                counter = passing[0] if passing else None
                 if counter is None:
                     problems.append("node %d: status frame at %.3f fails the CRC for its session (the driver's own "
                                     "frame)" % (n, t))
@@ -257,7 +283,7 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
                                         (n, node.status_counter, counter, t))
                     status_gaps += counter - node.status_counter - 1
                 node.status_counter = counter
-                node.triple = (counter, "Position")
+                node.triple = (passing, "Position")
                 decoded = {s: signal(sig, data)[0] for s, sig in sigs.items()}
                 command_seq = int(decoded["CommandSeq"])
                 matches = [c for c in node.recent if c & 0xFF == command_seq]
@@ -279,13 +305,19 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
                 continue
 
             def fits(triple):
-                return triple is not None and triple[1] == name and data[0] == triple[0] & 0xFF and \
-                    session_crc(can_id, node.session, triple[0], data) == data[7]
+                """The triple's candidate counters this frame verifies with (empty: it does not belong)."""
+                if triple is None or triple[1] != name:
+                    return []
+                return [c for c in triple[0]
+                        if data[0] == c & 0xFF and session_crc(can_id, node.session, c, data) == data[7]]
 
-            if fits(node.triple):
-                node.triple = (node.triple[0], "Force") if name == "Position" else None
-            elif fits(node.replay_triple):
-                node.replay_triple = (node.replay_triple[0], "Force") if name == "Position" else None
+            ok = fits(node.triple)
+            replay_ok = fits(node.replay_triple) if not ok else []
+            if ok:
+                node.status_counter = ok[0]
+                node.triple = (ok, "Force") if name == "Position" else None
+            elif replay_ok:
+                node.replay_triple = (replay_ok, "Force") if name == "Position" else None
             else:
                 problems.append("node %d: %s frame at %.3f out of its triple (or failing its CRC)" % (n, name, t))
                 node.triple = None

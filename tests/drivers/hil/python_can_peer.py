@@ -39,10 +39,17 @@ def crc8_j1850(data):
     return crc ^ 0xFF
 
 
+def fmix32(h):
+    h = ((h ^ (h >> 16)) * 0x85EBCA6B) & 0xFFFFFFFF
+    h = ((h ^ (h >> 13)) * 0xC2B2AE35) & 0xFFFFFFFF
+    return h ^ (h >> 16)
+
+
 def session_crc(can_id, session, counter, payload7):
-    """README "CRC": the 11-bit id (2 bytes LE), the session nonce (4 bytes LE), the counter's bits 8..31 (3 bytes LE),
-    bytes 0..6."""
-    return crc8_j1850(struct.pack("<HI", can_id, session) + (counter >> 8).to_bytes(3, "little") + bytes(payload7))
+    """README "CRC": the 11-bit id (2 bytes LE), the session key fmix32(nonce ^ fmix32(counter ^ fmix32(id))) (4 bytes
+    LE), the counter's bits 8..31 (3 bytes LE), bytes 0..6."""
+    key = fmix32(session ^ fmix32((counter ^ fmix32(can_id)) & 0xFFFFFFFF))
+    return crc8_j1850(struct.pack("<HI", can_id, key) + (counter >> 8).to_bytes(3, "little") + bytes(payload7))
 
 
 class Peer:

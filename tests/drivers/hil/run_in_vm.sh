@@ -6,7 +6,8 @@
 #  4. the candump log decoded with the DBC semantics and a model of the driver's acceptance rule;
 #  5. the controller frames of that log (this boot's earlier sessions) replayed with canplayer into a fresh driver:
 #     nothing may be applied;
-#  6. (with --bench) command throughput against cangen and the command-to-feedback round trip.
+#  6. the controller's loop over the SocketCAN link under the real-time guard, every stop path;
+#  7. (with --bench) command throughput against cangen and the command-to-feedback round trip.
 # usage: run_in_vm.sh BUILD_DIR [--bench]   (working directory: the repository top)
 set -u
 build="$1"
@@ -84,6 +85,9 @@ ok = frames > 500 and summary["commands_applied"] == 0 and summary["resets"] == 
 print("replay: " + ("ok" if ok else "FAIL"))
 sys.exit(0 if ok else 1)
 PYEOF
+step "the control loop over the SocketCAN link under the real-time guard (SCHED_FIFO, mlockall, every stop path)"
+"$build/bin/control_can_realtime_hil_test" --gtest_brief=1 || status=1
+
 if [ "$bench" = "--bench" ]; then
   step "benchmarks on vcan0: command throughput vs cangen, round trip vs vcan loopback"
   "$build/bin/drivers_can_benchmark" --benchmark_min_time=0.2 --benchmark_counters_tabular=true || status=1
