@@ -81,7 +81,11 @@ struct Args {
   double timeout_s = 120;
   double speed = 0.6;
   bool netns = false;
+  double slow = 1;  // --slow-machine: time limits times this, camera rate and speed divided by it
 };
+
+// A time limit of the demo's processes on a machine `a.slow` times slower than the 2-core reference.
+std::string Slowed(const Args& a, double value) { return fmt::format("{}", value * a.slow); }
 
 struct Child {
   std::string name;
@@ -384,9 +388,9 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
                                      "--lcm-url",
                                      bus,
                                      "--duration",
-                                     fmt::format("{}", a.timeout_s + 30),
+                                     fmt::format("{}", a.timeout_s * a.slow + 30),
                                      "--watchdog-ms",
-                                     "500",
+                                     Slowed(a, 500),
                                      "--truth-hz",
                                      "200"};
   if (a.can) {
@@ -407,11 +411,15 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
                                      "--lcm-url",
                                      bus,
                                      "--duration",
-                                     fmt::format("{}", a.timeout_s + 30)};
+                                     fmt::format("{}", a.timeout_s * a.slow + 30)};
   if (su.rendered) {
     camera.insert(camera.end(), su.cam.begin(), su.cam.end());
-    for (const char* o :
-         {"--camera-hz", "15", "--latency-ms", "5", "--supersample", "2", "--image-noise", "2", "--blur-px", "0.5"}) {
+    // On a slow machine fewer frames, rendered without supersampling, so that vision keeps up with them.
+    const std::string hz = fmt::format("{}", std::max(2.0, std::round(15 / a.slow)));
+    const char* supersample = a.slow > 1 ? "1" : "2";
+    for (const char* o : {"--latency-ms", "5", "--image-noise", "2", "--blur-px", "0.5"}) camera.push_back(o);
+    for (const std::string& o :
+         {std::string("--camera-hz"), hz, std::string("--supersample"), std::string(supersample)}) {
       camera.push_back(o);
     }
   }
@@ -437,15 +445,15 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
                                   "--max-accel",
                                   "4",
                                   "--max-vision-age-ms",
-                                  "400",
+                                  Slowed(a, 400),
                                   "--max-hold",
-                                  "4",
+                                  Slowed(a, 4),
                                   "--startup-timeout",
-                                  "30",
+                                  Slowed(a, 30),
                                   "--status-timeout-ms",
-                                  "500",
+                                  Slowed(a, 500),
                                   "--heartbeat-timeout-ms",
-                                  "1000",
+                                  Slowed(a, 1000),
                                   "--no-realtime",
                                   "--log",
                                   (rd / "controller.lcmlog").string()};
@@ -470,7 +478,7 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
       for (const Child& c : children) seen_in[c.name] = app::NetnsHosts::ProcessNamespaceInode(c.pid);
       seen_in[controller.name] = app::NetnsHosts::ProcessNamespaceInode(controller.pid);
     }
-    if (elapsed > a.timeout_s) break;
+    if (elapsed > a.timeout_s * a.slow) break;
     for (auto& c : children) {
       if (Poll(c) && c.name != "lcm-logger") failed_early = true;
     }
@@ -625,6 +633,7 @@ std::string MonteCarloSvg(const Setup& su, const std::vector<RunOutcome>& outcom
 int Run(const Args& a) {
   if (a.runs < 1) throw InputError("command line", "--runs", "must be at least 1");
   if (!(a.speed > 0) || a.speed > 1.0) throw InputError("command line", "--speed", "must be in (0, 1] m/s");
+  if (!(a.slow >= 1) || a.slow > 100) throw InputError("command line", "--slow-machine", "must be in [1, 100]");
   if (a.jobs < 1 || a.jobs > 8) throw InputError("command line", "--jobs", "must be between 1 and 8");
   if (a.can && !fs::exists("/sys/class/net/vcan0")) {
     throw InputError("command line", "--can",
@@ -656,7 +665,7 @@ int Run(const Args& a) {
   planning::PlanOptions po;
   po.threads = 2;
   const planning::Strategy strategy = planning::PlanStrategy(scene, po);
-  WriteTextOutput(planning::StrategyToJson(scene, strategy, a.speed), (dir / "plan.json").string());
+  WriteTextOutput(planning::StrategyToJson(scene, strategy, a.speed / a.slow), (dir / "plan.json").string());
   WriteTextOutput(planning::StrategyToSvg(scene, cspace, strategy), (dir / "plan.svg").string());
   if (!strategy.feasible) throw JobFailed("no strategy: " + strategy.reason);
   const double plan_s = std::chrono::duration<double>(Clock::now() - t0).count();
@@ -763,7 +772,8 @@ int Run(const Args& a) {
                             {"commands_sent", quantiles(commands)},
                             {"visual_events", quantiles(events)},
                             {"jobs", a.jobs},
-                            {"speed", a.speed},
+                            {"speed", a.speed / a.slow},
+                            {"slow_machine", a.slow},
                             {"camera", su.rendered ? "rendered" : "events"},
                             {"transport", a.can ? "can" : "lcm"},
                             {"netns", a.netns},
@@ -819,6 +829,11 @@ void RegisterDemoCommand(CLI::App& app) {
   cmd->add_flag("--keep-logs", args->keep_logs,
                 "Monte Carlo: keep every run's LCM logs (default: only the failed runs' logs)");
   cmd->add_option("--timeout", args->timeout_s, "give up a run after this many seconds")->capture_default_str();
+  cmd->add_option("--slow-machine", args->slow,
+                  "the machine is this many times slower than a 2-core PC (e.g. 10 in the HIL VM's emulated CPU): "
+                  "the processes' time limits (vision age, hold, start-up, status, heartbeat, watchdog, --timeout) "
+                  "are multiplied by it, the commanded speed and the camera rate divided by it, no supersampling")
+      ->capture_default_str();
   cmd->add_flag("--netns", args->netns,
                 "run every process on a host of its own: a network namespace each, joined by veth to a bridge, LCM "
                 "multicast with ttl=1 between them, as on several machines (needs root; summary.json records where "

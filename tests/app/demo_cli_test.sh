@@ -79,6 +79,9 @@ out=$("$visco" demo --scene "$tmp/nonexistent.json" --out "$tmp/bad" 2>&1); stat
 [[ $status -eq 2 ]] || fail "a missing scene exited $status, expected 2: $out"
 out=$("$visco" demo --runs 0 --out "$tmp/bad" 2>&1); status=$?
 [[ $status -eq 2 ]] || fail "--runs 0 exited $status, expected 2: $out"
+out=$("$visco" demo --slow-machine 0.5 --out "$tmp/bad" 2>&1); status=$?
+[[ $status -eq 2 ]] || fail "--slow-machine 0.5 exited $status, expected 2: $out"
+[[ $out == *"--slow-machine"* ]] || fail "the --slow-machine error does not name the option: $out"
 
 echo "$(( failures == 0 ? 1 : 0 )) passed, $(( failures == 0 ? 0 : 1 )) failed"
 exit $(( failures == 0 ? 0 : 1 ))
