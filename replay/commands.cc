@@ -12,9 +12,11 @@
 namespace visco::replay {
 namespace {
 
-void Run(const ReplayOptions& options) {
-  ReplayOptions o = options;
-  o.progress = o.progress && ::isatty(STDERR_FILENO) == 1;
+// Thrown to end the loops when the user stops at a --step prompt (the summary of that replay is printed).
+struct Interrupted {};
+
+void RunOnce(const ReplayOptions& o, int loop, int loops) {
+  if (loops > 1) std::fprintf(stderr, "replay: loop %d of %d\n", loop, loops);
   const ReplaySummary s = RunReplay(o);
   if (!s.log.clean()) std::fprintf(stderr, "replay: %s: %s\n", o.log_path.c_str(), s.log.Describe().c_str());
   for (const auto& [channel, count] : s.unknown_channels) {
@@ -46,6 +48,22 @@ void Run(const ReplayOptions& options) {
     throw JobFailed("replay --check: first difference on " + d.channel + " at log time " + std::to_string(d.log_utime) +
                     " (" + where + "), field " + d.field.field + ": log " + d.field.logged + ", replay " +
                     d.field.replayed);
+  }
+  if (s.stopped_at_step) throw Interrupted();
+}
+
+void Run(const ReplayOptions& options, int loops) {
+  ReplayOptions o = options;
+  o.progress = o.progress && ::isatty(STDERR_FILENO) == 1;
+  if (loops < 1) throw InputError("command line", "--loop", "must be at least 1");
+  if (loops > 1 && o.check) {
+    throw InputError("command line", "--loop", "repeats a replay for watching it; --check compares once");
+  }
+  try {
+    // Every loop is a replay of its own (a fresh pipeline and controller): each gives the same output.
+    for (int loop = 1; loop <= loops; ++loop) RunOnce(o, loop, loops);
+  } catch (const Interrupted&) {
+    std::fprintf(stderr, "replay: stopped at a --step prompt\n");
   }
 }
 
@@ -92,8 +110,14 @@ void RegisterCommands(CLI::App& app) {
   cmd->add_option("--strategy", o->strategy_path, "controller: the strategy file (default: the one the log names)");
   cmd->add_option("--scene", o->scene_path, "controller: the scene file (default: the one the log names)");
   cmd->add_option("--rays", o->rays_path, "controller: the rays file (default: the one the log names)");
+  cmd->add_flag("--step", o->step,
+                "step through the log's images in [--from, --to]: a prompt before each (Enter: next, N: N on, c: go "
+                "on, q: stop)");
+  auto loops = std::make_shared<int>(1);
+  cmd->add_option("--loop", *loops, "replay [--from, --to] this many times (each replay from a fresh pipeline)")
+      ->capture_default_str();
   o->progress = true;
-  cmd->callback([o] { Run(*o); });
+  cmd->callback([o, loops] { Run(*o, *loops); });
 }
 
 }  // namespace visco::replay

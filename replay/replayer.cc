@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <deque>
 #include <lcm/lcm-cpp.hpp>
@@ -277,6 +278,9 @@ ReplaySummary ReplaySource(const ReplayOptions& o, const vision::LoadedPipeline&
 ReplaySummary RunReplay(const ReplayOptions& o) {
   const int sources = (o.log_path.empty() ? 0 : 1) + (o.images_dir.empty() ? 0 : 1) + (o.video_path.empty() ? 0 : 1);
   if (sources != 1) throw InputError("command line", "LOG/--images/--video", "give exactly one of them");
+  if (o.step && o.log_path.empty()) {
+    throw InputError("command line", "--step", "steps through a log's images: give a LOG, not --images/--video");
+  }
   if (o.check && o.log_path.empty()) {
     throw InputError("command line", "--check", "compares with what a log holds: give a LOG, not --images/--video");
   }
@@ -402,6 +406,29 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
 
   bool stopped = false;
   bool cut_off = false;
+  bool stepping = o.step;
+  std::int64_t step_skip = 0;
+  // --step: true to process the image, false to stop the replay here.
+  auto step_prompt = [&](const image_t& image, double t) {
+    if (!stepping) return true;
+    if (step_skip > 0) {
+      --step_skip;
+      return true;
+    }
+    std::fprintf(stderr, "%sreplay: image seq %lld at %.3f s (log time): Enter = next, N = N on, c = go on, q = stop: ",
+                 o.progress ? "\n" : "", static_cast<long long>(image.seq), t);
+    std::fflush(stderr);
+    char line[64];
+    if (std::fgets(line, sizeof(line), o.step_input) == nullptr) {
+      stepping = false;  // the input ended: go on without stopping
+      return true;
+    }
+    if (line[0] == 'q') return false;
+    if (line[0] == 'c') stepping = false;
+    const long n = std::strtol(line, nullptr, 10);
+    if (n > 1) step_skip = n - 1;
+    return true;
+  };
   std::map<std::int64_t, visual_events_t> replayed_events;      // by frame seq, for the controller
   std::map<std::int64_t, robot_estimate_t> replayed_estimates;  // by frame seq
   std::int64_t images_seen = 0;
@@ -434,6 +461,10 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
     if (!logged_frames.empty() && logged_frames.count(message.utime) == 0) {
       ++s.skipped_frames;  // the live pipeline never saw it (its queue dropped it, or it was killed first)
       continue;
+    }
+    if (t >= o.from_s && !step_prompt(message, t)) {
+      s.stopped_at_step = true;
+      break;
     }
     pace(e.timestamp);
     log_now = e.timestamp;
@@ -532,6 +563,8 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
     s.control_note = "the log holds controller records but not the run's configuration (the run did not end normally)";
   } else if (stopped) {
     s.control_note = "not replayed: vision already differs";
+  } else if (s.stopped_at_step) {
+    s.control_note = "not replayed: the replay was stopped at a --step prompt";
   } else {
     log_annotation_t a;
     DecodeAs(events[static_cast<std::size_t>(annotation)], a);
@@ -681,6 +714,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
 std::string ReplaySummary::ToJson() const {
   nlohmann::json j;
   j["identical"] = identical();
+  j["stopped_at_step"] = stopped_at_step;
   j["images"] = images;
   j["frames"] = frames;
   j["bad_frames"] = bad_frames;

@@ -14,6 +14,7 @@
 // (PipelineOptions::clock), so that nothing it computes depends on the wall clock or on the replay's speed.
 
 #include <cstdint>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <string>
@@ -49,6 +50,11 @@ struct ReplayOptions {
   bool progress = false;                             // a progress line on stderr
   bool control = true;                               // replay the controller when the log holds its records
   std::string strategy_path, scene_path, rays_path;  // override the run's files (default: those the log names)
+  // Step through the images of [from, to]: before each one, a prompt on stderr and a line from `step_input`: empty
+  // for the next image, a number N for N images on, "c" to go on without stopping, "q" to stop there. The end of
+  // the input goes on without stopping.
+  bool step = false;
+  std::FILE* step_input = stdin;
 };
 
 struct Difference {
@@ -62,6 +68,7 @@ struct Difference {
 
 struct ReplaySummary {
   ReadReport log;
+  bool stopped_at_step = false;  // "q" at a --step prompt
   std::int64_t log_start_utime = 0, log_end_utime = 0;
   double log_frame_rate_hz = 0;  // images per second of log time
   std::int64_t images = 0;       // image events replayed

@@ -124,6 +124,28 @@ status=$("$visco_rt" driver --lcm-url "$url" --log "$tmp/rt.lcmlog" --duration 0
 [[ $status -eq 2 ]] || fail "visco-rt driver --log: exit $status, expected 2"
 grep -q "cannot write event logs" "$tmp/err.log" || fail "visco-rt does not say why it refuses --log"
 
+# --step: Enter, Enter, "3" (three images on), then "q" at the sixth image: five frames, the controller not replayed.
+printf '\n\n3\nq\n' | "$visco" replay "$log" "${cam[@]}" --fast --no-publish --step >"$tmp/step.json" 2>"$tmp/err.log"
+python3 -S -c '
+import json, sys
+s = json.load(open(sys.argv[1]))
+sys.exit(0 if s["frames"] == 5 and s["stopped_at_step"] else 1)' "$tmp/step.json" ||
+  fail "--step with answers Enter Enter 3 q: $(cat "$tmp/step.json") $(tail -n 2 "$tmp/err.log")"
+grep -q "not replayed: the replay was stopped at a --step prompt" "$tmp/err.log" ||
+  fail "--step q: the controller note is missing"
+# --loop 2 over a window: two summaries, the same but for the timing.
+"$visco" replay "$log" "${cam[@]}" --fast --no-publish --from 0.3 --to 1.0 --loop 2 >"$tmp/loop.json" 2>"$tmp/err.log" ||
+  fail "--loop 2 exited $?"
+python3 -S -c '
+import json, sys
+runs = [json.loads(l) for l in open(sys.argv[1]) if l.startswith("{")]
+for r in runs:
+    r.pop("wall_s", None); r.pop("frames_per_s", None)
+sys.exit(0 if len(runs) == 2 and runs[0] == runs[1] and runs[0]["frames"] > 0 else 1)' "$tmp/loop.json" ||
+  fail "--loop 2 did not give two identical summaries: $(cat "$tmp/loop.json")"
+status=$(replay "$log" --check --loop 2)
+[[ $status -eq 2 ]] || fail "--check with --loop 2: exit $status, expected 2"
+
 # Never hardware unless armed.
 status=$(replay "$log" --can vcan0)
 [[ $status -eq 2 ]] || fail "--can without --arm: exit $status"
