@@ -278,6 +278,11 @@ ReplaySummary ReplaySource(const ReplayOptions& o, const vision::LoadedPipeline&
 ReplaySummary RunReplay(const ReplayOptions& o) {
   const int sources = (o.log_path.empty() ? 0 : 1) + (o.images_dir.empty() ? 0 : 1) + (o.video_path.empty() ? 0 : 1);
   if (sources != 1) throw InputError("command line", "LOG/--images/--video", "give exactly one of them");
+  if (o.seek && o.check) {
+    throw InputError("command line", "--seek",
+                     "vision would start fresh at --from, not in the live run's state: --check needs the frames "
+                     "before it (leave --seek out)");
+  }
   if (o.step && o.log_path.empty()) {
     throw InputError("command line", "--step", "steps through a log's images: give a LOG, not --images/--video");
   }
@@ -432,7 +437,25 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
   std::map<std::int64_t, visual_events_t> replayed_events;      // by frame seq, for the controller
   std::map<std::int64_t, robot_estimate_t> replayed_estimates;  // by frame seq
   std::int64_t images_seen = 0;
-  for (const LogEvent& e : events) {
+  // --seek: the first event at or after --from. The event table (one scan of the headers of the mapped file) is the
+  // index; a log whose timestamps go back (damaged, or merged) is searched linearly.
+  std::size_t first_event = 0;
+  if (o.seek && o.from_s > 0) {
+    const auto at = [&](const LogEvent& e) { return SecondsBetween(s.log_start_utime, e.timestamp); };
+    const bool sorted = std::is_sorted(events.begin(), events.end(),
+                                       [](const LogEvent& a, const LogEvent& b) { return a.timestamp < b.timestamp; });
+    if (sorted) {
+      first_event =
+          static_cast<std::size_t>(std::lower_bound(events.begin(), events.end(), o.from_s,
+                                                    [&](const LogEvent& e, double from) { return at(e) < from; }) -
+                                   events.begin());
+    } else {
+      while (first_event < events.size() && at(events[first_event]) < o.from_s) ++first_event;
+    }
+    s.seeked_events = static_cast<std::int64_t>(first_event);
+  }
+  for (std::size_t event_index = first_event; event_index < events.size(); ++event_index) {
+    const LogEvent& e = events[event_index];
     const double t = SecondsBetween(s.log_start_utime, e.timestamp);
     if (t > o.to_s) break;
     const std::string channel(e.channel);
@@ -715,6 +738,7 @@ std::string ReplaySummary::ToJson() const {
   nlohmann::json j;
   j["identical"] = identical();
   j["stopped_at_step"] = stopped_at_step;
+  j["seeked_events"] = seeked_events;
   j["images"] = images;
   j["frames"] = frames;
   j["bad_frames"] = bad_frames;

@@ -55,6 +55,9 @@ struct ReplayOptions {
   // the input goes on without stopping.
   bool step = false;
   std::FILE* step_input = stdin;
+  // Start at --from directly: the images before it are not run through vision (vision starts fresh there, so its
+  // tracking state is not the live run's: not with --check).
+  bool seek = false;
 };
 
 struct Difference {
@@ -68,7 +71,8 @@ struct Difference {
 
 struct ReplaySummary {
   ReadReport log;
-  bool stopped_at_step = false;  // "q" at a --step prompt
+  bool stopped_at_step = false;    // "q" at a --step prompt
+  std::int64_t seeked_events = 0;  // events before --from that --seek skipped
   std::int64_t log_start_utime = 0, log_end_utime = 0;
   double log_frame_rate_hz = 0;  // images per second of log time
   std::int64_t images = 0;       // image events replayed

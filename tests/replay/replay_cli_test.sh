@@ -146,6 +146,17 @@ sys.exit(0 if len(runs) == 2 and runs[0] == runs[1] and runs[0]["frames"] > 0 el
 status=$(replay "$log" --check --loop 2)
 [[ $status -eq 2 ]] || fail "--check with --loop 2: exit $status, expected 2"
 
+# --seek: straight to --from (no warm-up frames through vision); refused with --check.
+status=$(replay "$log" --seek --from 1.0)
+[[ $status -eq 0 ]] || fail "--seek --from 1.0: exit $status"
+python3 -S -c '
+import json, sys
+s = json.load(open(sys.argv[1]))
+sys.exit(0 if s["warmup_frames"] == 0 and s["seeked_events"] > 0 and s["frames"] > 0 else 1)' "$tmp/out.json" ||
+  fail "--seek --from 1.0 did not skip the frames before 1 s: $(cat "$tmp/out.json")"
+status=$(replay "$log" --seek --from 1.0 --check)
+[[ $status -eq 2 ]] || fail "--seek with --check: exit $status, expected 2"
+
 # Never hardware unless armed.
 status=$(replay "$log" --can vcan0)
 [[ $status -eq 2 ]] || fail "--can without --arm: exit $status"
