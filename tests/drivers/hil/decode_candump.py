@@ -385,8 +385,10 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
             problems.append("no replayed status frame in the log")
         if errors == 0:
             problems.append("no error frame in the log")
-    for p in problems:
+    for p in problems[:50]:
         report("FAIL " + p)
+    if len(problems) > 50:
+        report("FAIL ... and %d more problems (the first 50 are listed)" % (len(problems) - 50))
     if quiet:
         return problems
     return 1 if problems else 0
