@@ -127,6 +127,10 @@ class LcmSource : public FrameSource {
   ~LcmSource() override { bus_.unsubscribe(sub_); }
   SourceStatus Next(Frame& frame, std::string& error, int timeout_ms) override {
     if (queue_.empty()) bus_.handleTimeout(timeout_ms);
+    // Drain what is waiting in the socket (bounded): left there, a backlog makes the kernel drop the newest frames
+    // unseen. The queue keeps the newest few; the pipeline reports what was skipped as a gap in the frame counter.
+    for (int i = 0; i < kMaxDrain && bus_.handleTimeout(0) > 0; ++i) {
+    }
     if (queue_.empty()) return SourceStatus::kNoFrameYet;
     const visco::image_t msg = std::move(queue_.front());
     queue_.pop_front();
@@ -139,6 +143,7 @@ class LcmSource : public FrameSource {
   }
 
  private:
+  static constexpr int kMaxDrain = 64;
   lcm::LCM& bus_;
   lcm::Subscription* sub_ = nullptr;
   std::deque<visco::image_t> queue_;
@@ -265,7 +270,8 @@ VisionPipeline::VisionPipeline(const CameraModel& camera, const Eigen::Isometry3
       tracker_(options.detector, WithExpectedIds(options.tracker, models)),
       features_(camera, wMc, models, options.noise, options.pose, options.contact) {}
 
-visco::fault_t VisionPipeline::BadFrame(const Frame& frame, const std::string& error) const {
+visco::fault_t VisionPipeline::BadFrame(const Frame& frame, const std::string& error) {
+  if (last_seq_ && frame.seq > *last_seq_ && (!last_utime_ || frame.utime > *last_utime_)) last_seq_ = frame.seq;
   return Fault(frame.utime, visco::fault_t::CODE_BAD_MESSAGE, visco::fault_t::SEVERITY_WARNING,
                Describe(frame) + ": " + error + "; dropped");
 }
@@ -283,10 +289,40 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
     out.faults.push_back(BadFrame(frame, "empty or inconsistent image"));
     return out;
   }
-  if (last_utime_ && (frame.utime <= *last_utime_ || frame.seq <= *last_seq_)) {
+  // Frames are ordered by capture time; the frame counter tells what was lost in between.
+  if (last_utime_ && frame.utime <= *last_utime_) {
     out.faults.push_back(BadFrame(frame, "out of order (previous frame seq " + std::to_string(*last_seq_) + ", utime " +
                                              std::to_string(*last_utime_) + ")"));
     return out;
+  }
+  if (last_seq_) {
+    const std::int64_t previous = *last_seq_;
+    if (frame.seq > previous + 1) {
+      // Lost frames: reported with their numbers; the tracker's prediction from the last frame is void.
+      ++gaps_;
+      out.faults.push_back(Fault(frame.utime, visco::fault_t::CODE_VISION_STALE, visco::fault_t::SEVERITY_WARNING,
+                                 "frames " + std::to_string(previous + 1) + ".." + std::to_string(frame.seq - 1) +
+                                     " (" + std::to_string(frame.seq - previous - 1) + ") lost before " +
+                                     Describe(frame) + ": full detection"));
+      tracker_.Reset();
+    } else if (frame.seq == previous) {
+      // A camera whose counter does not advance: frames are taken by time, and gaps cannot be seen (said once).
+      if (!unsequenced_) {
+        unsequenced_ = true;
+        out.faults.push_back(Fault(frame.utime, visco::fault_t::CODE_BAD_MESSAGE, visco::fault_t::SEVERITY_WARNING,
+                                   "the camera's frame counter does not advance (" + Describe(frame) +
+                                       "): frames are ordered by time, lost frames cannot be detected"));
+      }
+    } else if (frame.seq < previous) {
+      // The counter went back while time went on: the camera restarted. Nothing of the old stream carries over.
+      ++restarts_;
+      out.faults.push_back(Fault(frame.utime, visco::fault_t::CODE_BAD_MESSAGE, visco::fault_t::SEVERITY_WARNING,
+                                 "stream restart: " + Describe(frame) + " after frame seq " + std::to_string(previous) +
+                                     ": tracker and features reset"));
+      tracker_.Reset();
+      features_.Reset();
+      unsequenced_ = false;
+    }
   }
   last_utime_ = frame.utime;
   last_seq_ = frame.seq;

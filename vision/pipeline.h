@@ -133,9 +133,13 @@ class VisionPipeline {
                  const PipelineOptions& options);
   /// Processes one frame that arrived at `arrival_utime` (for the latency fields).
   PipelineOutput Process(const Frame& frame, std::int64_t arrival_utime);
-  /// Reports a frame the source could not deliver.
-  visco::fault_t BadFrame(const Frame& frame, const std::string& error) const;
+  /// Reports a frame the source could not deliver (or that is unusable). Its number counts as seen: it is reported
+  /// here, not again as a gap before the next frame.
+  visco::fault_t BadFrame(const Frame& frame, const std::string& error);
   const FeatureEstimator& features() const { return features_; }
+  /// Gaps in the frame counter (lost frames, each reported) and stream restarts (the counter went back) so far.
+  std::int64_t gaps() const { return gaps_; }
+  std::int64_t restarts() const { return restarts_; }
 
  private:
   CameraModel camera_;
@@ -143,6 +147,8 @@ class VisionPipeline {
   TagTracker tracker_;
   FeatureEstimator features_;
   std::optional<std::int64_t> last_utime_, last_seq_;
+  bool unsequenced_ = false;  // the camera's frame counter does not advance
+  std::int64_t gaps_ = 0, restarts_ = 0;
   bool robot_lost_reported_ = false;
   std::set<std::pair<std::string, int>> outlier_reported_;  // (object id, tag id) reported as inconsistent
 };

@@ -113,6 +113,60 @@ TEST(Pipeline, FolderWithBadFilesToLcmAndLatestValue) {
   std::filesystem::remove_all(dir);
 }
 
+// Issue 16: frames are ordered by capture time; the counter says what was lost. A gap is reported with the lost
+// frames' numbers (and the tracker detects in full again); a counter that goes back while time goes on is a stream
+// restart (reported; tracker and features reset), not a reason to reject the camera for ever; a counter that does
+// not advance is said once, and its frames are taken.
+TEST(Pipeline, GapsRestartsAndCountersThatDoNotAdvanceAreReported) {
+  const World w;
+  VisionPipeline pipeline(kCam, w.wMc, w.models, Options());
+  auto frame = [&](std::int64_t seq, std::int64_t utime) {
+    Frame f;
+    f.seq = seq;
+    f.utime = utime;
+    f.image = w.Render(0, true);  // a still scene: only the counter changes
+    return f;
+  };
+  auto messages = [](const PipelineOutput& o) {
+    std::string all;
+    for (const auto& f : o.faults) all += f.message + "; ";
+    return all;
+  };
+  ASSERT_TRUE(pipeline.Process(frame(10, 1000), 0).processed);
+  ASSERT_TRUE(pipeline.Process(frame(11, 2000), 0).processed);
+  auto gap = pipeline.Process(frame(15, 3000), 0);
+  ASSERT_TRUE(gap.processed);
+  EXPECT_TRUE(gap.full_detection) << "the tracker's prediction is void after a gap";
+  ASSERT_EQ(gap.faults.size(), 1u) << messages(gap);
+  EXPECT_EQ(gap.faults[0].code, visco::fault_t::CODE_VISION_STALE);
+  EXPECT_NE(gap.faults[0].message.find("frames 12..14 (3) lost"), std::string::npos) << gap.faults[0].message;
+  EXPECT_EQ(pipeline.gaps(), 1);
+  auto next = pipeline.Process(frame(16, 4000), 0);
+  EXPECT_TRUE(next.faults.empty()) << messages(next);
+  EXPECT_FALSE(next.full_detection);
+
+  auto restart = pipeline.Process(frame(0, 5000), 0);
+  ASSERT_TRUE(restart.processed) << "a restarted camera is taken, not rejected for ever";
+  ASSERT_EQ(restart.faults.size(), 1u) << messages(restart);
+  EXPECT_NE(restart.faults[0].message.find("stream restart"), std::string::npos) << restart.faults[0].message;
+  EXPECT_TRUE(restart.full_detection);
+  EXPECT_EQ(pipeline.restarts(), 1);
+  EXPECT_TRUE(restart.robot.valid);
+
+  // A counter stuck at 0: said once, every frame taken.
+  auto same = pipeline.Process(frame(0, 6000), 0);
+  ASSERT_TRUE(same.processed);
+  ASSERT_EQ(same.faults.size(), 1u) << messages(same);
+  EXPECT_NE(same.faults[0].message.find("does not advance"), std::string::npos) << same.faults[0].message;
+  for (int k = 0; k < 5; ++k) {
+    auto again = pipeline.Process(frame(0, 7000 + 1000 * k), 0);
+    EXPECT_TRUE(again.processed);
+    EXPECT_TRUE(again.faults.empty()) << messages(again);
+  }
+  EXPECT_EQ(pipeline.gaps(), 1);
+  EXPECT_EQ(pipeline.restarts(), 1);
+}
+
 TEST(Pipeline, OutOfOrderFramesAndLostRobotAreReported) {
   const World w;
   VisionPipeline pipeline(kCam, w.wMc, w.models, Options());
