@@ -42,7 +42,7 @@ class LcmLink : public ::testing::Test {
     transport_config.lcm_url = Url();
     transport_ = MakeLcmDriverTransport(transport_config);
     DriverConfig config;
-    config.watchdog_us = 100'000;
+    config.watchdog_us = watchdog_us_;
     config.session_seed = ++seed_;
     robot_ = std::make_unique<SimulatedRobot>(SimulatedRobotConfig{});
     driver_ = std::make_unique<Driver>(config, *transport_, *robot_);
@@ -90,6 +90,7 @@ class LcmLink : public ::testing::Test {
   // Seeds unique in the process: the tests share one LCM bus, so a driver must never repeat another test's nonces.
   static inline std::atomic<std::uint64_t> next_seed_{static_cast<std::uint64_t>(getpid()) * 1000};
   std::uint64_t seed_ = next_seed_.fetch_add(100);
+  std::int64_t watchdog_us_ = 100'000;  // the driver's command watchdog (StartDriver)
   VelocityCommand command_;
   RobotStatus last_;
   std::vector<LinkFault> faults_;
@@ -197,6 +198,13 @@ TEST_F(LcmLink, ANewControllerWaitsForAFreshSession) {
 // accepted commands before this link sent any is another controller's; the link reports it (a warning), sends
 // nothing but stops in it, and commands in the fresh session the driver issues once the other controller is silent.
 TEST_F(LcmLink, ANewControllerLeavesAnotherControllersSessionAlone) {
+  // B's link starts while A commands: under ThreadSanitizer that stalls the other threads for up to ~250 ms, longer
+  // than the fixture's 100 ms watchdog, which would end A's session before B sees it (a flaky failure, not the case
+  // under test). A driver with a 500 ms watchdog here.
+  link_.reset();
+  watchdog_us_ = 500'000;
+  RestartDriver();
+  link_ = MakeLcmRobotLink(LinkConfig());
   command_.reset = true;
   ASSERT_TRUE(RunUntil(
       3'000'000, [&] { return last_.state == RobotState::kReady; }, true));
