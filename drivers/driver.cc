@@ -196,6 +196,14 @@ void Driver::OnCommand(const DriverEvent& event, std::int64_t now_us) {
   } else if (event.command.quick_stop) {
     QuickStopRequested(verdict == can::CommandVerdict::kAccept);
   }
+  if (session_expired_ && verdict == can::CommandVerdict::kAccept && !event.command.estop &&
+      !event.command.quick_stop) {
+    // The session ended earlier in this update (a stop, the operator's release) and the next one starts at its end:
+    // frames of the ended session still queued, sent before the stop, are void already (found in the HIL VM: a
+    // reset sent during an e-stop, read just after the operator's release, enabled the driver).
+    ++stats_.wrong_session;
+    return;
+  }
   if (verdict != can::CommandVerdict::kAccept) {
     Reject(verdict, event, seq);
     // The answer shows the fault bit and the last accepted number; at most one per kRejectAnswerIntervalUs, so that

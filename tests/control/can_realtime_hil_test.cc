@@ -36,8 +36,7 @@
 #include "drivers/socketcan.h"
 #include "tests/control/harness.h"
 #include "tests/control/realtime_guard.h"
-
-extern char** environ;
+#include "tests/drivers/hil/driver_process.h"
 
 namespace visco::control {
 namespace {
@@ -48,51 +47,19 @@ using testing::RealtimeGuard;
 constexpr int kNode = 5;  // not the drivers HIL test's node 1: its frames stay apart in the boot's candump
 constexpr std::int64_t kStartTimeoutUs = 120'000'000;
 
-std::string VisCo() {
-  const char* bin = std::getenv("VISCO_BIN");
-  return bin != nullptr ? bin : "build/bin/visco-rt";
-}
-
-// A `visco-rt driver --can vcan0` process of its own per scenario (a fresh session, no latched e-stop).
-class DriverProcess {
+// A driver process of its own per scenario (a fresh session, no latched e-stop).
+class DriverProcess : public drivers::testing::DriverProcess {
  public:
-  explicit DriverProcess(const std::vector<std::string>& extra) {
-    std::vector<std::string> args = {"/usr/bin/taskset",
-                                     "-c",
-                                     "1",
-                                     VisCo(),
-                                     "driver",
-                                     "--can",
-                                     "vcan0",
-                                     "--node",
-                                     std::to_string(kNode),
-                                     "--watchdog-ms",
-                                     "300",
-                                     "--max-speed",
-                                     "0.5",
-                                     "--velocity-cone-deg",
-                                     "0",
-                                     "--start",
-                                     "0",
-                                     "0"};
-    args.insert(args.end(), extra.begin(), extra.end());
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    if (posix_spawn(&pid_, argv[0], nullptr, nullptr, argv.data(), environ) != 0) pid_ = -1;
-  }
-  ~DriverProcess() { Kill(SIGTERM); }
-  bool started() const { return pid_ > 0; }
-  void Kill(int signal) {
-    if (pid_ <= 0) return;
-    kill(pid_, signal);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-    pid_ = -1;
-  }
+  explicit DriverProcess(const std::vector<std::string>& extra) : drivers::testing::DriverProcess(Args(extra)) {}
 
  private:
-  pid_t pid_ = -1;
+  static std::vector<std::string> Args(const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {"--can",   "vcan0",       "--node", std::to_string(kNode), "--watchdog-ms",
+                                     "300",     "--max-speed", "0.5",    "--velocity-cone-deg", "0",
+                                     "--start", "0",           "0"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return args;
+  }
 };
 
 struct PageFaults {

@@ -509,6 +509,26 @@ TEST(Driver, BusOffStopsAndRecoveryNeedsReset) {
   EXPECT_EQ(rig.driver.state(), RobotState::kReady);
 }
 
+// A stop or the operator's release ends the session at once, though the next one is announced at the end of the
+// update: a frame of the ended session read in the same update (sent before the release) does not enable the driver.
+TEST(Driver, FramesOfASessionThatEndedInThisUpdateAreVoid) {
+  Rig rig;
+  rig.Enable();
+  rig.transport.Command(0.0, 0.0, true);  // e-stop
+  rig.Run(1);
+  ASSERT_EQ(rig.driver.state(), RobotState::kEStop);
+  const std::uint32_t estop_session = rig.transport.session;
+  rig.driver.RequestOperatorRelease();
+  // A reset numbered in the e-stop's session, already queued when the release is handled.
+  rig.transport.CommandAs(estop_session, rig.transport.next++, 0.0, 0.0, false, true);
+  rig.Run(1);
+  EXPECT_EQ(rig.driver.state(), RobotState::kDisabled) << "a reset sent before the release enabled the driver";
+  EXPECT_NE(rig.transport.session, estop_session);
+  rig.transport.Command(0.0, 0.0, false, true);  // the controller's reset in the new session
+  rig.Run(1);
+  EXPECT_EQ(rig.driver.state(), RobotState::kReady);
+}
+
 // Issue 15, a flood: the kernel's drops (SO_RXQ_OVFL) are counted at once and reported at most once per 100 ms
 // with the number lost; a flood of rejected frames is answered with at most one status per millisecond (not three
 // frames per bad frame), while a single bad frame still gets its answer.

@@ -28,6 +28,7 @@
 #include "drivers/driver_transport.h"
 #include "drivers/robot_link.h"
 #include "drivers/socketcan.h"
+#include "tests/drivers/hil/driver_process.h"
 
 extern char** environ;
 
@@ -47,46 +48,16 @@ constexpr std::int64_t kSlackUs = 100'000;
 constexpr std::int64_t kQuickStopUs = 10'000;  // 0.5 m/s at 50 m/s^2
 constexpr std::int64_t kStatusPeriodUs = 10'000;
 
-std::string VisCo() {
-  const char* bin = std::getenv("VISCO_BIN");
-  return bin != nullptr ? bin : "build/bin/visco-rt";
-}
-
-// The `visco driver` process.
-class DriverProcess {
+// The `visco driver` process of the suite.
+class DriverProcess : public testing::DriverProcess {
  public:
-  DriverProcess() { Start(); }
-  ~DriverProcess() { Kill(SIGTERM); }
-  void Start() {
-    const std::string bin = VisCo();
-    // Each process on its own CPU: vcan hands frames to per-CPU backlog queues, so a sender that migrates between
-    // CPUs can have its frames delivered out of order (a real bus cannot reorder). The driver would rightly reject
-    // those as out of sequence, but the test wants to see only the faults it injects.
-    std::vector<std::string> args = {
-        "/usr/bin/taskset", "-c",  "1",           bin,   "driver",  "--can", "vcan0", "--node", "1",
-        "--watchdog-ms",    "300", "--max-speed", "0.5", "--start", "1",     "2"};
-    std::vector<char*> argv;
-    for (auto& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    ASSERT_EQ(posix_spawn(&pid_, argv[0], nullptr, nullptr, argv.data(), environ), 0) << bin;
-  }
-  void Kill(int signal) {
-    if (pid_ <= 0) return;
-    kill(pid_, signal);
-    int status = 0;
-    waitpid(pid_, &status, 0);
-    pid_ = -1;
+  DriverProcess()
+      : testing::DriverProcess(
+            {"--can", "vcan0", "--node", "1", "--watchdog-ms", "300", "--max-speed", "0.5", "--start", "1", "2"}) {
+    EXPECT_TRUE(started()) << testing::VisCoRt();
   }
   // The operator's e-stop release at the driver (drivers/README.md): SIGUSR1.
-  void ReleaseEStop() {
-    if (pid_ > 0) kill(pid_, SIGUSR1);
-  }
-  void Signal(int signal) {
-    if (pid_ > 0) kill(pid_, signal);
-  }
-
- private:
-  pid_t pid_ = -1;
+  void ReleaseEStop() { Signal(SIGUSR1); }
 };
 
 struct Observed {
@@ -514,7 +485,7 @@ TEST_F(CanHil, KilledControllerProcessTripsTheWatchdogAndANewControllerRecovers)
   listen.filters = {{can::kCommandBase + kNode, 0x7FF}};
   CanSocket commands(listen);
 
-  const std::string bin = VisCo();
+  const std::string bin = testing::VisCoRt();
   std::vector<std::string> args = {"/usr/bin/taskset",
                                    "-c",
                                    "0",
