@@ -415,13 +415,9 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
   if (su.rendered) {
     camera.insert(camera.end(), su.cam.begin(), su.cam.end());
     // On a slow machine fewer frames, rendered without supersampling, so that vision keeps up with them.
-    const std::string hz = fmt::format("{}", std::max(2.0, std::round(15 / a.slow)));
-    const char* supersample = a.slow > 1 ? "1" : "2";
-    for (const char* o : {"--latency-ms", "5", "--image-noise", "2", "--blur-px", "0.5"}) camera.push_back(o);
-    for (const std::string& o :
-         {std::string("--camera-hz"), hz, std::string("--supersample"), std::string(supersample)}) {
-      camera.push_back(o);
-    }
+    camera.insert(camera.end(),
+                  {"--camera-hz", fmt::format("{}", std::max(2.0, std::round(15 / a.slow))), "--supersample",
+                   a.slow > 1 ? "1" : "2", "--latency-ms", "5", "--image-noise", "2", "--blur-px", "0.5"});
   }
   children.push_back(spawn("camera",
                            on_host("camera", WithParameterFile(su.self, "sim", camera, rd / "params" / "camera.json")),

@@ -111,8 +111,8 @@ void RegisterCommands(CLI::App& app) {
   cmd->add_option("--scene", o->scene_path, "controller: the scene file (default: the one the log names)");
   cmd->add_option("--rays", o->rays_path, "controller: the rays file (default: the one the log names)");
   cmd->add_flag("--seek", o->seek,
-                "start at --from directly (binary search in the log's event table): the images before it do not go "
-                "through vision, so vision starts fresh there (not with --check)");
+                "start at --from directly (found in the log's event table, nothing decoded): the images before it do "
+                "not go through vision, so vision starts fresh there (not with --check)");
   cmd->add_flag("--step", o->step,
                 "step through the log's images in [--from, --to]: a prompt before each (Enter: next, N: N on, c: go "
                 "on, q: stop)");

@@ -437,20 +437,12 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
   std::map<std::int64_t, visual_events_t> replayed_events;      // by frame seq, for the controller
   std::map<std::int64_t, robot_estimate_t> replayed_estimates;  // by frame seq
   std::int64_t images_seen = 0;
-  // --seek: the first event at or after --from. The event table (one scan of the headers of the mapped file) is the
-  // index; a log whose timestamps go back (damaged, or merged) is searched linearly.
+  // --seek: the first event at or after --from, found in the event table (one scan of the mapped file's headers,
+  // above) without decoding anything; a plain scan, since a damaged log's timestamps need not be sorted.
   std::size_t first_event = 0;
-  if (o.seek && o.from_s > 0) {
-    const auto at = [&](const LogEvent& e) { return SecondsBetween(s.log_start_utime, e.timestamp); };
-    const bool sorted = std::is_sorted(events.begin(), events.end(),
-                                       [](const LogEvent& a, const LogEvent& b) { return a.timestamp < b.timestamp; });
-    if (sorted) {
-      first_event =
-          static_cast<std::size_t>(std::lower_bound(events.begin(), events.end(), o.from_s,
-                                                    [&](const LogEvent& e, double from) { return at(e) < from; }) -
-                                   events.begin());
-    } else {
-      while (first_event < events.size() && at(events[first_event]) < o.from_s) ++first_event;
+  if (o.seek) {
+    while (first_event < events.size() && SecondsBetween(s.log_start_utime, events[first_event].timestamp) < o.from_s) {
+      ++first_event;
     }
     s.seeked_events = static_cast<std::int64_t>(first_event);
   }

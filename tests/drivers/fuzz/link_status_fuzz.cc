@@ -12,6 +12,7 @@
 //   check cannot pass by delivering nothing);
 // - a triple that is not genuine (another session's, or corrupted in more than one bit) is accepted only where the
 //   8-bit CRCs of all three frames collide, counted and reported (about 2^-23 per attempt).
+// LINK_FUZZ_DEBUG=1 prints every non-genuine triple accepted, with the operation that fed it.
 // Built as a seeded random driver for every build (VISCO_FUZZ_STANDALONE, `drivers.link_status_fuzz_seeded`); the
 // same LLVMFuzzerTestOneInput can be linked with libFuzzer.
 
