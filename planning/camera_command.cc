@@ -38,7 +38,8 @@ struct Args {
   std::string scene;
   double grid = 0;
   std::string candidates;
-  double fov = 0;  // 0: the scene camera's width, else 100
+  double fov = 0;     // 0: the scene camera's width, else 100
+  double height = 0;  // 0: the scene camera's height if it has one, else none (the planar model)
   std::vector<double> aim;
   int max_steps = 2;
   int max_candidates = 24;
@@ -203,6 +204,11 @@ void Run(const Args& a) {
               : 100.0;
   }
   if (!(fov > 0 && fov < 180)) throw InputError("command line", "--fov", "must be strictly between 0 and 180 degrees");
+  if (a.height < 0 || !std::isfinite(a.height)) throw InputError("command line", "--height", "must be positive");
+  // 2.5D: candidates this high see over the prisms lower than them (docs/planning_cspace.md "Heights").
+  const std::optional<double> height = a.height > 0   ? std::optional<double>(a.height)
+                                       : scene.camera ? scene.camera->height
+                                                      : std::nullopt;
   const Point aim = a.aim.empty() ? DefaultAim(scene) : Point(a.aim[0], a.aim[1]);
   if (!std::isfinite(aim.x()) || !std::isfinite(aim.y())) throw InputError("command line", "--aim", "must be finite");
   const Point min = scene.bounds.min, max = scene.bounds.max;
@@ -219,7 +225,7 @@ void Run(const Args& a) {
       std::fprintf(stderr, "viewing cells ...\r");
       std::fflush(stderr);
     }
-    cells = ComputeViewingCells(scene, min, max);
+    cells = ComputeViewingCells(scene, min, max, height);
     std::fprintf(stderr,
                  "viewing cells: %d event lines, %d faces, %zu cells outside the obstacles, %d views "
                  "(n = %d obstacle vertices, m = %d robot hull vertices, (mn)^2 = %lld)\n",
@@ -263,7 +269,7 @@ void Run(const Args& a) {
   // so the search stops at the first step count that some candidate reaches (the best is the one planning each
   // with every step allowed would give; the others are reported as planned at that count).
   std::vector<std::optional<Camera>> cameras;
-  for (const Point& p : centers) cameras.push_back(AimedCamera(p, aim, fov));
+  for (const Point& p : centers) cameras.push_back(AimedCamera(p, aim, fov, height));
   std::vector<CameraEvaluation> evaluated;
   int searched = 0;
   for (int k = 1; k <= a.max_steps; ++k) {
@@ -286,6 +292,7 @@ void Run(const Args& a) {
   j["mode"] = mode == Mode::kCells ? "cells" : mode == Mode::kGrid ? "grid" : "candidates";
   j["region"] = {{"min", PointJson(min)}, {"max", PointJson(max)}};
   j["fov_deg"] = fov;
+  j["height"] = height ? Json(*height) : Json(nullptr);
   j["aim"] = PointJson(aim);
   j["max_steps"] = a.max_steps;
   j["steps_searched"] = searched;
@@ -351,6 +358,9 @@ void RegisterCameraCommand(CLI::App& app) {
       ->excludes(grid);
   cmd->add_option("--fov", args->fov,
                   "width of each candidate's field of view in degrees (default: the scene camera's, else 100)");
+  cmd->add_option("--height", args->height,
+                  "candidates stand this high above the plane (metres) and see over the obstacles' prisms lower than "
+                  "them (2.5D; obstacles need a `height`); default: the scene camera's height, else the planar model");
   cmd->add_option("--aim", args->aim, "where candidates look (default: midway between the start region and the goal)")
       ->expected(2);
   cmd->add_option("--max-steps", args->max_steps, "the most steps a strategy may have")->capture_default_str();

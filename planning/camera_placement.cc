@@ -63,7 +63,8 @@ bool SegmentEqual(const KSegment& a, const KSegment& b) { return a.source() == b
 
 }  // namespace
 
-ViewingCells ComputeViewingCells(const Scene& scene, const Point& min, const Point& max) {
+ViewingCells ComputeViewingCells(const Scene& scene, const Point& min, const Point& max,
+                                 std::optional<double> camera_height) {
   if (!(min.x() < max.x() && min.y() < max.y())) {
     throw InputError(scene.source, "region", "the candidate region must have min < max in x and y");
   }
@@ -124,6 +125,19 @@ ViewingCells ComputeViewingCells(const Scene& scene, const Point& min, const Poi
       const KPoint& h0 = hull[i];
       const KPoint& h1 = hull[(i + 1) % hull.size()];
       add_line(b, b + (h1 - h0));
+    }
+    // 2.5D: where b's line of sight starts or stops passing over a prism lower than the camera.
+    if (camera_height) {
+      for (const Obstacle& o : scene.obstacles) {
+        if (!o.height || !(*o.height < *camera_height)) continue;
+        const K::FT ratio = K::FT(*camera_height) / K::FT(*o.height);
+        const Polygon& poly = o.shape.polygon;
+        for (std::size_t i = 0; i < poly.size(); ++i) {
+          const KPoint e0 = b + ratio * (ToK(poly.Vertex(i)) - b);
+          const KPoint e1 = b + ratio * (ToK(poly.Vertex(i + 1)) - b);
+          add_line(e0, e1);
+        }
+      }
     }
   }
   std::sort(lines.begin(), lines.end(), SegmentLess);
@@ -195,19 +209,20 @@ ViewingCells ComputeViewingCells(const Scene& scene, const Point& min, const Poi
   });
   std::map<std::vector<ViewVertex>, int> views;
   for (ViewingCell& cell : out.cells) {
-    const auto [it, added] = views.emplace(ViewFrom(scene, cell.sample), static_cast<int>(views.size()));
+    const auto [it, added] = views.emplace(ViewFrom(scene, cell.sample, camera_height), static_cast<int>(views.size()));
     cell.view = it->second;
   }
   out.views = static_cast<int>(views.size());
   return out;
 }
 
-std::vector<ViewVertex> ViewFrom(const Scene& scene, const Point& p) {
+std::vector<ViewVertex> ViewFrom(const Scene& scene, const Point& p, std::optional<double> camera_height) {
   // Three closed sectors of 125 degrees cover the circle (they overlap): the union of what each sees.
   Scene probe = scene;
   std::vector<ViewVertex> view;
   for (double first : {0.0, 120.0, 240.0}) {
     probe.camera = MakePlanarCamera(p, first, 125.0);
+    probe.camera->height = camera_height;
     for (const UnoccludedVertex& u : FindUnoccludedVertices(probe)) {
       view.push_back({u.obstacle, u.vertex, u.cm[0], u.cm[1]});
     }
@@ -227,10 +242,12 @@ bool RanksBefore(const CameraEvaluation& a, const CameraEvaluation& b) {
   return a.center.y() < b.center.y();
 }
 
-Camera AimedCamera(const Point& center, const Point& aim, double fov_deg) {
+Camera AimedCamera(const Point& center, const Point& aim, double fov_deg, std::optional<double> height) {
   const Vector d = aim - center;
   const double middle = d.squaredNorm() > 0 ? std::atan2(d.y(), d.x()) * 180.0 / kPi : 0.0;
-  return MakePlanarCamera(center, middle - fov_deg / 2, fov_deg);
+  Camera camera = MakePlanarCamera(center, middle - fov_deg / 2, fov_deg);
+  camera.height = height;
+  return camera;
 }
 
 Point DefaultAim(const Scene& scene) {

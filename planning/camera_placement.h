@@ -43,7 +43,12 @@ struct ViewingCells {
 
 /// The viewing cells of `scene`'s obstacles and robot inside the rectangle [min, max]. Exact (CGAL's Arrangement_2
 /// on exact constructions); O(L^2) faces for L event lines. Not real-time safe. The scene's camera is ignored.
-ViewingCells ComputeViewingCells(const Scene& scene, const Point& min, const Point& max);
+/// With `camera_height` (2.5D: cameras that high above the plane, obstacles with heights), a prism of height h < H
+/// starts or stops hiding a vertex b where the line of sight from b first meets its footprint at h / H of the way:
+/// P on the image of the prism's boundary under the homothety about b of ratio H / h. The lines of those images'
+/// edges are events too (whole lines, so that the faces stay convex).
+ViewingCells ComputeViewingCells(const Scene& scene, const Point& min, const Point& max,
+                                 std::optional<double> camera_height = std::nullopt);
 
 /// What the planner sees from P when the field of view is the whole circle: per unoccluded obstacle vertex (its
 /// obstacle, its normalised index) the two CM vertices, sorted. Two points in one viewing cell have the same view.
@@ -55,7 +60,8 @@ struct ViewVertex {
   friend bool operator==(const ViewVertex&, const ViewVertex&) = default;
   friend auto operator<=>(const ViewVertex&, const ViewVertex&) = default;
 };
-std::vector<ViewVertex> ViewFrom(const Scene& scene, const Point& p);
+std::vector<ViewVertex> ViewFrom(const Scene& scene, const Point& p,
+                                 std::optional<double> camera_height = std::nullopt);
 
 /// How a candidate camera does: the strategy the planner finds with it.
 struct CameraEvaluation {
@@ -83,8 +89,8 @@ struct CameraSearchOptions {
 };
 
 /// The candidate camera at `center` looking at `aim`: the direction from the centre to the aim point (+x when they
-/// coincide) is the middle of a field of view `fov_deg` wide.
-Camera AimedCamera(const Point& center, const Point& aim, double fov_deg);
+/// coincide) is the middle of a field of view `fov_deg` wide, `height` above the plane if given (2.5D visibility).
+Camera AimedCamera(const Point& center, const Point& aim, double fov_deg, std::optional<double> height = std::nullopt);
 
 /// Where candidates look by default: midway between the start region's and the goal's vertex averages. @throws
 /// InputError if the scene has no start region.

@@ -171,8 +171,13 @@ Camera ReadCamera(const Reader& r, const Json& j) {
     r.CheckKeys(j, object, {"pinhole"}, {});
     return DerivePlanarCamera(ReadPinhole(r, j["pinhole"], "camera.pinhole"), r.source(), "camera.pinhole");
   }
-  r.CheckKeys(j, object, {"center", "fov_deg"}, {});
+  r.CheckKeys(j, object, {"center", "fov_deg"}, {"height"});
   const Point center = r.ReadPoint(j["center"], "camera.center");
+  std::optional<double> height;
+  if (j.contains("height")) {
+    height = r.Number(j["height"], "camera.height");
+    if (!(*height > 0)) r.Fail("camera.height", fmt::format("{} m: the camera must be above the plane (> 0)", *height));
+  }
   const Json& fov = j["fov_deg"];
   if (!fov.is_array() || fov.size() != 2) r.Fail("camera.fov_deg", "expected two directions [first, second]");
   const double first = r.Number(fov[0], "camera.fov_deg[0]");
@@ -188,7 +193,9 @@ Camera ReadCamera(const Reader& r, const Json& j) {
                        "second); it must be narrower than 180 degrees",
                        span));
   }
-  return MakePlanarCamera(center, first, span);
+  Camera camera = MakePlanarCamera(center, first, span);
+  camera.height = height;
+  return camera;
 }
 
 std::string ObstacleName(std::size_t i, const std::string& id) {
@@ -229,9 +236,15 @@ Scene Parse(const Reader& r, const Json& j, const std::string& default_name) {
       }
       name = ObstacleName(i, o["id"].get<std::string>());
     }
-    r.CheckKeys(o, name, {"id", "polygon"}, {});
+    r.CheckKeys(o, name, {"id", "polygon"}, {"height"});
     Obstacle obstacle;
     obstacle.id = o["id"].get<std::string>();
+    if (o.contains("height")) {
+      obstacle.height = r.Number(o["height"], name + ".height");
+      if (!(*obstacle.height > 0)) {
+        r.Fail(name + ".height", fmt::format("{} m: a prism's height must be positive", *obstacle.height));
+      }
+    }
     if (!ids.emplace(obstacle.id, i).second) {
       r.Fail(name + ".id", fmt::format("duplicate id (also obstacles[{}])", ids[obstacle.id]));
     }
@@ -299,6 +312,50 @@ bool Camera::Sees(const Point& p) const {
   const Point origin(0, 0);
   const Point first(fov_first), second(fov_second);
   return CrossSign(origin, first, center, p) >= 0 && CrossSign(center, p, origin, second) >= 0;
+}
+
+bool Camera::InView(const Point& p) const {
+  if (!Sees(p)) return false;
+  if (!pinhole) return true;
+  const auto interval = ViewInterval(p, p);
+  return interval.has_value();
+}
+
+std::optional<std::pair<double, double>> Camera::ViewInterval(const Point& from, const Point& to) const {
+  double lo = 0, hi = 1;
+  if (!pinhole) return std::make_pair(lo, hi);
+  // Camera coordinates of the plane point from + s (to - from) are affine in s: c(s) = c0 + s c1. It is in view iff
+  // z > 0 and margin <= u <= width - margin (likewise v), with u = px x / z + u0: each condition is affine in s once
+  // multiplied by z > 0, so the set is an intersection of half-lines.
+  const PinholeCamera& cam = *pinhole;
+  const Eigen::Matrix3d cRw = cam.wMc.topLeftCorner<3, 3>().transpose();
+  const Eigen::Vector3d w_t_c = cam.wMc.topRightCorner<3, 1>();
+  const Eigen::Vector3d c0 = cRw * (Eigen::Vector3d(from.x(), from.y(), 0) - w_t_c);
+  const Eigen::Vector3d c1 = cRw * Eigen::Vector3d(to.x() - from.x(), to.y() - from.y(), 0);
+  // Keeps the s with a0 + s a1 >= 0.
+  auto keep = [&](double a0, double a1) {
+    if (a1 == 0) {
+      if (a0 < 0) hi = -1;
+      return;
+    }
+    const double root = -a0 / a1;
+    if (a1 > 0) {
+      lo = std::max(lo, root);
+    } else {
+      hi = std::min(hi, root);
+    }
+  };
+  // z >= tiny (strictly in front; the pixel conditions below then bound the rest).
+  const double tiny = 1e-9 * (c0.norm() + c1.norm());
+  keep(c0.z() - tiny, c1.z());
+  const double m = kImageMargin;
+  // px x + (u0 - m) z >= 0 and (width - m - u0) z - px x >= 0; likewise for v.
+  keep(cam.px * c0.x() + (cam.u0 - m) * c0.z(), cam.px * c1.x() + (cam.u0 - m) * c1.z());
+  keep((cam.width - m - cam.u0) * c0.z() - cam.px * c0.x(), (cam.width - m - cam.u0) * c1.z() - cam.px * c1.x());
+  keep(cam.py * c0.y() + (cam.v0 - m) * c0.z(), cam.py * c1.y() + (cam.v0 - m) * c1.z());
+  keep((cam.height - m - cam.v0) * c0.z() - cam.py * c0.y(), (cam.height - m - cam.v0) * c1.z() - cam.py * c1.y());
+  if (!(lo <= hi)) return std::nullopt;
+  return std::make_pair(lo, hi);
 }
 
 Scene ParseScene(std::string_view json_text, const std::string& source) {
@@ -384,6 +441,7 @@ Camera DerivePlanarCamera(const PinholeCamera& pinhole, const std::string& sourc
   }
   Camera camera = MakePlanarCamera(foot, std::remainder(first, 2 * kPi) / kDegree, span / kDegree);
   camera.pinhole = pinhole;
+  camera.height = w_t_c.z();
   return camera;
 }
 

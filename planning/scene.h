@@ -10,6 +10,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "planning/geometry.h"
@@ -38,6 +39,10 @@ struct Obstacle {
   /// Unique, non-empty id from the file (used in ray ids and edge refs).
   std::string id;
   ScenePolygon shape;
+  /// Height of the vertical prism over the polygon (metres, > 0), for 2.5D visibility from a camera with a height
+  /// (docs/planning_cspace.md "Heights"). Absent: unbounded (the planar model: the obstacle hides everything behind
+  /// it).
+  std::optional<double> height = std::nullopt;
 };
 
 /// The rectangle of allowed configurations (reference-point positions); min < max componentwise.
@@ -77,9 +82,20 @@ struct Camera {
   /// Set when the scene gave a 3D pinhole camera; center and the field of view are then derived from it
   /// (DerivePlanarCamera).
   std::optional<PinholeCamera> pinhole;
-
+  /// Height of the camera centre above the motion plane (metres, > 0): from the pinhole's pose, or `height` of a
+  /// planar camera. With it, obstacles with a height hide only what their prism hides (2.5D visibility).
+  std::optional<double> height = std::nullopt;
   /// Whether the direction from the centre to p lies in the closed field of view (false for p == center). Exact.
   bool Sees(const Point& p) const;
+  /// Sees(p) and, for a pinhole camera, the point p of the motion plane projects in front of the camera at least
+  /// kImageMargin pixels inside the image's border (in doubles; the margin absorbs their rounding).
+  bool InView(const Point& p) const;
+  /// The parameters s in [0, 1] for which from + s (to - from) is in view as InView says (for a planar camera the
+  /// sector test is left to the caller: [0, 1]); an empty optional when none is. The image's border cuts a segment
+  /// of the plane once at most per side, so the set is one interval.
+  std::optional<std::pair<double, double>> ViewInterval(const Point& from, const Point& to) const;
+  /// How far inside the image's border (pixels) a point must project to count as seen by a pinhole camera.
+  static constexpr double kImageMargin = 1.0;
 };
 
 /// The planar camera at `center` whose field of view sweeps `span_deg` counter-clockwise from the direction

@@ -162,7 +162,8 @@ std::vector<UnoccludedVertex> FindUnoccludedVertices(const Scene& scene) {
   if (!scene.camera) return result;
   // The sweep's status order needs edges that do not cross; overlapping obstacles (allowed, docs/semantics.md) fall
   // back to the O(n^2) test, which handles a vertex inside another obstacle (its segment to P starts in that interior).
-  if (FindOverlappingObstacles(scene.obstacles)) return FindUnoccludedVerticesReference(scene);
+  // With heights (2.5D) a prism hides only part of what lies behind it; the same O(n^2) test decides that per prism.
+  if (FindOverlappingObstacles(scene.obstacles) || UsesHeights(scene)) return FindUnoccludedVerticesReference(scene);
   const Camera& camera = *scene.camera;
   const Point p = camera.center;
   const Point origin(0, 0), d0(camera.fov_first);
@@ -284,10 +285,93 @@ std::vector<UnoccludedVertex> FindUnoccludedVertices(const Scene& scene) {
     }
     g = g_end;
   }
+  // A pinhole camera sees a vertex in its sector only if it lies inside the image too (the sweep's occlusion is
+  // independent of that: hidden is hidden).
+  if (camera.pinhole) {
+    std::erase_if(result, [&](const UnoccludedVertex& u) {
+      return !camera.InView(scene.obstacles[u.obstacle].shape.polygon[u.vertex]);
+    });
+  }
   std::sort(result.begin(), result.end(), [](const UnoccludedVertex& a, const UnoccludedVertex& b) {
     return std::tie(a.obstacle, a.vertex) < std::tie(b.obstacle, b.vertex);
   });
   return result;
+}
+
+namespace {
+
+// Whether the open segment (p, b) meets the interior of obstacle `o` (the planar occlusion test, restricted to one
+// obstacle). Exact.
+bool MeetsInterior(const Scene& scene, const std::vector<VertexRef>& vertices, int o, const Point& p, const Point& b) {
+  const Segment sight{p, b};
+  const Polygon& poly = scene.obstacles[o].shape.polygon;
+  for (std::size_t i = 0; i < poly.size(); ++i) {
+    const Segment e = poly.Edge(i);
+    if (SegmentsCrossProperly(sight, e) || (InSegmentInterior(e, b) && Orientation(e.source, e.target, p) > 0) ||
+        (InSegmentInterior(e, p) && Orientation(e.source, e.target, b) > 0)) {
+      return true;
+    }
+  }
+  for (const VertexRef& w : vertices) {
+    if (w.obstacle != o) continue;
+    if (InSegmentInterior(sight, w.point)) {
+      if (InOpenSector(w.point, w.next, w.prev, p) || InOpenSector(w.point, w.next, w.prev, p, true)) return true;
+    } else if (w.point == b) {
+      if (InOpenSector(w.point, w.next, w.prev, p)) return true;
+    } else if (w.point == p) {
+      if (InOpenSector(p, w.next, w.prev, b)) return true;
+    }
+  }
+  return false;
+}
+
+// The first and last parameters s in [0, 1] at which b + s (p - b) touches the boundary of polygon `poly` (which the
+// segment meets), the first being 0 when b lies inside it. Rounded.
+std::pair<double, double> ContactRange(const Polygon& poly, const Point& b, const Point& p) {
+  double first = 1, last = 0;
+  // A point inside the footprint (overlapping parts) is covered from s = 0 on.
+  if (Locate(poly, b) == Location::kInside) first = 0;
+  const Vector d = p - b;
+  const double dd = d.squaredNorm();
+  auto note = [&](double s) {
+    s = std::clamp(s, 0.0, 1.0);
+    first = std::min(first, s);
+    last = std::max(last, s);
+  };
+  for (std::size_t i = 0; i < poly.size(); ++i) {
+    const Segment e = poly.Edge(i);
+    if (!SegmentsIntersect({b, p}, e)) continue;
+    const Vector f = e.target - e.source;
+    const double denominator = d.x() * f.y() - d.y() * f.x();
+    if (Orientation(b, p, e.source) == 0 && Orientation(b, p, e.target) == 0) {
+      note((e.source - b).dot(d) / dd);  // collinear: the shared piece lies between the projections
+      note((e.target - b).dot(d) / dd);
+    } else if (denominator != 0) {
+      const Vector w = e.source - b;
+      note((w.x() * f.y() - w.y() * f.x()) / denominator);
+    }
+  }
+  return {first, last};
+}
+
+// Relative tolerance of the 2.5D decisions (in doubles): ties and near-ties count as hidden.
+constexpr double kHeightTolerance = 1e-9;
+
+// With heights: whether the prism of obstacle `o`, whose footprint the open segment (p, b) enters, hides b (the line
+// of sight from b rises to the camera height H at p and must pass above the prism where it first meets it).
+bool PrismHides(const Scene& scene, int o, const Point& b, const Point& p) {
+  const std::optional<double>& h = scene.obstacles[o].height;
+  if (!h || !UsesHeights(scene)) return true;
+  const double camera_height = *scene.camera->height;
+  const double first = ContactRange(scene.obstacles[o].shape.polygon, b, p).first;
+  return camera_height * first < *h * (1 + kHeightTolerance);
+}
+
+}  // namespace
+
+bool UsesHeights(const Scene& scene) {
+  if (!scene.camera || !scene.camera->height) return false;
+  return std::any_of(scene.obstacles.begin(), scene.obstacles.end(), [](const Obstacle& o) { return o.height; });
 }
 
 std::vector<UnoccludedVertex> FindUnoccludedVerticesReference(const Scene& scene) {
@@ -297,27 +381,10 @@ std::vector<UnoccludedVertex> FindUnoccludedVerticesReference(const Scene& scene
   const std::vector<VertexRef> vertices = AllVertices(scene);
   const std::vector<int> hull = RobotHull(scene);
   for (const VertexRef& v : vertices) {
-    if (!scene.camera->Sees(v.point)) continue;
-    const Segment sight{p, v.point};
+    if (!scene.camera->InView(v.point)) continue;
     bool occluded = false;
-    for (const Obstacle& o : scene.obstacles) {
-      const Polygon& poly = o.shape.polygon;
-      for (std::size_t i = 0; i < poly.size() && !occluded; ++i) {
-        const Segment e = poly.Edge(i);
-        occluded = SegmentsCrossProperly(sight, e) ||
-                   (InSegmentInterior(e, v.point) && Orientation(e.source, e.target, p) > 0) ||
-                   (InSegmentInterior(e, p) && Orientation(e.source, e.target, v.point) > 0);
-      }
-    }
-    for (const VertexRef& w : vertices) {
-      if (occluded) break;
-      if (InSegmentInterior(sight, w.point)) {
-        occluded = InOpenSector(w.point, w.next, w.prev, p) || InOpenSector(w.point, w.next, w.prev, p, true);
-      } else if (w.point == v.point) {
-        occluded = InOpenSector(w.point, w.next, w.prev, p);
-      } else if (w.point == p) {
-        occluded = InOpenSector(p, w.next, w.prev, v.point);
-      }
+    for (int o = 0; o < static_cast<int>(scene.obstacles.size()) && !occluded; ++o) {
+      occluded = MeetsInterior(scene, vertices, o, p, v.point) && PrismHides(scene, o, v.point, p);
     }
     if (!occluded) {
       result.push_back(
@@ -325,6 +392,40 @@ std::vector<UnoccludedVertex> FindUnoccludedVerticesReference(const Scene& scene
     }
   }
   return result;
+}
+
+std::vector<std::pair<double, double>> VisibleRayParameters(const Scene& scene, const Point& b) {
+  std::vector<std::pair<double, double>> visible;
+  if (!scene.camera) return visible;
+  const Point p = scene.camera->center;
+  const auto view = scene.camera->ViewInterval(b, p);
+  if (!view) return visible;
+  visible.push_back(*view);
+  if (UsesHeights(scene)) {
+    const double camera_height = *scene.camera->height;
+    const std::vector<VertexRef> vertices = AllVertices(scene);
+    for (int o = 0; o < static_cast<int>(scene.obstacles.size()); ++o) {
+      if (!scene.obstacles[o].height || !MeetsInterior(scene, vertices, o, p, b)) continue;
+      // b's line of sight passes over this prism (b is unoccluded). A robot vertex at s before the prism is seen iff
+      // its own line of sight, rising from 0 at s to H at 1, is above the prism's height h at the first contact:
+      // H (first - s) / (1 - s) >= h, i.e. s <= (H first - h) / (H - h). Between the first and the last contact it
+      // may stand in a gap of the footprint behind a part of the prism: counted hidden. Beyond the last contact
+      // nothing of the prism lies between it and the camera.
+      const double h = *scene.obstacles[o].height;
+      const auto [first, last] = ContactRange(scene.obstacles[o].shape.polygon, b, p);
+      const double before =
+          camera_height > h ? (camera_height * first - h) / (camera_height - h) - kHeightTolerance : -1.0;
+      const double after = last + kHeightTolerance;
+      std::vector<std::pair<double, double>> kept;
+      for (const auto& [lo, hi] : visible) {
+        if (std::min(hi, before) >= lo) kept.emplace_back(lo, std::min(hi, before));
+        if (hi >= std::max(lo, after)) kept.emplace_back(std::max(lo, after), hi);
+      }
+      visible = std::move(kept);
+    }
+  }
+  std::erase_if(visible, [](const auto& interval) { return !(interval.second > interval.first); });
+  return visible;
 }
 
 namespace {
@@ -373,8 +474,16 @@ VcRays ComputeVcRays(const Scene& scene, const CSpace& cspace) {
   }
   std::sort(keyed.begin(), keyed.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
   std::vector<OffsetSegment> inputs;
+  std::vector<int> owner;  // inputs[i] is a piece of cvc_rays[owner[i]]
   for (auto& [k, ray] : keyed) {
     const int index = static_cast<int>(rays.vc_rays.size());
+    // Where on the workspace ray a CM vertex is seen (the whole ray in the planar model): one input per piece.
+    const std::vector<std::pair<double, double>> visible = VisibleRayParameters(scene, ray.from);
+    const auto at = [&](double s) -> Point {
+      if (s == 0) return ray.from;
+      if (s == 1) return ray.to;
+      return ray.from + s * (ray.to - ray.from);
+    };
     for (int j : ray.cm_vertices) {
       // Robot vertex with file index j.
       const auto& src = scene.robot.source_index;
@@ -386,20 +495,27 @@ VcRays ComputeVcRays(const Scene& scene, const CSpace& cspace) {
       cvc.cm_vertex = j;
       cvc.offset = -a;
       cvc.full = {ray.from - a, ray.to - a};
+      for (const auto& [lo, hi] : visible) {
+        inputs.push_back({at(lo), at(hi), -a});
+        owner.push_back(static_cast<int>(rays.cvc_rays.size()));
+      }
       rays.cvc_rays.push_back(std::move(cvc));
-      inputs.push_back({ray.from, ray.to, -a});
     }
     rays.vc_rays.push_back(std::move(ray));
   }
   CutResult cut = cspace.CutSegments(inputs, scene.bounds, /*crossings=*/true);
-  for (std::size_t i = 0; i < rays.cvc_rays.size(); ++i) {
-    rays.cvc_rays[i].segments = std::move(cut.parts[i]);
-    for (const auto& [source_on_cb, target_on_cb] : cut.on_cb[i]) {
-      rays.cvc_rays[i].open_ends.push_back({!source_on_cb, !target_on_cb});
+  for (std::size_t i = 0; i < inputs.size(); ++i) {
+    CvcRay& cvc = rays.cvc_rays[owner[i]];
+    for (std::size_t k = 0; k < cut.parts[i].size(); ++k) {
+      cvc.segments.push_back(cut.parts[i][k]);
+      const auto [source_on_cb, target_on_cb] = cut.on_cb[i][k];
+      cvc.open_ends.push_back({!source_on_cb, !target_on_cb});
     }
   }
   for (const CutResult::Crossing& c : cut.crossings) {
-    rays.crossings.push_back({static_cast<int>(c.first), static_cast<int>(c.second), c.point, c.overlap});
+    // Pieces of one ray are disjoint parts of one line: they never meet each other.
+    if (owner[c.first] == owner[c.second]) continue;
+    rays.crossings.push_back({owner[c.first], owner[c.second], c.point, c.overlap});
   }
   return rays;
 }

@@ -36,10 +36,26 @@ struct UnoccludedVertex {
 /// vertices; scenes whose obstacles overlap use the O(n (n + m)) reference instead (the sweep needs edges that do not
 /// cross). Sorted by (obstacle, vertex). Empty without a camera. Exact. Not real-time safe.
 ///
-/// A vertex b is unoccluded iff b != P, the direction P -> b is in the closed field of view, and the open segment
-/// (P, b) meets no obstacle interior (its own included); touching or running along boundaries does not occlude. A
+/// A vertex b is unoccluded iff b != P, b is in view (Camera::InView: in the closed field of view and, for a pinhole
+/// camera, inside its image), and no obstacle hides it: an obstacle hides b if the open segment (P, b) meets its
+/// interior (its own included; touching or running along boundaries does not occlude) and, with heights
+/// (UsesHeights), the line of sight from b to the camera centre passes below the top of its prism there. A
 /// vertex inside another obstacle is occluded (its segment to P starts in that interior).
 std::vector<UnoccludedVertex> FindUnoccludedVertices(const Scene& scene);
+
+/// Whether visibility is 2.5D: the camera has a height (a pinhole camera, or a planar one with `height`) and some
+/// obstacle has a height. Then an obstacle with a height hides a point of the plane only where its prism rises above
+/// the line of sight from that point to the camera centre (docs/planning_cspace.md "Heights"); obstacles without one
+/// hide everything behind them, as in the planar model.
+bool UsesHeights(const Scene& scene);
+
+/// Along the workspace VC ray from obstacle vertex b (s = 0) to the projection centre (s = 1): the closed intervals
+/// of s at which a robot vertex standing on the plane there is seen, sorted and disjoint. A point is seen when it is
+/// in view (Camera::InView: the pinhole image's border cuts the ray) and no prism that the line of sight from b passes
+/// over hides it (the robot stands lower than b's line of sight behind such a prism). [[0, 1]] for a planar camera
+/// without heights. Decided in doubles, conservatively (points within 1e-9 of the ray's length of a limit count as
+/// hidden); which obstacles the ray passes is decided exactly. Assumes b is unoccluded.
+std::vector<std::pair<double, double>> VisibleRayParameters(const Scene& scene, const Point& b);
 
 /// The same set by the slow obvious method (every vertex against every edge and vertex; CM vertices by scanning the
 /// hull): O(n (n + m)). For tests and benchmarks.
@@ -68,8 +84,9 @@ struct CvcRay {
   /// towards the camera end (rounded to doubles from exact values).
   std::vector<Segment> segments;
   /// open_ends[k]: per end of segments[k] (source, target), true where it is not on CB's boundary: the bounds clip
-  /// the ray there or it is the camera end. Complying along the ray to an open end fails (docs/semantics.md: nothing
-  /// physical stops the servo there).
+  /// the ray there, the camera stops seeing the CM vertex there (a pinhole image's border or a prism in the way:
+  /// VisibleRayParameters), or it is the camera end. Complying along the ray to an open end fails (docs/semantics.md:
+  /// nothing physical stops the servo there).
   std::vector<std::array<bool, 2>> open_ends;
 };
 

@@ -25,6 +25,7 @@ std::string VcRaysToJson(const Scene& scene, const VcRays& rays) {
   if (scene.camera) {
     j["camera"] = {{"center", PointJson(scene.camera->center)},
                    {"fov_deg", {scene.camera->fov_first_rad * 180 / kPi, scene.camera->fov_second_rad * 180 / kPi}}};
+    if (scene.camera->height) j["camera"]["height"] = *scene.camera->height;
   }
   j["vc_rays"] = nlohmann::json::array();
   for (const VcRay& r : rays.vc_rays) {

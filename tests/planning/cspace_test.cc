@@ -137,7 +137,7 @@ TEST(CSpace, FindOverlappingObstacles) {
       {"c", {Polygon{{{4, 2}, {5, 2}, {5, 3}, {4, 3}}}, {0, 1, 2, 3}}},  // touches b at a corner
   };
   EXPECT_FALSE(FindOverlappingObstacles(obstacles).has_value());
-  obstacles.push_back({"d", {Polygon{{{0, 0}, {2, 0}, {2, 2}, {0, 2}}}, {0, 1, 2, 3}}});  // equals a
+  obstacles.push_back({"d", {Polygon{{{0, 0}, {2, 0}, {2, 2}, {0, 2}}}, {0, 1, 2, 3}}, std::nullopt});  // equals a
   const auto overlap = FindOverlappingObstacles(obstacles);
   ASSERT_TRUE(overlap.has_value());
   EXPECT_EQ(overlap->first, 0u);

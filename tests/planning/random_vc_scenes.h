@@ -82,7 +82,7 @@ inline Scene RandomScene(std::uint64_t seed, const RandomSceneOptions& o = {}) {
         p = StarPolygon(rng, lo + Point(o.cell / 2, o.cell / 2), o.cell / 2 - o.lattice / 2 - 1e-9, o.max_vertices,
                         o.lattice);
       }
-      s.obstacles.push_back({"o" + std::to_string(s.obstacles.size()), as_scene_polygon(std::move(p))});
+      s.obstacles.push_back({"o" + std::to_string(s.obstacles.size()), as_scene_polygon(std::move(p)), std::nullopt});
     }
   }
   s.robot = as_scene_polygon(StarPolygon(rng, {0, 0}, 1.0, 6, o.lattice));

@@ -240,7 +240,7 @@ TEST(Strategy, NoStrategyWithinTheStepsSaysWhy) {
     ScenePolygon p;
     p.polygon.vertices = {a, {b.x(), a.y()}, b, {a.x(), b.y()}};
     p.source_index = {0, 1, 2, 3};
-    s.obstacles.push_back({id, p});
+    s.obstacles.push_back({id, p, std::nullopt});
   };
   wall("box_bottom", {lo.x() - t, lo.y() - t}, {hi.x() + t, lo.y()});
   wall("box_top", {lo.x() - t, hi.y()}, {hi.x() + t, hi.y() + t});

@@ -79,10 +79,20 @@ void CheckRegion(std::uint64_t seed, const CSpace& cspace, const BackprojectionP
   }
 }
 
-void CheckScene(std::uint64_t seed, Counts& counts) {
+// With `heights`, the camera stands 1-6 m above the plane and most obstacles are prisms 0.2-3 m high (2.5D
+// visibility): rays see over low prisms, and break where a prism hides the robot, with open ends there.
+void CheckScene(std::uint64_t seed, Counts& counts, bool heights = false) {
   Scene s;
   double theta = 0;
   if (!testing::RandomWholeScene(seed, s, theta)) return;
+  if (heights) {
+    std::mt19937_64 rng(seed * 977 + 5);
+    std::uniform_real_distribution<double> unit(0, 1);
+    s.camera->height = 1 + 5 * unit(rng);
+    for (Obstacle& o : s.obstacles) {
+      if (unit(rng) < 0.8) o.height = 0.2 + 2.8 * unit(rng);
+    }
+  }
   const CSpace cspace(s);
   const VcRays rays = ComputeVcRays(s, cspace);
   const BackprojectionProblem pr = ProblemFromScene(s, cspace, &rays, theta, /*kernel=*/false);
@@ -130,6 +140,12 @@ void Report(const Counts& c) {
 TEST(VcSoundnessProperty, RandomWholeScenesFirstHalf) {
   Counts c;
   for (std::uint64_t seed = 1; seed <= 60; ++seed) CheckScene(seed, c);
+  Report(c);
+}
+
+TEST(VcSoundnessProperty, RandomWholeScenesWithHeights) {
+  Counts c;
+  for (std::uint64_t seed = 1; seed <= 60; ++seed) CheckScene(seed, c, /*heights=*/true);
   Report(c);
 }
 

@@ -19,11 +19,23 @@ scene = json.load(open(sys.argv[2]))
 assert set(["vc_rays", "cvc_rays"]) <= set(j), j.keys()
 for r in j["vc_rays"]:
     assert set(["id", "obstacle", "vertex", "from", "to"]) <= set(r), r
+def at_image_border(p, offset):
+    pin = scene.get("camera", {}).get("pinhole")
+    if pin is None:
+        return False
+    m = pin["wMc"]
+    w = [p[0] - offset[0] - m[0][3], p[1] - offset[1] - m[1][3], -m[2][3]]
+    x, y, z = (sum(m[r][k] * w[r] for r in range(3)) for k in range(3))  # R^T (point - centre)
+    if z <= 0:
+        return False
+    u, v = pin["px"] * x / z + pin["u0"], pin["py"] * y / z + pin["v0"]
+    return abs(min(u, pin["width"] - u, v, pin["height"] - v) - 1.0) < 1e-6
 for c in j["cvc_rays"]:
     assert set(["id", "vc_ray", "cm_vertex", "segments", "open_ends"]) <= set(c), c
     assert c["id"].startswith(c["vc_ray"] + ".cm"), c
     assert len(c["open_ends"]) == len(c["segments"]), c
-    # An open end is where the bounds clip the ray or the camera end (P + offset); every other end is on CB.
+    # An open end is where the bounds clip the ray, the camera end (P + offset), or, for a pinhole camera, where the
+    # CM vertex leaves the image (it projects one pixel inside the border there); every other end is on CB.
     (x0, y0), (x1, y1) = scene["bounds"]["min"], scene["bounds"]["max"]
     cam = next(r["to"] for r in j["vc_rays"] if r["id"] == c["vc_ray"])  # the projection centre P
     for seg, ends in zip(c["segments"], c["open_ends"]):
@@ -31,7 +43,7 @@ for c in j["cvc_rays"]:
         for p, is_open in zip(seg, ends):
             on_bounds = min(abs(p[0] - x0), abs(p[0] - x1), abs(p[1] - y0), abs(p[1] - y1)) < 1e-9
             at_camera = abs(p[0] - cam[0] - c["offset"][0]) + abs(p[1] - cam[1] - c["offset"][1]) < 1e-9
-            assert not is_open or on_bounds or at_camera, (c["id"], p)
+            assert not is_open or on_bounds or at_camera or at_image_border(p, c["offset"]), (c["id"], p)
 # Every example scene with a camera has rays (corner.json has no camera: none).
 assert len(j["vc_rays"]) > 0 or "camera" not in scene, "no VC rays in " + sys.argv[2]
 PY

@@ -14,6 +14,7 @@
 #include <benchmark/benchmark.h>
 
 #include <fstream>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -145,6 +146,53 @@ void BM_Plan(benchmark::State& state) {
   state.counters["nondirectional"] = static_cast<double>(st.nondirectional);
 }
 BENCHMARK(BM_Plan)->DenseRange(0, 2)->Unit(benchmark::kMillisecond)->Iterations(1);
+
+// Plan synthesis as the scene grows: the demo's slot (its camera looking left and down) in a room whose right part
+// holds m convex pentagons on a jittered grid, behind the camera (so they add C-obstacles, not rays). n, the number of
+// C-obstacle vertices, grows by 9 per pentagon (a pentagon swept by the square robot): m = 4 ... 110 gives
+// n = 50 ... 1 000. Counters: n, steps, whether a strategy was found, nondirectional backprojections, peak memory.
+Scene ClutteredSlot(int m) {
+  Scene scene = DefaultScene();
+  std::mt19937_64 rng(777);
+  std::uniform_real_distribution<double> unit(0, 1);
+  const int rows = 3, columns = (m + rows - 1) / rows;
+  scene.bounds.max = {12.0 + 2.0 * columns, 8.0};
+  for (int i = 0; i < m; ++i) {
+    const double cx = 13.0 + 2.0 * (i / rows) + 0.3 * (unit(rng) - 0.5);
+    const double cy = 1.5 + 2.5 * (i % rows) + 0.3 * (unit(rng) - 0.5);
+    Obstacle o;
+    o.id = "clutter" + std::to_string(i);
+    const double a0 = 2 * M_PI * unit(rng);
+    for (int k = 0; k < 5; ++k) {
+      const double a = a0 + 2 * M_PI * (k + 0.3 * unit(rng)) / 5;
+      o.shape.polygon.vertices.emplace_back(cx + 0.6 * std::cos(a), cy + 0.6 * std::sin(a));
+      o.shape.source_index.push_back(k);
+    }
+    scene.obstacles.push_back(std::move(o));
+  }
+  return scene;
+}
+
+void BM_PlanSynthesis(benchmark::State& state) {
+  const Scene scene = ClutteredSlot(static_cast<int>(state.range(0)));
+  const CSpace cspace(scene);
+  std::size_t vertices = 0;
+  for (std::size_t i = 0; i < cspace.num_c_obstacles(); ++i) {
+    for (const PolygonWithHoles& p : cspace.c_obstacle(i)) vertices += p.outer.size();
+  }
+  Strategy st;
+  ResetPeakMemory();
+  for (auto _ : state) {
+    st = PlanStrategy(scene, {});
+    benchmark::DoNotOptimize(st.steps.data());
+  }
+  state.counters["n"] = static_cast<double>(vertices);
+  state.counters["feasible"] = st.feasible ? 1 : 0;
+  state.counters["steps"] = static_cast<double>(st.steps.size());
+  state.counters["nondirectional"] = static_cast<double>(st.nondirectional);
+  state.counters["peak_MiB"] = PeakMemoryMiB();
+}
+BENCHMARK(BM_PlanSynthesis)->Arg(4)->Arg(12)->Arg(30)->Arg(60)->Arg(110)->Unit(benchmark::kSecond)->Iterations(1);
 
 }  // namespace
 }  // namespace visco::planning

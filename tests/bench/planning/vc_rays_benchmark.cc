@@ -43,7 +43,7 @@ Scene BenchScene(int n) {
     }
     ScenePolygon sp{p, {}};
     for (int i = 0; i < count; ++i) sp.source_index.push_back(i);
-    s.obstacles.push_back({"o" + std::to_string(k), sp});
+    s.obstacles.push_back({"o" + std::to_string(k), sp, std::nullopt});
     remaining -= count;
   }
   s.robot = {Polygon{{{0, 0}, {0.6, 0}, {0.6, 0.4}, {0.3, 0.7}, {0, 0.4}}}, {0, 1, 2, 3, 4}};
