@@ -81,7 +81,8 @@ struct Args {
   double timeout_s = 120;
   double speed = 0.6;
   bool netns = false;
-  double slow = 1;  // --slow-machine: time limits times this, camera rate and speed divided by it
+  bool lockstep = false;  // one process on a simulated clock (`visco sim --lockstep`) instead of the five
+  double slow = 1;        // --slow-machine: time limits times this, camera rate and speed divided by it
 };
 
 // A time limit of the demo's processes on a machine `a.slow` times slower than the 2-core reference.
@@ -343,6 +344,103 @@ std::vector<Eigen::Vector2d> SampleStarts(const planning::Polygon& region, int r
   return starts;
 }
 
+// The outcome of a run from the controller's summary (`run_json`: result, reason, steps, commands, faults), the robot's
+// true final position (`driver_json`: position) and the run's log.
+RunOutcome Outcome(const Setup& su, int r, std::uint64_t seed, const Eigen::Vector2d& start, const fs::path& rd,
+                   const nlohmann::json& run_json, const nlohmann::json& driver_json, double run_s,
+                   const nlohmann::json& commands) {
+  const Args& a = *su.args;
+  RunOutcome out;
+  out.trace = ReadTrace(rd / "run.lcmlog");
+  const Trace& trace = out.trace;
+  if (a.runs == 1) WriteTextOutput(RunSvg(*su.scene, *su.cspace, *su.strategy, trace), (rd / "run.svg").string());
+  Eigen::Vector2d final_pos(NAN, NAN);
+  if (driver_json.contains("position")) {
+    final_pos = Eigen::Vector2d(driver_json["position"][0].get<double>(), driver_json["position"][1].get<double>());
+  }
+  const double error = std::isfinite(final_pos.x()) ? DistanceToPolygon(su.scene->goal.polygon, final_pos) : INFINITY;
+  const bool done = run_json.value("result", "") == "done";
+  out.ok = done && error == 0.0;
+  auto number_or_null = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
+  out.item = {{"run", r},
+              {"seed", seed},
+              {"start", {start.x(), start.y()}},
+              {"result", run_json.value("result", "no result")},
+              {"reason", run_json.value("reason", "")},
+              {"steps_completed", run_json.value("steps_completed", 0)},
+              {"commands_sent", run_json.value("commands_sent", 0)},
+              {"faults_published", run_json.value("faults_published", 0)},
+              {"visual_events", trace.events},
+              {"contacts", trace.contacts.size()},
+              {"logged_messages", trace.messages},
+              {"time_s", run_s},
+              {"motion_s", number_or_null(trace.motion_s)},
+              {"final_position",
+               std::isfinite(final_pos.x()) ? nlohmann::json({final_pos.x(), final_pos.y()}) : nlohmann::json()},
+              {"goal_error_m", number_or_null(error)},
+              {"success", out.ok},
+              {"commands", commands}};
+  return out;
+}
+
+// One closed-loop run in lockstep: `visco sim --lockstep`, one process on a simulated clock (the driver and the
+// simulated robot, the rendered camera, vision and the controller with the demo's settings), which writes run.lcmlog
+// (every message, the controller's records) and its summary (lockstep.json: the controller's result and the robot's
+// true final position).
+RunOutcome ExecuteLockstepRun(const Setup& su, int r, std::uint64_t seed, const Eigen::Vector2d& start,
+                              const fs::path& rd, std::mutex& print) {
+  const Args& a = *su.args;
+  const fs::path& dir = su.dir;
+  std::vector<std::string> args = {(dir / "scene.json").string(),
+                                   "--lockstep",
+                                   "--strategy",
+                                   (dir / "plan.json").string(),
+                                   "--rays",
+                                   (dir / "rays.json").string(),
+                                   "--start",
+                                   fmt::format("{}", start.x()),
+                                   fmt::format("{}", start.y()),
+                                   "--seed",
+                                   std::to_string(seed),
+                                   "--watchdog-ms",
+                                   Slowed(a, 500),
+                                   "--duration",
+                                   fmt::format("{}", a.timeout_s * a.slow),
+                                   "--log",
+                                   (rd / "run.lcmlog").string()};
+  args.insert(args.end(), su.cam.begin(), su.cam.end());
+  args.insert(args.end(), {"--camera-hz", fmt::format("{}", std::max(2.0, std::round(15 / a.slow))), "--supersample",
+                           a.slow > 1 ? "1" : "2", "--latency-ms", "5", "--image-noise", "2", "--blur-px", "0.5"});
+  fs::create_directories(rd / "params");
+  const std::vector<std::string> argv = WithParameterFile(su.self, "sim", args, rd / "params" / "lockstep.json");
+  nlohmann::json commands = {{"lockstep", argv}};
+  Child child = Spawn("lockstep", argv, rd / "lockstep.json", rd / "lockstep.log");
+  const auto started = Clock::now();
+  int last_report = -1;
+  while (!Poll(child) && g_signal == 0) {
+    const double elapsed = std::chrono::duration<double>(Clock::now() - started).count();
+    if (a.runs == 1 && static_cast<int>(elapsed) / 5 != last_report) {
+      last_report = static_cast<int>(elapsed) / 5;
+      std::lock_guard<std::mutex> lock(print);
+      std::fprintf(stderr, "visco demo: executing in lockstep (simulated clock), %.0f s\n", elapsed);
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  std::vector<Child> all = {child};
+  Stop(all);
+  const double run_s = std::chrono::duration<double>(Clock::now() - started).count();
+  nlohmann::json summary = ReadJson(rd / "lockstep.json");
+  const bool have_summary = summary.is_object();
+  if (!have_summary) summary = nlohmann::json::object();
+  RunOutcome out = Outcome(su, r, seed, start, rd, summary, summary, run_s, commands);
+  out.item["simulated_s"] = summary.value("simulated_s", 0.0);
+  if (!have_summary)
+    out.item["reason"] = "the lockstep run ended without a summary (see " + (rd / "lockstep.log").string() + ")";
+  if (a.runs > 1 && out.ok && !a.keep_logs) fs::remove(rd / "run.lcmlog");
+  out.item["logs_kept"] = fs::exists(rd / "run.lcmlog");
+  return out;
+}
+
 // One closed-loop run: the processes, supervised until the controller ends, the run's timeout, a process that ends
 // early, or Ctrl-C; then the outcome from their outputs and the log.
 // With `hosts`, each process runs on a host of its own (a network namespace; NetnsHosts).
@@ -355,6 +453,7 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
   // commands in a row lost by the driver, a sequence fault, with two runs at once).
   const std::string bus = url + "&recv_buf_size=4194304";
   fs::create_directories(rd);
+  if (a.lockstep) return ExecuteLockstepRun(su, r, seed, start, rd, print);
   // The host each process runs on (with --netns).
   const std::vector<std::pair<std::string, std::string>> host_of = {
       {"lcm-logger", "logger"}, {"driver", "robot"}, {"camera", "camera"}, {"track", "vision"}, {"run", "controller"}};
@@ -492,36 +591,7 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
   const double run_s = std::chrono::duration<double>(Clock::now() - started).count();
   const nlohmann::json run_json = ReadJson(rd / "run.json");
   const nlohmann::json driver_json = ReadJson(rd / "driver.json");  // the robot's true final position
-  RunOutcome out;
-  out.trace = ReadTrace(rd / "run.lcmlog");
-  const Trace& trace = out.trace;
-  if (a.runs == 1) WriteTextOutput(RunSvg(*su.scene, *su.cspace, *su.strategy, trace), (rd / "run.svg").string());
-  Eigen::Vector2d final_pos(NAN, NAN);
-  if (driver_json.contains("position")) {
-    final_pos = Eigen::Vector2d(driver_json["position"][0].get<double>(), driver_json["position"][1].get<double>());
-  }
-  const double error = std::isfinite(final_pos.x()) ? DistanceToPolygon(su.scene->goal.polygon, final_pos) : INFINITY;
-  const bool done = run_json.value("result", "") == "done";
-  out.ok = done && error == 0.0;
-  auto number_or_null = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
-  out.item = {{"run", r},
-              {"seed", seed},
-              {"start", {start.x(), start.y()}},
-              {"result", run_json.value("result", "no result")},
-              {"reason", run_json.value("reason", "")},
-              {"steps_completed", run_json.value("steps_completed", 0)},
-              {"commands_sent", run_json.value("commands_sent", 0)},
-              {"faults_published", run_json.value("faults_published", 0)},
-              {"visual_events", trace.events},
-              {"contacts", trace.contacts.size()},
-              {"logged_messages", trace.messages},
-              {"time_s", run_s},
-              {"motion_s", number_or_null(trace.motion_s)},
-              {"final_position",
-               std::isfinite(final_pos.x()) ? nlohmann::json({final_pos.x(), final_pos.y()}) : nlohmann::json()},
-              {"goal_error_m", number_or_null(error)},
-              {"success", out.ok},
-              {"commands", commands}};
+  RunOutcome out = Outcome(su, r, seed, start, rd, run_json, driver_json, run_s, commands);
   if (failed_early) out.item["reason"] = "a process ended early (see its log in " + rd.string() + ")";
   if (hosts != nullptr) {
     // Where each process ran: its host's namespace (name, address, inode) and the namespace it was seen in.
@@ -631,6 +701,15 @@ int Run(const Args& a) {
   if (!(a.speed > 0) || a.speed > 1.0) throw InputError("command line", "--speed", "must be in (0, 1] m/s");
   if (!(a.slow >= 1) || a.slow > 100) throw InputError("command line", "--slow-machine", "must be in [1, 100]");
   if (a.jobs < 1 || a.jobs > 8) throw InputError("command line", "--jobs", "must be between 1 and 8");
+  if (a.lockstep && (a.can || a.netns)) {
+    throw InputError("command line", a.can ? "--can" : "--netns",
+                     "not with --lockstep (one process on a simulated clock, its bus in memory)");
+  }
+  if (a.lockstep && !a.scene.empty()) {
+    throw InputError("command line", "--lockstep",
+                     "runs the rendered camera, which only the embedded default scene has (data/sim/); not with "
+                     "--scene");
+  }
   if (a.can && !fs::exists("/sys/class/net/vcan0")) {
     throw InputError("command line", "--can",
                      "no vcan0 interface on this machine: create one (modprobe vcan; ip link add vcan0 type vcan; ip "
@@ -713,7 +792,7 @@ int Run(const Args& a) {
     const std::string url =
         fmt::format("udpm://239.255.76.67:{}?ttl={}", 20000 + (getpid() % 5000) * 8 + job, a.netns ? 1 : 0);
     const app::NetnsHosts* hosts = job_hosts[static_cast<size_t>(job)].get();
-    {
+    if (!a.lockstep) {  // (a lockstep run's bus is in its process's memory)
       std::lock_guard<std::mutex> lock(print);
       std::fprintf(stderr, "visco demo: %s talks LCM on %s (watch it: visco spy --lcm-url '%s')\n",
                    a.runs == 1 ? "the run" : fmt::format("job {}", job + 1).c_str(), url.c_str(), url.c_str());
@@ -773,6 +852,7 @@ int Run(const Args& a) {
                             {"camera", su.rendered ? "rendered" : "events"},
                             {"transport", a.can ? "can" : "lcm"},
                             {"netns", a.netns},
+                            {"lockstep", a.lockstep},
                             {"interrupted", g_signal != 0}};
   WriteTextOutput(summary.dump(2) + "\n", (dir / "summary.json").string());
   if (a.runs > 1) WriteTextOutput(MonteCarloSvg(su, done_runs), (dir / "montecarlo.svg").string());
@@ -830,6 +910,11 @@ void RegisterDemoCommand(CLI::App& app) {
                   "the processes' time limits (vision age, hold, start-up, status, heartbeat, watchdog, --timeout) "
                   "are multiplied by it, the commanded speed and the camera rate divided by it, no supersampling")
       ->capture_default_str();
+  cmd->add_flag("--lockstep", args->lockstep,
+                "run the closed loop as one process on a simulated clock (`visco sim --lockstep`: the same driver, "
+                "simulated robot, rendered camera, vision pipeline and controller, one thread, a private in-process "
+                "bus) instead of five processes on the wall clock: the same --seed gives a bit-identical run.lcmlog, "
+                "which `visco replay --check` replays (docs/replay.md)");
   cmd->add_flag("--netns", args->netns,
                 "run every process on a host of its own: a network namespace each, joined by veth to a bridge, LCM "
                 "multicast with ttl=1 between them, as on several machines (needs root; summary.json records where "

@@ -35,6 +35,26 @@ inline EventLogOpener& InstalledEventLogOpener() {
   return opener;
 }
 
+/// Opens a log at `path` that records no bus: only what is written to it with EventLogTap::Write (a lockstep
+/// simulation logs its own bus, stamped with its simulated clock). @throws InputError.
+using EventLogFileOpener = std::unique_ptr<EventLogTap> (*)(const std::string& path);
+
+/// The installed file-only opener (null until the program installs one). Set it before any command runs.
+inline EventLogFileOpener& InstalledEventLogFileOpener() {
+  static EventLogFileOpener opener = nullptr;
+  return opener;
+}
+
+/// Opens a file-only event log with the installed implementation, or returns null when `path` is empty.
+/// @throws InputError if `path` is given but this program cannot write logs, or the log cannot be created.
+inline std::unique_ptr<EventLogTap> OpenEventLogFile(const std::string& path) {
+  if (path.empty()) return nullptr;
+  if (InstalledEventLogFileOpener() == nullptr) {
+    throw InputError("command line", "--log", "this program cannot write event logs (use `visco`, not `visco-rt`)");
+  }
+  return InstalledEventLogFileOpener()(path);
+}
+
 /// Opens an event log with the installed implementation, or returns null when `path` is empty.
 /// @throws InputError if `path` is given but this program cannot write logs, or the log cannot be created.
 inline std::unique_ptr<EventLogTap> OpenEventLog(const std::string& path, const std::string& lcm_url) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <lcm/lcm-cpp.hpp>
+#include <utility>
 
 #include "lcmtypes/channels.h"
 #include "visco/controller_telemetry_t.hpp"
@@ -57,14 +58,14 @@ class ControllerBridge::Handlers {
 
   void Events(const lcm::ReceiveBuffer*, const std::string&, const visual_events_t* m) {
     std::uint64_t unknown = 0;
-    const VisualFrame frame = ToVisualFrame(*m, bridge_.task_, MonotonicNs(), WallUtime(), &unknown);
+    const VisualFrame frame = ToVisualFrame(*m, bridge_.task_, bridge_.NowNs(), bridge_.NowUtime(), &unknown);
     if (unknown > 0) bridge_.counters_.unknown_rays.fetch_add(unknown, std::memory_order_relaxed);
     bridge_.frames_.Publish(frame);
     bridge_.counters_.frames.fetch_add(1, std::memory_order_relaxed);
   }
 
   void Estimate(const lcm::ReceiveBuffer*, const std::string&, const robot_estimate_t* m) {
-    bridge_.estimates_.Publish(ToPositionEstimate(*m, MonotonicNs(), WallUtime()));
+    bridge_.estimates_.Publish(ToPositionEstimate(*m, bridge_.NowNs(), bridge_.NowUtime()));
     bridge_.counters_.estimates.fetch_add(1, std::memory_order_relaxed);
   }
 
@@ -78,14 +79,20 @@ class ControllerBridge::Handlers {
   ControllerBridge& bridge_;
 };
 
-ControllerBridge::ControllerBridge(lcm::LCM& lcm, const Task& task, Outbox& outbox)
-    : lcm_(lcm), task_(task), outbox_(outbox), handlers_(std::make_unique<Handlers>(*this)) {
-  lcm_.subscribe(channels::kVisualEvents, &Handlers::Events, handlers_.get());
-  lcm_.subscribe(channels::kRobotEstimate, &Handlers::Estimate, handlers_.get());
-  lcm_.subscribe(channels::kEstop, &Handlers::Estop, handlers_.get());
+ControllerBridge::ControllerBridge(lcm::LCM& lcm, const Task& task, Outbox& outbox, BridgeClock clock)
+    : lcm_(lcm), task_(task), outbox_(outbox), clock_(std::move(clock)), handlers_(std::make_unique<Handlers>(*this)) {
+  subscriptions_ = {lcm_.subscribe(channels::kVisualEvents, &Handlers::Events, handlers_.get()),
+                    lcm_.subscribe(channels::kRobotEstimate, &Handlers::Estimate, handlers_.get()),
+                    lcm_.subscribe(channels::kEstop, &Handlers::Estop, handlers_.get())};
 }
 
-ControllerBridge::~ControllerBridge() { Stop(); }
+ControllerBridge::~ControllerBridge() {
+  Stop();
+  for (lcm::Subscription* sub : subscriptions_) lcm_.unsubscribe(sub);  // the bus may outlive the bridge
+}
+
+std::int64_t ControllerBridge::NowNs() const { return clock_.monotonic_ns ? clock_.monotonic_ns() : MonotonicNs(); }
+std::int64_t ControllerBridge::NowUtime() const { return clock_.wall_utime ? clock_.wall_utime() : WallUtime(); }
 
 void ControllerBridge::Start() {
   if (running_.exchange(true)) return;
@@ -181,13 +188,13 @@ void ControllerBridge::Drain() {
     last_telemetry_ = t;
   }
   // The controller's heartbeat, 10 Hz, only while the loop is cycling (a stuck loop must look dead).
-  const std::int64_t now = MonotonicNs();
+  const std::int64_t now = NowNs();
   const std::int64_t cycles = outbox_.cycles.load(std::memory_order_relaxed);
   if (now - last_heartbeat_ns_ >= 100'000'000 && cycles != heartbeat_cycles_) {
     last_heartbeat_ns_ = now;
     heartbeat_cycles_ = cycles;
     heartbeat_t m;
-    m.utime = WallUtime();
+    m.utime = NowUtime();
     m.sender = "controller";
     m.node_id = -1;
     m.counter = ++heartbeat_counter_;

@@ -6,10 +6,12 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "common/latest_value.h"
 #include "control/control_loop.h"
@@ -20,7 +22,8 @@
 
 namespace lcm {
 class LCM;
-}
+class Subscription;
+}  // namespace lcm
 
 namespace visco::control {
 
@@ -44,10 +47,17 @@ struct BridgeCounters {
   std::atomic<std::uint64_t> telemetry{0};
 };
 
+/// The bridge's clocks: receive times of vision's messages and the heartbeat's time. Empty: MonotonicNs and
+/// WallUtime. A lockstep simulation sets its simulated clock here.
+struct BridgeClock {
+  std::function<std::int64_t()> monotonic_ns;
+  std::function<std::int64_t()> wall_utime;
+};
+
 class ControllerBridge {
  public:
   /// Subscribes on `lcm` (which must outlive the bridge). `task` resolves visual events' ray ids. Not real-time safe.
-  ControllerBridge(lcm::LCM& lcm, const Task& task, Outbox& outbox);
+  ControllerBridge(lcm::LCM& lcm, const Task& task, Outbox& outbox, BridgeClock clock = {});
   ~ControllerBridge();
   ControllerBridge(const ControllerBridge&) = delete;
   ControllerBridge& operator=(const ControllerBridge&) = delete;
@@ -56,6 +66,10 @@ class ControllerBridge {
   void Start();
   /// Drains the outbox one last time and joins the threads.
   void Stop();
+  /// Publishes what the loop left in the outbox (faults, telemetry) and the controller's heartbeat when it is due: what
+  /// the publish thread does when woken. Without Start() (a lockstep simulation: one thread, which also serves `lcm`
+  /// for the receiving side) the caller calls it after each period. Not real-time safe.
+  void Drain();
 
   LatestValue<VisualFrame>& frames() { return frames_; }
   LatestValue<PositionEstimate>& estimates() { return estimates_; }
@@ -69,16 +83,19 @@ class ControllerBridge {
   class Handlers;
   void ReceiveLoop();
   void PublishLoop();
-  void Drain();
+  std::int64_t NowNs() const;
+  std::int64_t NowUtime() const;
 
   lcm::LCM& lcm_;
   const Task& task_;
   Outbox& outbox_;
+  BridgeClock clock_;
   LatestValue<VisualFrame> frames_;
   LatestValue<PositionEstimate> estimates_;
   std::atomic<bool> estop_{false};
   std::atomic<bool> running_{false};
   std::unique_ptr<Handlers> handlers_;
+  std::vector<lcm::Subscription*> subscriptions_;
   std::thread receiver_;
   std::thread publisher_;
   BridgeCounters counters_;

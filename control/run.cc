@@ -54,7 +54,9 @@ void CheckOptions(const RunOptions& o) {
   if (o.node_id < 1 || o.node_id > 127) throw InputError("command line", "--node", "must be in 1..127");
 }
 
-controller_cycle_t ToMessage(const CycleRecord& r) {
+}  // namespace
+
+controller_cycle_t ToCycleMessage(const CycleRecord& r) {
   controller_cycle_t m{};
   const ExecutorInput& in = r.input;
   m.utime = in.now_utime;
@@ -103,6 +105,8 @@ controller_cycle_t ToMessage(const CycleRecord& r) {
   m.holding = r.holding;
   return m;
 }
+
+namespace {
 
 template <class M>
 void WriteToLog(EventLogTap& log, const char* channel, std::int64_t utime, const M& m) {
@@ -172,6 +176,27 @@ ExecutorConfig ExecutorConfigFromJson(const std::string& text, const std::string
   } catch (const nlohmann::json::exception& e) {
     throw InputError(source, "executor", std::string("bad controller configuration: ") + e.what());
   }
+}
+
+log_annotation_t ControllerConfigAnnotation(const RunOptions& o, const ExecutorConfig& executor, std::int64_t start_ns,
+                                            std::int64_t cycles, std::int64_t records_written,
+                                            std::int64_t records_dropped, std::int64_t utime) {
+  nlohmann::json note;
+  note["executor"] = nlohmann::json::parse(ExecutorConfigToJson(executor));
+  note["start_ns"] = start_ns;
+  auto absolute = [](const std::string& p) { return p.empty() ? p : std::filesystem::absolute(p).string(); };
+  note["strategy"] = absolute(o.strategy_path);
+  note["scene"] = absolute(o.scene_path);
+  note["rays"] = absolute(o.rays_path);
+  note["cycles"] = cycles;
+  note["records_written"] = records_written;
+  note["records_dropped"] = records_dropped;
+  log_annotation_t a;
+  a.utime = utime;
+  a.source = "run";
+  a.kind = "controller_config";
+  a.text = note.dump();
+  return a;
 }
 
 std::string RunResult::ToJson() const {
@@ -262,7 +287,7 @@ RunResult RunTask(const Task& task, const RunOptions& options, const std::atomic
       for (;;) {
         const bool last = !recording.load(std::memory_order_acquire);
         while (records->TryPop(r)) {
-          WriteToLog(*o.log, kCycleChannel, r.input.now_utime, ToMessage(r));
+          WriteToLog(*o.log, kCycleChannel, r.input.now_utime, ToCycleMessage(r));
           ++records_written;
         }
         if (last) break;
@@ -324,21 +349,8 @@ RunResult RunTask(const Task& task, const RunOptions& options, const std::atomic
     recording.store(false, std::memory_order_release);
     recorder.join();
     // The run's configuration, for `visco replay` to run the same executor (docs/replay.md).
-    nlohmann::json note;
-    note["executor"] = nlohmann::json::parse(ExecutorConfigToJson(o.executor));
-    note["start_ns"] = start_ns.load();
-    auto absolute = [](const std::string& p) { return p.empty() ? p : std::filesystem::absolute(p).string(); };
-    note["strategy"] = absolute(o.strategy_path);
-    note["scene"] = absolute(o.scene_path);
-    note["rays"] = absolute(o.rays_path);
-    note["cycles"] = loop.cycles();
-    note["records_written"] = records_written;
-    note["records_dropped"] = records->dropped();
-    log_annotation_t a;
-    a.utime = WallUtime();
-    a.source = "run";
-    a.kind = "controller_config";
-    a.text = note.dump();
+    const log_annotation_t a = ControllerConfigAnnotation(o, o.executor, start_ns.load(), loop.cycles(),
+                                                          records_written, records->dropped(), WallUtime());
     WriteToLog(*o.log, kAnnotationChannel, a.utime, a);
     if (records->dropped() > 0) {
       spdlog::warn("run: {} of {} period records dropped from the event log (queue full)", records->dropped(),

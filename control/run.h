@@ -7,9 +7,12 @@
 #include <string>
 
 #include "common/event_log.h"
+#include "control/control_loop.h"
 #include "control/executor.h"
 #include "control/task.h"
 #include "drivers/commands.h"
+#include "visco/controller_cycle_t.hpp"
+#include "visco/log_annotation_t.hpp"
 
 namespace visco::control {
 
@@ -39,6 +42,15 @@ inline constexpr char kAnnotationChannel[] = "VISCO_LOG_ANNOTATION";
 /// The executor's configuration as JSON and back (for the event log's annotation). FromJson @throws InputError.
 std::string ExecutorConfigToJson(const ExecutorConfig& config);
 ExecutorConfig ExecutorConfigFromJson(const std::string& json, const std::string& source);
+
+/// One period's record as the log's VISCO_CONTROLLER_CYCLE message. Not real-time safe (allocates).
+controller_cycle_t ToCycleMessage(const CycleRecord& record);
+/// The run's configuration as the log's VISCO_LOG_ANNOTATION message (kind "controller_config", what `visco replay`
+/// reads to run the same executor): the executor's configuration, the executor's start time, the strategy, scene and
+/// rays files (made absolute) and the period records' counts. `utime` stamps it.
+log_annotation_t ControllerConfigAnnotation(const RunOptions& options, const ExecutorConfig& executor,
+                                            std::int64_t start_ns, std::int64_t cycles, std::int64_t records_written,
+                                            std::int64_t records_dropped, std::int64_t utime);
 
 struct RunResult {
   Mode mode = Mode::kIdle;

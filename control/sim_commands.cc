@@ -9,12 +9,14 @@
 #include <cstdio>
 #include <memory>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "common/error.h"
 #include "common/event_log.h"
 #include "common/write_output.h"
 #include "control/run.h"
+#include "control/sim_lockstep.h"
 #include "control/sim_session.h"
 #include "control/sim_world.h"
 #include "drivers/commands.h"
@@ -43,6 +45,8 @@ struct SimCli {
   double stale_ms = 500;
   std::string log;
   std::string write_world;
+  bool lockstep = false;
+  std::string strategy;
 };
 
 FaultWindow Window(const std::vector<double>& v, const char* option) {
@@ -53,8 +57,64 @@ FaultWindow Window(const std::vector<double>& v, const char* option) {
   return {v[0], v[1]};
 }
 
+// --lockstep: the closed loop in this process on a simulated clock (control/sim_lockstep.h).
+void RunLockstepSim(SimCli& cli) {
+  const SimOptions& s = cli.sim;
+  // What only a live run has: another process's robot, a real bus, CAN, injected camera faults.
+  const std::pair<bool, const char*> refused[] = {
+      {s.no_driver, "--no-driver"},        {!s.can_interface.empty(), "--can"},   {!s.lcm_url.empty(), "--lcm-url"},
+      {!cli.occlude.empty(), "--occlude"}, {!cli.blackout.empty(), "--blackout"}, {!cli.stale.empty(), "--stale"},
+      {s.drop_rate != 0, "--drop-rate"}};
+  for (const auto& [given, option] : refused) {
+    if (given) {
+      throw InputError("command line", option,
+                       "not with --lockstep (one process on a simulated clock: its bus is private, its camera has "
+                       "no injected faults)");
+    }
+  }
+  LockstepOptions o;
+  o.scene_path = s.scene_path;
+  o.strategy_path = cli.strategy;
+  o.rays_path = s.rays_path;
+  if (!cli.start.empty()) {
+    o.have_start = true;
+    o.start = {cli.start[0], cli.start[1]};
+  }
+  o.robot = cli.robot.robot;
+  o.driver = drivers::ToDriverConfig(cli.driver);
+  o.node_id = cli.driver.node;
+  o.render = s.render;
+  o.camera_hz = s.camera_hz;
+  o.latency_s = cli.latency_ms / 1000.0;
+  o.max_duration_s = cli.duration_s > 0 ? cli.duration_s : o.max_duration_s;
+  std::unique_ptr<EventLogTap> log = OpenEventLogFile(cli.log);
+  o.log = log.get();
+  struct sigaction action {};
+  action.sa_handler = OnSignal;
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+  o.stop = &g_stop;
+  const LockstepResult result = RunLockstep(o);
+  std::printf("%s\n", result.ToJson().c_str());
+  std::fflush(stdout);
+  if (log) {
+    const std::string report = log->Close();
+    std::fprintf(stderr, "sim: %s\n", report.c_str());
+    if (report.find("; 0 dropped") == std::string::npos) throw JobFailed("the lockstep log is incomplete: " + report);
+  }
+  if (!result.reached()) {
+    throw JobFailed(result.mode == Mode::kDone ? "the controller recognised the goal, but the robot is not in it"
+                                               : "run stopped: " + result.reason);
+  }
+}
+
 void RunSim(SimCli& cli) {
   LogToStderr();  // stdout carries only the JSON summary
+  if (cli.lockstep) {
+    RunLockstepSim(cli);
+    return;
+  }
+  if (!cli.strategy.empty()) throw InputError("command line", "--strategy", "only with --lockstep");
   SimOptions& o = cli.sim;
   o.robot = cli.robot.robot;
   if (!cli.write_world.empty()) {
@@ -141,7 +201,8 @@ void RegisterSimCommands(CLI::App& app) {
   cmd->add_option("--lcm-url", o.lcm_url, "LCM provider URL (LCM's default when empty)");
   cmd->add_option("--log", cli->log,
                   "write an LCM event log (lcm-logger format) of the bus: every channel it publishes and receives "
-                  "(needs a udpm:// bus; docs/replay.md)");
+                  "(needs a udpm:// bus; with --lockstep: every message of its private bus, the controller's period "
+                  "records and configuration, stamped with the simulated time; docs/replay.md)");
   cmd->add_option("--can", o.can_interface, "the driver listens on this SocketCAN interface instead of LCM");
   drivers::AddDriverOptions(*cmd, cli->driver);  // the same options as `visco driver`
   cmd->add_option("--camera-hz", o.camera_hz, "camera frame rate, Hz")->capture_default_str();
@@ -183,8 +244,22 @@ void RegisterSimCommands(CLI::App& app) {
   cmd->add_option("--write-world", cli->write_world,
                   "write the scene's world file (C-obstacles, bounds, friction, velocity cone; the start with "
                   "--start) for `visco-rt driver --world`, and exit");
-  cmd->add_option("--duration", cli->duration_s, "stop after this many seconds (0: until a signal)")
+  cmd->add_option("--duration", cli->duration_s,
+                  "stop after this many seconds (0: until a signal; --lockstep: simulated seconds, then an e-stop, "
+                  "0: 120)")
       ->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--lockstep", cli->lockstep,
+                "the whole closed loop of `visco demo` in this one process, on one thread, on a simulated clock: the "
+                "driver and the simulated robot, the rendered camera (--objects, --camera, --extrinsics), the vision "
+                "pipeline of `visco track` and the controller of `visco run` (--strategy, --rays; the demo's "
+                "settings), talking LCM on a private in-process bus. Nothing reads the wall clock and nothing runs "
+                "concurrently, so the same options and --seed give the same messages bit for bit. --log writes "
+                "every message, the controller's period records and its configuration, stamped with the simulated "
+                "time: `visco replay LOG --check` replays it. Runs until the strategy ends (or --duration); exit 0 "
+                "only when the controller recognised the goal and the robot is in it (docs/replay.md)")
+      ->excludes("--write-world");
+  cmd->add_option("--strategy", cli->strategy, "--lockstep: the motion strategy to execute (`visco plan` output)")
+      ->check(CLI::ExistingFile);
   cmd->callback([cli] { RunSim(*cli); });
 }
 

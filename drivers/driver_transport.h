@@ -101,6 +101,7 @@ struct DriverTransportConfig {
   int node_id = 1;
   std::string can_interface;  // for MakeSocketCanDriverTransport
   std::string lcm_url;        // for MakeLcmDriverTransport
+  LockstepBus lockstep;       // MakeLcmDriverTransport only: a lockstep simulation's bus and clock (robot_link.h)
 };
 
 /// @throws visco::JobFailed when the CAN socket cannot be opened; visco::InputError for a bad node id.

@@ -13,6 +13,7 @@
 #include <memory>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "common/error.h"
 #include "drivers/driver_transport.h"
@@ -29,19 +30,35 @@ namespace {
 
 constexpr std::uint32_t kLcmSeqModulus = 0x80000000U;
 
-// Owns an lcm::LCM, an eventfd and the thread that serves both.
+// Owns an lcm::LCM, an eventfd and the thread that serves both. In a lockstep simulation (LockstepBus) it uses the
+// caller's instance instead, starts no thread, and Wake() flushes at once on the caller's thread; message times come
+// from the simulated clock.
 class LcmIo {
  public:
-  explicit LcmIo(const std::string& url) : lcm_(url) {
-    if (!lcm_.good()) throw JobFailed("LCM: cannot initialise provider '" + (url.empty() ? "default" : url) + "'");
+  LcmIo(const std::string& url, const LockstepBus& lockstep) : clock_(lockstep.utime_now) {
+    if (lockstep.bus != nullptr) {
+      lcm_ = lockstep.bus;
+      return;
+    }
+    owned_ = std::make_unique<lcm::LCM>(url);
+    lcm_ = owned_.get();
+    if (!lcm_->good()) throw JobFailed("LCM: cannot initialise provider '" + (url.empty() ? "default" : url) + "'");
     wake_ = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
     if (wake_ < 0) throw JobFailed("LCM: eventfd failed");
   }
-  ~LcmIo() { Stop(); }
+  ~LcmIo() {
+    Stop();
+    for (lcm::Subscription* sub : subscriptions_) lcm_->unsubscribe(sub);  // a shared bus outlives this link
+  }
+  // Keeps a subscription on a shared bus, to be removed with the link (an own instance goes with its subscriptions).
+  lcm::Subscription* Track(lcm::Subscription* sub) {
+    if (!owned_) subscriptions_.push_back(sub);
+    return sub;
+  }
 
   void Start(std::function<void()> on_wake) {
     on_wake_ = std::move(on_wake);
-    thread_ = std::thread([this] { Run(); });
+    if (owned_) thread_ = std::thread([this] { Run(); });
   }
   void Stop() {
     if (thread_.joinable()) {
@@ -54,16 +71,22 @@ class LcmIo {
       wake_ = -1;
     }
   }
-  // Real-time safe: one non-blocking write(2).
+  // Real-time safe: one non-blocking write(2). (Lockstep: the flush itself, on the caller's thread.)
   void Wake() {
+    if (!owned_) {
+      if (on_wake_) on_wake_();
+      return;
+    }
     const std::uint64_t one = 1;
     [[maybe_unused]] const ssize_t n = write(wake_, &one, sizeof(one));
   }
-  lcm::LCM& lcm() { return lcm_; }
+  lcm::LCM& lcm() { return *lcm_; }
+  // Message time: the wall clock, or the lockstep simulation's clock. Real-time safe with the wall clock.
+  std::int64_t Now() const { return clock_ ? clock_() : WallMicros(); }
 
  private:
   void Run() {
-    pollfd fds[2] = {{lcm_.getFileno(), POLLIN, 0}, {wake_, POLLIN, 0}};
+    pollfd fds[2] = {{lcm_->getFileno(), POLLIN, 0}, {wake_, POLLIN, 0}};
     while (!stop_.load()) {
       on_wake_();  // flush outgoing first, then wait
       if (poll(fds, 2, 20) <= 0) continue;
@@ -71,11 +94,14 @@ class LcmIo {
         std::uint64_t count = 0;
         [[maybe_unused]] const ssize_t n = read(wake_, &count, sizeof(count));
       }
-      if (fds[0].revents & POLLIN) lcm_.handleTimeout(0);
+      if (fds[0].revents & POLLIN) lcm_->handleTimeout(0);
     }
     on_wake_();
   }
-  lcm::LCM lcm_;
+  std::unique_ptr<lcm::LCM> owned_;
+  lcm::LCM* lcm_ = nullptr;
+  std::function<std::int64_t()> clock_;
+  std::vector<lcm::Subscription*> subscriptions_;  // on a shared bus
   int wake_ = -1;
   std::atomic<bool> stop_{false};
   std::thread thread_;
@@ -89,13 +115,16 @@ constexpr int kLcmQueueCapacity = 512;
 class LcmRobotLink final : public RobotLink {
  public:
   explicit LcmRobotLink(const RobotLinkConfig& config)
-      : node_(config.node_id), heartbeat_timeout_us_(config.heartbeat_timeout_us), io_(config.lcm_url) {
+      : node_(config.node_id),
+        heartbeat_timeout_us_(config.heartbeat_timeout_us),
+        io_(config.lcm_url, config.lockstep) {
     // LCM keeps 30 undelivered messages per subscription and drops the rest: at 500 Hz a thread held off for 60 ms
     // (a loaded machine, an image-rendering neighbour) lost a run of statuses or commands, which the session rules
     // then treat as a fault. Room for one watchdog period of them.
-    io_.lcm().subscribe(channels::kStatus, &LcmRobotLink::OnStatus, this)->setQueueCapacity(kLcmQueueCapacity);
-    io_.lcm().subscribe(channels::kHeartbeatDriver, &LcmRobotLink::OnHeartbeat, this);
-    io_.lcm().subscribe(channels::kFault, &LcmRobotLink::OnFault, this);
+    io_.Track(io_.lcm().subscribe(channels::kStatus, &LcmRobotLink::OnStatus, this))
+        ->setQueueCapacity(kLcmQueueCapacity);
+    io_.Track(io_.lcm().subscribe(channels::kHeartbeatDriver, &LcmRobotLink::OnHeartbeat, this));
+    io_.Track(io_.lcm().subscribe(channels::kFault, &LcmRobotLink::OnFault, this));
     io_.Start([this] { Flush(); });
   }
   ~LcmRobotLink() override { io_.Stop(); }
@@ -113,7 +142,7 @@ class LcmRobotLink final : public RobotLink {
     out.command = command;
     out.session = session_.session();
     out.seq = session_.Next() % kLcmSeqModulus;
-    out.utime = WallMicros();
+    out.utime = io_.Now();
     if (!outgoing_.Push(out)) {
       ++counters_.send_failures;
       return LinkResult::kBufferFull;
@@ -327,10 +356,12 @@ class LcmRobotLink final : public RobotLink {
 // ---------------------------------------------------------------------------------------------------------------
 class LcmDriverTransport final : public DriverTransport {
  public:
-  explicit LcmDriverTransport(const DriverTransportConfig& config) : node_(config.node_id), io_(config.lcm_url) {
+  explicit LcmDriverTransport(const DriverTransportConfig& config)
+      : node_(config.node_id), io_(config.lcm_url, config.lockstep) {
     rx_ready_ = eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
     if (rx_ready_ < 0) throw JobFailed("LCM: eventfd failed");
-    io_.lcm().subscribe(channels::kCommand, &LcmDriverTransport::OnCommand, this)->setQueueCapacity(kLcmQueueCapacity);
+    io_.Track(io_.lcm().subscribe(channels::kCommand, &LcmDriverTransport::OnCommand, this))
+        ->setQueueCapacity(kLcmQueueCapacity);
     io_.Start([this] { Flush(); });
   }
   ~LcmDriverTransport() override {
@@ -357,7 +388,7 @@ class LcmDriverTransport final : public DriverTransport {
     Out out;
     out.kind = Out::kStatus;
     out.status = status;
-    out.utime = WallMicros();
+    out.utime = io_.Now();
     return Queue(out);
   }
   LinkResult SendHeartbeat(NmtState state) override {
@@ -366,14 +397,14 @@ class LcmDriverTransport final : public DriverTransport {
     out.nmt = state;
     out.session = session_;
     last_nmt_ = state;
-    out.utime = WallMicros();
+    out.utime = io_.Now();
     return Queue(out);
   }
   LinkResult SendFault(const DriverFault& fault) override {
     Out out;
     out.kind = Out::kFault;
     out.fault = fault;
-    out.utime = WallMicros();
+    out.utime = io_.Now();
     return Queue(out);
   }
   LinkResult SendSession(std::uint32_t session, std::uint32_t /*status_seq*/) override {

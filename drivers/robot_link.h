@@ -11,10 +11,24 @@
 // the link keeps its peer timers on that clock. Message times (`utime`) are wall-clock microseconds since the epoch.
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 
+namespace lcm {
+class LCM;
+}
+
 namespace visco::drivers {
+
+/// Lockstep simulation (docs/replay.md, "Lockstep runs"): the LCM link and transport on one LCM instance that the
+/// caller serves on its own thread (a memq:// bus it pumps with handleTimeout(0)), with no I/O thread of their own
+/// (what they send is published at once, on the caller's thread), and message times (`utime`) from a simulated
+/// clock instead of the wall clock. Not for live use: SendCommand then allocates.
+struct LockstepBus {
+  lcm::LCM* bus = nullptr;                  // the shared instance (null: the link opens its own and serves it)
+  std::function<std::int64_t()> utime_now;  // microseconds since the epoch (empty: the wall clock)
+};
 
 /// Robot driver state, the same numbers as visco::robot_status_t::STATE_*.
 enum class RobotState : std::uint8_t {
@@ -297,6 +311,7 @@ struct RobotLinkConfig {
   std::int64_t heartbeat_timeout_us = 300'000;  // peer lost when no accepted status for this long
   std::string can_interface;                    // SocketCAN interface ("vcan0"); for MakeSocketCanRobotLink
   std::string lcm_url;                          // LCM provider URL ("" = LCM's default); for MakeLcmRobotLink
+  LockstepBus lockstep;                         // MakeLcmRobotLink only: a lockstep simulation's bus and clock
 };
 
 /// Opens a SocketCAN robot link on `config.can_interface`. Not real-time safe.

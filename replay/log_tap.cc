@@ -59,7 +59,38 @@ class LcmEventLogTap : public EventLogTap {
   std::string report_;
 };
 
+// A log of no bus: what the process writes itself (a lockstep simulation's messages, on its simulated clock). The
+// writer's thread only writes the file, in the order of the Write calls.
+class FileEventLog : public EventLogTap {
+ public:
+  explicit FileEventLog(const std::string& path) : writer_(path, Options()) {}
+  ~FileEventLog() override { Close(); }
+  bool Write(const std::string& channel, std::int64_t timestamp, const std::uint8_t* data, std::size_t size) override {
+    return writer_.Write(channel, timestamp, std::span<const std::uint8_t>(data, size));
+  }
+  std::string Close() override {
+    if (report_.empty()) {
+      const WriterStats s = writer_.Close();
+      report_ = "event log " + writer_.path() + ": " + std::to_string(s.events_written) + " event(s), " +
+                std::to_string(s.bytes_written) + " bytes written; " + std::to_string(s.events_dropped) + " dropped" +
+                (s.error.empty() ? "" : " (" + s.error + ")");
+    }
+    return report_;
+  }
+
+ private:
+  static WriterOptions Options() {
+    WriterOptions o;
+    o.max_queue_bytes = std::size_t{1} << 30;  // the producer is not real-time: room rather than drops
+    return o;
+  }
+  EventLogWriter writer_;
+  std::string report_;
+};
+
 }  // namespace
+
+std::unique_ptr<EventLogTap> OpenFileEventLog(const std::string& path) { return std::make_unique<FileEventLog>(path); }
 
 std::string TapUrl(const std::string& lcm_url) {
   std::string url = lcm_url;
@@ -78,6 +109,9 @@ std::unique_ptr<EventLogTap> OpenLcmEventLog(const std::string& path, const std:
   return std::make_unique<LcmEventLogTap>(path, lcm_url);
 }
 
-void InstallEventLog() { InstalledEventLogOpener() = &OpenLcmEventLog; }
+void InstallEventLog() {
+  InstalledEventLogOpener() = &OpenLcmEventLog;
+  InstalledEventLogFileOpener() = &OpenFileEventLog;
+}
 
 }  // namespace visco::replay

@@ -21,7 +21,10 @@ std::string TapUrl(const std::string& lcm_url);
 /// Starts a tap. @throws InputError if the file cannot be created or the bus cannot be opened.
 std::unique_ptr<EventLogTap> OpenLcmEventLog(const std::string& path, const std::string& lcm_url);
 
-/// Installs OpenLcmEventLog as the program's event log implementation (common/event_log.h).
+/// Starts a log of no bus (EventLogTap::Write only). @throws InputError if the file cannot be created.
+std::unique_ptr<EventLogTap> OpenFileEventLog(const std::string& path);
+
+/// Installs OpenLcmEventLog and OpenFileEventLog as the program's event log implementation (common/event_log.h).
 void InstallEventLog();
 
 }  // namespace visco::replay
