@@ -3,9 +3,11 @@
 re-encode images as PNG (lossless, so vision sees the same pixels).  Standard library only.
 
 usage: logtool.py list LOG
-       logtool.py diff LOG1 LOG2                    compare the payloads (channel and bytes, receive timestamps
-                                                     aside) event by event; exit 0 if identical, 1 at the first
-                                                     difference (printed)
+       logtool.py diff LOG1 LOG2 [CHANNEL] [BEFORE_S]
+                                                     compare the payloads (channel and bytes, receive timestamps
+                                                     aside) event by event (only CHANNEL's if given and not "-";
+                                                     only the events of the first BEFORE_S seconds if given); exit
+                                                     0 if identical, 1 at the first difference (printed)
        logtool.py corrupt-image LOG OUT SEQ         XOR every pixel byte of the image with image_t.seq SEQ with 0x08
        logtool.py damage LOG OUT KIND               KIND: truncate | flip-header | bad-sync | unknown-channel |
                                                      undecodable | garbage | empty | only-undecodable
@@ -75,17 +77,26 @@ def png_gray(width, height, stride, pixels):
 def main():
     cmd = sys.argv[1]
     if cmd == "diff":
-        a, b = read(sys.argv[2]), read(sys.argv[3])
+        channel = sys.argv[4] if len(sys.argv) > 4 and sys.argv[4] != "-" else None
+        before = float(sys.argv[5]) if len(sys.argv) > 5 else None
+
+        def selected(path):
+            events = read(path)
+            t0 = events[0][1] if events else 0
+            return [e for e in events if (channel is None or e[2] == channel) and
+                    (before is None or e[1] - t0 < before * 1e6)]
+        a, b = selected(sys.argv[2]), selected(sys.argv[3])
+        what = "%s events" % channel if channel else "events"
         for i, (x, y) in enumerate(zip(a, b)):
             if x[2] != y[2] or x[3] != y[3]:
                 at = next((k for k in range(min(len(x[3]), len(y[3]))) if x[3][k] != y[3][k]), None)
-                print("payloads differ at event %d: %s (%d bytes) against %s (%d bytes), first differing byte %s" %
-                      (i, x[2], len(x[3]), y[2], len(y[3]), at))
+                print("payloads differ at %s %d: %s (%d bytes) against %s (%d bytes), first differing byte %s" %
+                      (what, i, x[2], len(x[3]), y[2], len(y[3]), at))
                 sys.exit(1)
         if len(a) != len(b):
-            print("payloads identical for %d events; then %d against %d events" % (min(len(a), len(b)), len(a), len(b)))
+            print("payloads identical for %d %s; then %d against %d" % (min(len(a), len(b)), what, len(a), len(b)))
             sys.exit(1)
-        print("payloads identical: %d events" % len(a))
+        print("payloads identical: %d %s" % (len(a), what))
         sys.exit(0)
     if cmd == "list":
         for num, ts, channel, payload in read(sys.argv[2]):
