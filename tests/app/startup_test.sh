@@ -48,7 +48,7 @@ grep -q -- '--camera' <<<"$help" || fail "track --help (through visco-full)"
 [[ $? -eq 2 ]] || fail "a vision command's bad input (through visco-full) does not exit 2"
 
 # Whole-process time, the median of 21 starts, against `true` (the machine's own cost of a process): printed for
-# the log, not asserted (the structure above is what keeps it low; figures come from farm-bench, README).
+# the log, not asserted (the structure above is what keeps it low; the README's figures are medians of repeated whole-process timings).
 median() { sort -n | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
 time_of() {
   for _ in $(seq 21); do
