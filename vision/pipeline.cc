@@ -13,6 +13,7 @@
 
 #include "common/error.h"
 #include "lcmtypes/channels.h"
+#include "vision/tag_renderer.h"
 
 namespace visco::vision {
 namespace {
@@ -89,20 +90,70 @@ class FolderSource : public FrameSource {
   std::size_t next_ = 0;
 };
 
+// A video file. OpenCV's read() returns false both at the end and for a frame it cannot decode (a corrupt JPEG of
+// an MJPG stream, for instance), after which the following frames read again. So a failed read is not the end: the
+// source reads on, up to kMaxUnreadable frames; a failure followed by a good frame is reported as one bad frame per
+// unreadable frame (with its number) before the good one, and only a run of failures that reaches the end of the
+// container (or kMaxUnreadable) ends the stream. Frame numbers count the frames read or attempted, so a frame that
+// could not be read keeps its number and the pipeline sees no gap after it.
 class VideoSource : public FrameSource {
  public:
   VideoSource(cv::VideoCapture cap, std::string name, std::int64_t start)
       : cap_(std::move(cap)), name_(std::move(name)), start_(start) {
     fps_ = cap_.get(cv::CAP_PROP_FPS);
     if (!(fps_ > 0)) fps_ = 30;
+    const double count = cap_.get(cv::CAP_PROP_FRAME_COUNT);
+    frame_count_ = count > 0 ? static_cast<std::int64_t>(count) : -1;
   }
   SourceStatus Next(Frame& frame, std::string& error, int) override {
+    if (unreadable_ > 0) {
+      // Frames that could not be read before the one waiting in pending_: one report each, in order.
+      --unreadable_;
+      frame.seq = pending_seq_ - unreadable_ - 1;
+      frame.utime = pending_utime_ - static_cast<std::int64_t>(static_cast<double>(unreadable_ + 1) * 1e6 / fps_);
+      frame.origin = name_;
+      frame.image = GrayImage();
+      error = "cannot read or decode video frame " + std::to_string(frame.seq) + " (corrupt); the video goes on";
+      return SourceStatus::kBadFrame;
+    }
     cv::Mat m;
-    if (!cap_.read(m)) return SourceStatus::kEnd;
-    frame.seq = seq_++;
-    const double ms = cap_.get(cv::CAP_PROP_POS_MSEC);
-    frame.utime =
-        start_ + (ms > 0 ? static_cast<std::int64_t>(ms * 1000) : static_cast<std::int64_t>(frame.seq * 1e6 / fps_));
+    if (has_pending_) {
+      m = std::move(pending_);
+      has_pending_ = false;
+    } else {
+      std::int64_t failed = 0;
+      while (!Read(m)) {
+        ++failed;
+        const bool past_end = frame_count_ >= 0 && seq_ + failed >= frame_count_;
+        if (past_end || failed >= kMaxUnreadable) {
+          if (frame_count_ >= 0 && seq_ < frame_count_) {
+            // The container announced more frames than could be read: said once, then the end.
+            frame.seq = seq_;
+            frame.utime = start_ + static_cast<std::int64_t>(static_cast<double>(seq_) * 1e6 / fps_);
+            frame.origin = name_;
+            frame.image = GrayImage();
+            error = "video frames " + std::to_string(seq_) + ".." + std::to_string(frame_count_ - 1) + " of " +
+                    std::to_string(frame_count_) + " cannot be read (truncated or corrupt at the end)";
+            seq_ = frame_count_;
+            return SourceStatus::kBadFrame;
+          }
+          return SourceStatus::kEnd;
+        }
+      }
+      if (failed > 0) {
+        // Unreadable frames in the middle: report them first, then deliver this one.
+        seq_ += failed;
+        pending_ = std::move(m);
+        has_pending_ = true;
+        pending_seq_ = seq_;
+        pending_utime_ = Utime(seq_);
+        unreadable_ = failed;
+        return Next(frame, error, 0);
+      }
+    }
+    frame.seq = seq_;
+    frame.utime = Utime(seq_);
+    ++seq_;
     frame.origin = name_;
     if (!GrayFromMat(m, frame.image)) {
       error = "cannot convert the decoded frame to grey";
@@ -112,11 +163,33 @@ class VideoSource : public FrameSource {
   }
 
  private:
+  static constexpr std::int64_t kMaxUnreadable = 64;
+  bool Read(cv::Mat& m) {
+    bool ok = false;
+    try {
+      ok = cap_.read(m);
+    } catch (const cv::Exception&) {
+      ok = false;
+    }
+    if (ok && !m.empty()) last_ms_ = cap_.get(cv::CAP_PROP_POS_MSEC);
+    return ok && !m.empty();
+  }
+  // Capture time of the frame just read: the container's timestamp when it has one, else from the frame number.
+  std::int64_t Utime(std::int64_t seq) const {
+    return start_ + (last_ms_ > 0 ? static_cast<std::int64_t>(last_ms_ * 1000)
+                                  : static_cast<std::int64_t>(static_cast<double>(seq) * 1e6 / fps_));
+  }
   cv::VideoCapture cap_;
   std::string name_;
   std::int64_t start_;
   double fps_;
-  std::int64_t seq_ = 0;
+  std::int64_t frame_count_;  // from the container; -1 if unknown
+  std::int64_t seq_ = 0;      // number of the next frame
+  double last_ms_ = 0;
+  cv::Mat pending_;  // a good frame read after unreadable ones
+  bool has_pending_ = false;
+  std::int64_t pending_seq_ = 0, pending_utime_ = 0;
+  std::int64_t unreadable_ = 0;  // unreadable frames still to report before pending_
 };
 
 class LcmSource : public FrameSource {
@@ -268,10 +341,49 @@ VisionPipeline::VisionPipeline(const CameraModel& camera, const Eigen::Isometry3
     : camera_(camera),
       options_(options),
       tracker_(options.detector, WithExpectedIds(options.tracker, models)),
-      features_(camera, wMc, models, options.noise, options.pose, options.contact) {}
+      features_(camera, wMc, models, options.noise, options.pose, options.contact) {
+  auto cells = [](const ObjectModel& m) {
+    std::vector<int> out;
+    for (const auto& t : m.tags) out.push_back(MakeTagBitmap(t.family, t.id).width_at_border);
+    return out;
+  };
+  tag_cells_.push_back(cells(models.robot));
+  for (const auto& o : models.obstacles) tag_cells_.push_back(cells(o));
+  last_known_wMo_.assign(tag_cells_.size(), std::nullopt);
+}
+
+std::vector<int> VisionPipeline::ExpectedTags(PipelineOutput& out) const {
+  const ObjectModels& models = features_.models();
+  std::vector<PlacedPrism> prisms;
+  for (std::size_t k = 0; k < last_known_wMo_.size(); ++k) {
+    if (last_known_wMo_[k]) prisms.push_back({k == 0 ? &models.robot : &models.obstacles[k - 1], *last_known_wMo_[k]});
+  }
+  std::vector<int> ids;
+  for (std::size_t k = 0; k < last_known_wMo_.size(); ++k) {
+    const ObjectModel& m = k == 0 ? models.robot : models.obstacles[k - 1];
+    // The robot moves: its last pose predicts where its tags are only while it is tracked; lost, it is searched for
+    // in every frame. Obstacles stand still: their last pose predicts their tags even when they were not seen.
+    const bool predict = last_known_wMo_[k] && (k > 0 || features_.last().robot_pose.valid);
+    for (std::size_t t = 0; t < m.tags.size(); ++t) {
+      if (!predict) {
+        ids.push_back(m.tags[t].id);
+        continue;
+      }
+      const TagVisibility v = PredictTagVisibility(camera_, features_.wMc(), m.tags[t], tag_cells_[k][t],
+                                                   *last_known_wMo_[k], prisms, options_.visibility);
+      out.predicted_tags.push_back({m.tags[t].id, v});
+      if (v == TagVisibility::kVisible) ids.push_back(m.tags[t].id);
+    }
+  }
+  return ids;
+}
 
 visco::fault_t VisionPipeline::BadFrame(const Frame& frame, const std::string& error) {
-  if (last_seq_ && frame.seq > *last_seq_ && (!last_utime_ || frame.utime > *last_utime_)) last_seq_ = frame.seq;
+  if (last_seq_ && frame.seq > *last_seq_ && (!last_utime_ || frame.utime > *last_utime_)) {
+    // A frame of the sequence is missing: the tracker's prediction from the last good frame is one frame short.
+    last_seq_ = frame.seq;
+    tracker_.Reset();
+  }
   return Fault(frame.utime, visco::fault_t::CODE_BAD_MESSAGE, visco::fault_t::SEVERITY_WARNING,
                Describe(frame) + ": " + error + "; dropped");
 }
@@ -321,6 +433,7 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
                                      ": tracker and features reset"));
       tracker_.Reset();
       features_.Reset();
+      last_known_wMo_.assign(last_known_wMo_.size(), std::nullopt);
       unsequenced_ = false;
     }
   }
@@ -328,8 +441,14 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
   last_seq_ = frame.seq;
   out.processed = true;
 
+  if (options_.expect_only_visible) tracker_.SetExpectedIds(ExpectedTags(out));
+  out.expected_ids = tracker_.expected_ids();
   const auto tags = tracker_.Process(frame.image.view(), &out.full_detection);
   const FrameFeatures& f = features_.Update(tags);
+  if (f.robot_pose.valid) last_known_wMo_[0] = f.robot_pose.wMo;
+  for (std::size_t k = 0; k < f.obstacle_poses.size(); ++k) {
+    if (f.obstacle_poses[k].valid) last_known_wMo_[k + 1] = f.obstacle_poses[k].wMo;
+  }
   const ObjectModels& models = features_.models();
   const std::int64_t done = options_.clock ? options_.clock() : NowUtime();
 

@@ -29,6 +29,7 @@
 #include "vision/image.h"
 #include "vision/object_model.h"
 #include "vision/tracking.h"
+#include "vision/visibility.h"
 
 namespace lcm {
 class LCM;
@@ -60,7 +61,9 @@ class FrameSource {
 /// Frames from the image files of a folder in name order; timestamps start_utime + i / fps.
 /// @throws InputError if the folder does not exist or holds no image file.
 std::unique_ptr<FrameSource> MakeFolderSource(const std::string& folder, double fps, std::int64_t start_utime);
-/// Frames from a video file (OpenCV VideoCapture); timestamps from the container, else from fps.
+/// Frames from a video file (OpenCV VideoCapture); timestamps from the container, else from fps. A frame that cannot
+/// be read or decoded in the middle of the video is reported (kBadFrame, with its frame number) and the video goes
+/// on; the stream ends only where the container's frames end (or after 64 unreadable frames in a row).
 /// @throws InputError if the file cannot be opened.
 std::unique_ptr<FrameSource> MakeVideoSource(const std::string& path, std::int64_t start_utime);
 /// Frames from image_t messages on `channel` of an LCM bus (the caller keeps `bus` alive; the source handles it).
@@ -95,6 +98,11 @@ struct PipelineOptions {
   NoiseModel noise;
   PoseOptions pose;
   ContactOptions contact;  ///< face-contact refinement of the object poses
+  /// Expect (and so search the whole image for, every frame, while missing) only the tags predicted visible at the
+  /// objects' last poses: facing the camera, inside the image, large enough, not hidden by the prisms. false: every
+  /// model tag is expected (the rule before issue 16; a tag that cannot be seen then forces full detections).
+  bool expect_only_visible = true;
+  VisibilityOptions visibility;
   std::string camera_name = "camera";
   /// Publication times (microseconds since the epoch) of the outputs; empty: the system clock. A replay sets the
   /// log's clock here, so that nothing the pipeline produces depends on the wall clock.
@@ -111,6 +119,14 @@ struct PipelineOutput {
   std::vector<visco::fault_t> faults;
   VisionSnapshot snapshot{};
   bool full_detection = false;
+  /// The tags whose visibility was predicted for this frame (from their object's last pose) and the prediction; a
+  /// tag of an object without a usable pose is expected without a prediction and is not listed.
+  struct TagPrediction {
+    int id;
+    TagVisibility visibility;
+  };
+  std::vector<TagPrediction> predicted_tags;
+  std::vector<int> expected_ids;  ///< what the tracker expected in this frame
 };
 
 /// Calls `f(channel, message)` for each message of `out`, in the order the pipeline thread publishes them: detections,
@@ -134,7 +150,8 @@ class VisionPipeline {
   /// Processes one frame that arrived at `arrival_utime` (for the latency fields).
   PipelineOutput Process(const Frame& frame, std::int64_t arrival_utime);
   /// Reports a frame the source could not deliver (or that is unusable). Its number counts as seen: it is reported
-  /// here, not again as a gap before the next frame.
+  /// here, not again as a gap before the next frame; the tracker detects in full in the next frame (its prediction
+  /// skipped a frame).
   visco::fault_t BadFrame(const Frame& frame, const std::string& error);
   const FeatureEstimator& features() const { return features_; }
   /// Gaps in the frame counter (lost frames, each reported) and stream restarts (the counter went back) so far.
@@ -149,6 +166,10 @@ class VisionPipeline {
   std::optional<std::int64_t> last_utime_, last_seq_;
   bool unsequenced_ = false;  // the camera's frame counter does not advance
   std::int64_t gaps_ = 0, restarts_ = 0;
+  // The tags predicted visible (PipelineOptions::expect_only_visible), with the predictions for `out`.
+  std::vector<int> ExpectedTags(PipelineOutput& out) const;
+  std::vector<std::vector<int>> tag_cells_;  // per object (robot, then obstacles), per tag: cells across the border
+  std::vector<std::optional<Eigen::Isometry3d>> last_known_wMo_;  // per object: its last measured pose
   bool robot_lost_reported_ = false;
   std::set<std::pair<std::string, int>> outlier_reported_;  // (object id, tag id) reported as inconsistent
 };

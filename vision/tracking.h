@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "vision/image.h"
@@ -88,8 +89,9 @@ struct TagTrackerOptions {
   /// A window whose smallest predicted tag side is at least this many pixels is searched with quad_decimate 2 (the
   /// quads are found at half resolution; edges are refined and bits decoded at full resolution). 0: never.
   double decimate_min_side_px = 24;
-  /// Ids that should be in view (the object models' tags): while one of them is not tracked, every frame gets a
-  /// full detection so that it is found again as soon as it reappears.
+  /// Ids that should be in view: while one of them is not tracked, every frame gets a full detection so that it is
+  /// found again as soon as it reappears. The pipeline sets them per frame to the tags predicted visible
+  /// (vision/visibility.h; TagTracker::SetExpectedIds), so a tag turned away or hidden does not disable tracking.
   std::vector<int> expected_ids;
 };
 
@@ -107,6 +109,9 @@ class TagTracker {
   const std::vector<int>& lost_last() const { return lost_; }
   /// Forces a full detection in the next frame.
   void Reset() { since_full_ = -1; }
+  /// Replaces TagTrackerOptions::expected_ids from the next frame on.
+  void SetExpectedIds(std::vector<int> ids) { options_.expected_ids = std::move(ids); }
+  const std::vector<int>& expected_ids() const { return options_.expected_ids; }
 
  private:
   std::vector<TagObservation> DetectInWindows(const GrayImageView& image);
