@@ -1410,16 +1410,46 @@ std::vector<int> GreedySelection(const BackprojectionProblem& problem, SweepFram
   return active;
 }
 
+// Whether adding ray c to `active` cannot enlarge the region, decided without a sweep: every piece of c complies to
+// an open end (the bounds, the camera end, where the camera loses the vertex) and meets neither the goal nor an active
+// ray on the way. A trajectory that reaches such a piece, however it reaches it, complies to that end (a reliable ray:
+// every velocity in the cone projects onto it the same way) and fails; so with c active every point keeps or loses
+// its place in the region, none is added. Conservative: a piece whose box meets a goal's box counts as meeting it.
+bool LeadsOnlyToOpenEnds(const BackprojectionProblem& problem, int c, const std::vector<int>& active) {
+  const CvcRayInput& ray = problem.rays[c];
+  const Vector2d dir(std::cos(problem.theta), std::sin(problem.theta));
+  for (size_t k = 0; k < ray.segments.size(); ++k) {
+    const auto& s = ray.segments[k];
+    const int destination = (s[1] - s[0]).dot(dir) > 0 ? 1 : 0;
+    if (k >= ray.open_ends.size() || !ray.open_ends[k][destination]) return false;
+    const Vector2d lo = s[0].cwiseMin(s[1]), hi = s[0].cwiseMax(s[1]);
+    for (const NamedPolygon& g : problem.goal) {
+      Vector2d glo = g.vertices.front(), ghi = g.vertices.front();
+      for (const Vector2d& v : g.vertices) glo = glo.cwiseMin(v), ghi = ghi.cwiseMax(v);
+      if (!(hi.x() < glo.x() || ghi.x() < lo.x() || hi.y() < glo.y() || ghi.y() < lo.y())) return false;
+    }
+    const Seg piece(P2(s[0].x(), s[0].y()), P2(s[1].x(), s[1].y()));
+    for (int a : active) {
+      for (const auto& t : problem.rays[a].segments) {
+        if (CGAL::do_intersect(piece, Seg(P2(t[0].x(), t[0].y()), P2(t[1].x(), t[1].y())))) return false;
+      }
+    }
+  }
+  return true;
+}
+
 // Track-pruned choice (the default): start with every reliable candidate active and drop, sweep after sweep, the rays
 // with a piece of bad track (complying down from there fails: it ends on a sticking edge, an open end, or switches
 // to a ray that fails), until every active ray leads to good places along its whole length (at most k + 1 sweeps;
 // rays that only help together stay, since their tracks are computed with each other active). That set's region is
 // kept if it contains B_θ(G) (exact polygon difference; otherwise the start is the empty set). Then each dropped ray
-// is tried once more on its own, in id order, and kept if the region grows and still contains the current one.
+// is tried once more on its own, in id order, and kept if the region grows and still contains the current one (a ray
+// that only leads to open ends is not tried: LeadsOnlyToOpenEnds).
 // Last, every active ray the region does not need is dropped. At most 3k + 1 sweeps in all, against 2^k for the exact
 // search.
 std::vector<int> TrackSelection(const BackprojectionProblem& problem, SweepFrame& frame,
-                                const std::vector<int>& candidates, SweepResult& current, int& sweeps) {
+                                const std::vector<int>& candidates, SweepResult& current, int& sweeps,
+                                bool skip_open_ended) {
   const PolygonSet base_set = ToPolygonSet(current.rings);
   std::vector<int> active = candidates;
   SweepResult trial;
@@ -1441,6 +1471,7 @@ std::vector<int> TrackSelection(const BackprojectionProblem& problem, SweepFrame
   PolygonSet current_set = ToPolygonSet(current.rings);
   for (int c : candidates) {
     if (std::find(active.begin(), active.end(), c) != active.end()) continue;
+    if (skip_open_ended && LeadsOnlyToOpenEnds(problem, c, active)) continue;  // its sweep could not be adopted
     std::vector<int> with = active;
     with.push_back(c);
     if (AdoptIfLarger(problem, frame, with, current, current_set, sweeps)) active = std::move(with);
@@ -1519,7 +1550,7 @@ VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem, 
     out.selection = RaySelection::kNone;
   } else if (options.method == RaySelection::kTrack) {
     out.selection = RaySelection::kTrack;
-    active = TrackSelection(problem, frame, candidates, result, out.sweeps);
+    active = TrackSelection(problem, frame, candidates, result, out.sweeps, options.skip_open_ended);
   } else if (options.method == RaySelection::kExact && out.candidates <= options.exact_limit) {
     out.selection = RaySelection::kExact;
     active = ExactSelection(problem, frame, candidates, result, out.sweeps);

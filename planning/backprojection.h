@@ -124,6 +124,10 @@ struct VcSelectionOptions {
   /// kExact only: search all subsets when there are at most this many reliable candidates, otherwise fall back to
   /// the greedy choice.
   int exact_limit = kExactRaySelectionLimit;
+  /// kTrack only: do not sweep again a dropped ray whose every piece complies to an open end without meeting the goal
+  /// or an active ray (its sweep could not be adopted: the region it gives has no point the current one lacks). The
+  /// same choice either way, fewer sweeps; false is the reference the tests compare with.
+  bool skip_open_ended = true;
 };
 
 /// B_θ(G) by the plane sweep. @throws std::invalid_argument on malformed input (empty bounds, ε_v outside [0, π/2),
