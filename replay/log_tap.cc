@@ -10,6 +10,13 @@
 namespace visco::replay {
 namespace {
 
+// What a log writer says when it closes: events and bytes written, events dropped, the error if any.
+std::string Report(const std::string& path, const WriterStats& s) {
+  return "event log " + path + ": " + std::to_string(s.events_written) + " event(s), " +
+         std::to_string(s.bytes_written) + " bytes written; " + std::to_string(s.events_dropped) + " dropped" +
+         (s.error.empty() ? "" : " (" + s.error + ")");
+}
+
 class LcmEventLogTap : public EventLogTap {
  public:
   LcmEventLogTap(const std::string& path, const std::string& url) : url_(TapUrl(url)), lcm_(url_), writer_(path) {
@@ -38,9 +45,7 @@ class LcmEventLogTap : public EventLogTap {
       for (int i = 0; i < 100 && lcm_.handleTimeout(50) > 0; ++i) {
       }
       const WriterStats s = writer_.Close();
-      report_ = "event log " + writer_.path() + ": " + std::to_string(s.events_written) + " event(s), " +
-                std::to_string(s.bytes_written) + " bytes written; " + std::to_string(s.events_dropped) + " dropped" +
-                (s.error.empty() ? "" : " (" + s.error + ")");
+      report_ = Report(writer_.path(), s);
     }
     return report_;
   }
@@ -71,9 +76,7 @@ class FileEventLog : public EventLogTap {
   std::string Close() override {
     if (report_.empty()) {
       const WriterStats s = writer_.Close();
-      report_ = "event log " + writer_.path() + ": " + std::to_string(s.events_written) + " event(s), " +
-                std::to_string(s.bytes_written) + " bytes written; " + std::to_string(s.events_dropped) + " dropped" +
-                (s.error.empty() ? "" : " (" + s.error + ")");
+      report_ = Report(writer_.path(), s);
     }
     return report_;
   }

@@ -43,6 +43,20 @@ std::vector<ViewVertex> ReferenceView(const Scene& scene, const Point& p,
   return view;
 }
 
+// A random convex combination of a cell's vertices, pulled towards its sample: strictly inside, away from the rounded
+// boundary.
+Point RandomPointInside(const ViewingCell& cell, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> unit(0, 1);
+  Point p(0, 0);
+  double total = 0;
+  for (const Point& v : cell.polygon.vertices) {
+    const double w = unit(rng);
+    p += w * v;
+    total += w;
+  }
+  return cell.sample + 0.9 * (p / total - cell.sample);
+}
+
 Scene SmallRandomScene(std::uint64_t seed) {
   testing::RandomSceneOptions o;
   o.cells_x = 3;
@@ -72,7 +86,6 @@ TEST(ViewingCells, TheViewIsTheSameEverywhereInACell) {
     EXPECT_LE(cells.faces, l * (l + 1) / 2 + 1) << scene.name;
     EXPECT_LE(cells.views, static_cast<int>(cells.cells.size())) << scene.name;
     std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<double> unit(0, 1);
     std::vector<std::size_t> pick(cells.cells.size());
     for (std::size_t i = 0; i < pick.size(); ++i) pick[i] = i;
     std::shuffle(pick.begin(), pick.end(), rng);
@@ -84,14 +97,7 @@ TEST(ViewingCells, TheViewIsTheSameEverywhereInACell) {
       EXPECT_EQ(ViewFrom(scene, cell.sample), expected) << scene.name << " cell " << i;
       ++cells_checked;
       for (int k = 0; k < 3; ++k) {
-        Point p(0, 0);
-        double total = 0;
-        for (const Point& v : cell.polygon.vertices) {
-          const double w = unit(rng);
-          p += w * v;
-          total += w;
-        }
-        p = cell.sample + 0.9 * (p / total - cell.sample);  // strictly inside, away from the rounded boundary
+        const Point p = RandomPointInside(cell, rng);
         EXPECT_EQ(ReferenceView(scene, p), expected)
             << scene.name << ": the view changes inside cell " << i << " at (" << p.x() << ", " << p.y() << ")";
         ++points_checked;
@@ -135,14 +141,7 @@ TEST(ViewingCells, TheViewIsTheSameEverywhereInACellWithHeights) {
       changed_by_heights += expected != ReferenceView(scene, cell.sample);
       ++cells_checked;
       for (int k = 0; k < 3; ++k) {
-        Point p(0, 0);
-        double total = 0;
-        for (const Point& v : cell.polygon.vertices) {
-          const double w = unit(rng);
-          p += w * v;
-          total += w;
-        }
-        p = cell.sample + 0.9 * (p / total - cell.sample);
+        const Point p = RandomPointInside(cell, rng);
         EXPECT_EQ(ReferenceView(scene, p, height), expected)
             << scene.name << ": the view changes inside cell " << i << " at (" << p.x() << ", " << p.y() << ")";
       }
