@@ -43,6 +43,15 @@ std::vector<ViewVertex> ReferenceView(const Scene& scene, const Point& p,
   return view;
 }
 
+// Up to `count` distinct cell indices, in random order.
+std::vector<std::size_t> RandomCells(const ViewingCells& cells, std::size_t count, std::mt19937_64& rng) {
+  std::vector<std::size_t> pick(cells.cells.size());
+  for (std::size_t i = 0; i < pick.size(); ++i) pick[i] = i;
+  std::shuffle(pick.begin(), pick.end(), rng);
+  pick.resize(std::min(pick.size(), count));
+  return pick;
+}
+
 // A random convex combination of a cell's vertices, pulled towards its sample: strictly inside, away from the rounded
 // boundary.
 Point RandomPointInside(const ViewingCell& cell, std::mt19937_64& rng) {
@@ -86,11 +95,7 @@ TEST(ViewingCells, TheViewIsTheSameEverywhereInACell) {
     EXPECT_LE(cells.faces, l * (l + 1) / 2 + 1) << scene.name;
     EXPECT_LE(cells.views, static_cast<int>(cells.cells.size())) << scene.name;
     std::mt19937_64 rng(seed);
-    std::vector<std::size_t> pick(cells.cells.size());
-    for (std::size_t i = 0; i < pick.size(); ++i) pick[i] = i;
-    std::shuffle(pick.begin(), pick.end(), rng);
-    pick.resize(std::min<std::size_t>(pick.size(), kSanitized ? 3 : 12));
-    for (std::size_t i : pick) {
+    for (std::size_t i : RandomCells(cells, kSanitized ? 3 : 12, rng)) {
       const ViewingCell& cell = cells.cells[i];
       if (cell.area < 1e-6) continue;
       const std::vector<ViewVertex> expected = ReferenceView(scene, cell.sample);
@@ -129,11 +134,7 @@ TEST(ViewingCells, TheViewIsTheSameEverywhereInACellWithHeights) {
     const ViewingCells cells = ComputeViewingCells(scene, scene.bounds.min, scene.bounds.max, height);
     const ViewingCells flat = ComputeViewingCells(scene, scene.bounds.min, scene.bounds.max);
     EXPECT_GE(cells.event_lines, flat.event_lines) << scene.name;
-    std::vector<std::size_t> pick(cells.cells.size());
-    for (std::size_t i = 0; i < pick.size(); ++i) pick[i] = i;
-    std::shuffle(pick.begin(), pick.end(), rng);
-    pick.resize(std::min<std::size_t>(pick.size(), kSanitized ? 3 : 10));
-    for (std::size_t i : pick) {
+    for (std::size_t i : RandomCells(cells, kSanitized ? 3 : 10, rng)) {
       const ViewingCell& cell = cells.cells[i];
       if (cell.area < 1e-6) continue;
       const std::vector<ViewVertex> expected = ReferenceView(scene, cell.sample, height);
