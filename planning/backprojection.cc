@@ -1253,17 +1253,46 @@ SweepResult RunSweep(const BackprojectionProblem& problem, const std::vector<int
   return r;
 }
 
+// The simple loops of a ring. A ring may touch itself at a vertex (two parts of the region meeting at a point, or a
+// hole touching the outer boundary), which CGAL's polygon sets reject as a precondition (and which a release build
+// would take silently and wrongly): the ring is cut at each repeated vertex into loops that are each simple. A loop
+// that encloses nothing (an edge walked out and back) is dropped.
+std::vector<ExactPolygon> SimpleLoops(const std::vector<P2>& ring) {
+  std::vector<ExactPolygon> loops;
+  std::vector<P2> path;
+  std::map<P2, size_t, K::Less_xy_2> at;  // index in `path` of each vertex on it
+  auto close = [&](std::vector<P2>::iterator from) {
+    ExactPolygon loop(from, path.end());
+    if (loop.size() >= 3 && CGAL::sign(loop.area()) != CGAL::ZERO) {
+      loops.push_back(std::move(loop));
+    }
+  };
+  for (const P2& p : ring) {
+    auto it = at.find(p);
+    if (it == at.end()) {
+      at.emplace(p, path.size());
+      path.push_back(p);
+      continue;
+    }
+    // p closes the loop from its first visit: cut it off, p stays on the path once.
+    const size_t first = it->second;
+    close(path.begin() + static_cast<std::ptrdiff_t>(first));
+    for (size_t k = first + 1; k < path.size(); ++k) at.erase(path[k]);
+    path.resize(first + 1);
+  }
+  close(path.begin());
+  return loops;
+}
+
+// The region of `rings` as an exact polygon set: the points inside an odd number of the rings' loops (outer
+// boundaries, holes, and islands inside holes alike).
 PolygonSet ToPolygonSet(const std::vector<ExactRing>& rings) {
   PolygonSet set;
-  std::vector<ExactPolygon> outers, holes;
   for (const auto& r : rings) {
-    ExactPolygon poly(r.vertices.begin(), r.vertices.end());
-    (CGAL::sign(r.area2) == CGAL::POSITIVE ? outers : holes).push_back(poly);
-  }
-  for (const auto& o : outers) set.join(o);
-  for (auto h : holes) {
-    h.reverse_orientation();
-    set.difference(h);
+    for (auto& loop : SimpleLoops(r.vertices)) {
+      if (loop.is_clockwise_oriented()) loop.reverse_orientation();
+      set.symmetric_difference(loop);
+    }
   }
   return set;
 }

@@ -239,6 +239,38 @@ TEST(NondirectionalExamples, AnRCriticalOrientationIsWhereTheStartRegionStartsTo
   EXPECT_GE(r_ends, 1) << "no interval where the start region fits ends at an R-critical orientation";
 }
 
+// The free-edge kind (Fox & Hutchinson, Prop. 2) changes the structure: in tests/planning/data/scenes/
+// free_edge_crossing.json the goal is a U whose right arm's backprojection ends in a free vertex (the +ε_v free edge
+// of the arm's corner and the −ε_v one of the roof between the arms) just below an active CVC ray that leads into the
+// left arm; turning θ pushes that free vertex across the ray, and the region below the ray joins the band above it
+// around a new hole. The scene also made the ray choice's exact region comparison meet a ring that touches itself at
+// a vertex (a CGAL precondition, planning/backprojection.cc SimpleLoops): the sanitizer build checks it.
+TEST(NondirectionalExamples, AFreeVertexCrossingAnActiveRayChangesTheStructure) {
+  const Scene s = LoadScene("tests/planning/data/scenes/free_edge_crossing.json");
+  const CSpace cspace(s);
+  const VcRays rays = ComputeVcRays(s, cspace);
+  const BackprojectionProblem pr = SceneProblem(s, cspace, rays);
+  const auto nd = ComputeNondirectional(pr, nullptr, Options());
+  Tally t;
+  CheckStructure("free_edge_crossing", pr, nd, t);
+  EXPECT_EQ(t.broken, 0);
+  int free_edge = 0;
+  for (const auto& o : nd.orientations) {
+    if (o.kind != CriticalKind::kFreeEdge) continue;
+    ++free_edge;
+    ASSERT_EQ(o.refs.size(), 3u);
+    EXPECT_EQ(o.refs[2], "vc0.cm2") << "the ray the free vertex crosses";
+    const SliceStructure before = StructureAt(pr, WrapAngle(o.theta - 1e-6));
+    const SliceStructure after = StructureAt(pr, WrapAngle(o.theta + 1e-6));
+    EXPECT_EQ(before.classic, after.classic) << "only the VC region changes at " << o.theta * 180 / M_PI;
+    EXPECT_NE(before.vc, after.vc) << "the VC structure is the same across " << o.theta * 180 / M_PI;
+    EXPECT_NE(before.vc.size(), 0u);
+    std::printf("free-edge orientation %.4f deg (%s, %s, %s): the VC structure changes\n", o.theta * 180 / M_PI,
+                o.refs[0].c_str(), o.refs[1].c_str(), o.refs[2].c_str());
+  }
+  EXPECT_EQ(free_edge, 1);
+}
+
 // Donald's critical-slice baseline and the kinetic method report the same orientations and slices.
 TEST(NondirectionalProperty, KineticAgreesWithTheCriticalSliceBaseline) {
   int compared = 0;
