@@ -364,10 +364,19 @@ void CheckRays(const Scene& s, std::uint64_t seed, bool exact, Tally& tally) {
   }
 }
 
+// The sampled 3D line-of-sight reference is slow under the sanitizers (70 s per test instead of 4): there every
+// third scene is checked (pinhole and planar cameras alternate with the seed), with the same thresholds per scene.
+#if defined(__SANITIZE_ADDRESS__)
+constexpr std::uint64_t kSeedStride = 3;
+#else
+constexpr std::uint64_t kSeedStride = 1;
+#endif
+constexpr int kStride = static_cast<int>(kSeedStride);
+
 TEST(HeightsProperty, ConvexPrismsAgainstSampling) {
   Tally vertices, robot;
   int scenes = 0, pinholes = 0;
-  for (std::uint64_t seed = 1; seed <= 40; ++seed) {
+  for (std::uint64_t seed = 1; seed <= 40; seed += kSeedStride) {
     Scene s;
     if (!HeightScene(seed, s, /*max_vertices=*/3)) continue;
     ++scenes;
@@ -377,16 +386,17 @@ TEST(HeightsProperty, ConvexPrismsAgainstSampling) {
   }
   std::printf("scenes %d (pinhole %d): vertices %d sure, %d unsure; robot samples %d sure, %d unsure\n", scenes,
               pinholes, vertices.agree, vertices.unsure, robot.agree, robot.unsure);
-  EXPECT_GE(scenes, 35);
-  EXPECT_GE(pinholes, 12);
+  EXPECT_GE(scenes, 35 / kStride);
+  EXPECT_GE(pinholes, 12 / kStride);
+  EXPECT_GE(scenes - pinholes, 12 / kStride) << "planar cameras with heights";
   EXPECT_GT(vertices.agree, 20 * vertices.unsure);
-  EXPECT_GT(robot.agree, 1000);
+  EXPECT_GT(robot.agree, 1000 / kStride);
 }
 
 TEST(HeightsProperty, NonConvexAndOverlappingPrismsAreSound) {
   Tally vertices, robot;
   int scenes = 0;
-  for (std::uint64_t seed = 101; seed <= 130; ++seed) {
+  for (std::uint64_t seed = 101; seed <= 130; seed += kSeedStride) {
     Scene s;
     if (!HeightScene(seed, s, /*max_vertices=*/7)) continue;
     ++scenes;
@@ -395,8 +405,8 @@ TEST(HeightsProperty, NonConvexAndOverlappingPrismsAreSound) {
   }
   std::printf("scenes %d: vertices %d sure, %d unsure; robot samples %d sure, %d unsure\n", scenes, vertices.agree,
               vertices.unsure, robot.agree, robot.unsure);
-  EXPECT_GE(scenes, 25);
-  EXPECT_GT(robot.agree, 1000);
+  EXPECT_GE(scenes, 25 / kStride);
+  EXPECT_GT(robot.agree, 1000 / kStride);
 }
 
 // The CVC parts of random 2.5D scenes are the free parts of the seen pieces: every part lies inside a reported
