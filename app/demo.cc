@@ -552,10 +552,8 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
                                   "--no-realtime",
                                   "--log",
                                   (rd / "controller.lcmlog").string()};
-  if (su.rendered) {
-    run.push_back("--focal-px");
-    run.push_back("560");
-  }
+  // The servo law's interaction from the camera's calibration and pose (the files vision reads).
+  if (su.rendered) run.insert(run.end(), su.cam.begin(), su.cam.end());
   if (a.can) {
     run.push_back("--can");
     run.push_back("vcan0");

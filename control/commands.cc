@@ -10,6 +10,7 @@
 #include "common/error.h"
 #include "common/event_log.h"
 #include "control/run.h"
+#include "control/servo_camera.h"
 
 namespace visco::control {
 namespace {
@@ -24,6 +25,8 @@ struct CliOptions {
   double heartbeat_timeout_ms = 250;
   bool no_realtime = false;
   std::string log;
+  std::string camera, extrinsics, objects;  // the calibrated camera of the servo law (all three or none)
+  bool focal_given = false;
 };
 
 void Run(CliOptions& cli) {
@@ -33,6 +36,19 @@ void Run(CliOptions& cli) {
   o.executor.heartbeat_timeout_s = cli.status_timeout_ms / 1000.0;
   o.heartbeat_timeout_s = cli.heartbeat_timeout_ms / 1000.0;
   o.realtime = !cli.no_realtime;
+  const int camera_files = !cli.camera.empty() + !cli.extrinsics.empty() + !cli.objects.empty();
+  if (camera_files != 0 && camera_files != 3) {
+    throw InputError("command line",
+                     cli.camera.empty() ? "--camera" : (cli.extrinsics.empty() ? "--extrinsics" : "--objects"),
+                     "the servo's calibrated camera needs all three of --camera, --extrinsics and --objects");
+  }
+  if (camera_files == 3) {
+    if (cli.focal_given) {
+      throw InputError("command line", "--focal-px",
+                       "is the planar model's focal length: with --camera the calibration gives the interaction");
+    }
+    o.executor.servo.camera = LoadServoCamera(cli.camera, cli.extrinsics, cli.objects);
+  }
   // The event log records the bus from before the strategy is loaded (a strategy on VISCO_STRATEGY is in it).
   std::unique_ptr<EventLogTap> log = OpenEventLog(cli.log, o.lcm_url);
   o.log = log.get();
@@ -86,8 +102,20 @@ void RegisterCommands(CLI::App& app) {
                   "braking curve of --max-accel), m")
       ->capture_default_str();
   cmd->add_option("--gain", o.executor.servo.gain, "visual compliance gain lambda, 1/s")->capture_default_str();
-  cmd->add_option("--focal-px", o.executor.servo.focal_px, "camera focal length for the interaction matrix, px")
-      ->capture_default_str();
+  cmd->add_option("--camera", cli->camera,
+                  "the camera's calibration (ViSP XML or OpenCV JSON), with --extrinsics and --objects (the files "
+                  "`visco track` reads): the servo law's exact interaction for the tilted camera (docs/control.md)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--extrinsics", cli->extrinsics, "the camera's pose in the world (JSON wMc), with --camera")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--objects", cli->objects,
+                  "the object models (JSON; the robot's height: vision tracks the top of its edges), with --camera")
+      ->check(CLI::ExistingFile);
+  CLI::Option* focal =
+      cmd->add_option("--focal-px", o.executor.servo.focal_px,
+                      "without --camera only: the focal length of the planar camera model (the synthetic events of "
+                      "`visco sim --rays`, which uses the same --focal-px), px")
+          ->capture_default_str();
   cmd->add_option("--max-normal-speed", o.executor.servo.max_normal_speed,
                   "saturation of the servo's correction towards the line, m/s")
       ->capture_default_str();
@@ -118,7 +146,10 @@ void RegisterCommands(CLI::App& app) {
   cmd->add_option("--telemetry-hz", o.telemetry_hz, "VISCO_TELEMETRY rate, Hz")->capture_default_str();
   cmd->add_option("--duration", o.max_duration_s, "e-stop after this many seconds (0: no limit)")
       ->check(CLI::NonNegativeNumber);
-  cmd->callback([cli] { Run(*cli); });
+  cmd->callback([cli, focal] {
+    cli->focal_given = focal->count() > 0;
+    Run(*cli);
+  });
 }
 
 }  // namespace visco::control

@@ -143,9 +143,19 @@ double Executor::ApproachSpeed(const ExecutorInput& in, const Step& step, Vec2 e
     const VisualObservation* obs = Find(in.frame, ray);
     if (!obs || static_cast<Side>(obs->state) == Side::kUnknown) return;
     const CvcRay& r = task_.rays[static_cast<std::size_t>(ray)];
-    const double range = std::max(r.has_cm_offset ? Norm(estimate + r.cm_offset - r.to) : config_.servo.nominal_range_m,
-                                  config_.servo.min_range_m);
-    const double distance = std::abs(obs->signed_distance_px) * range / config_.servo.focal_px;
+    double distance = 0.0;
+    if (config_.servo.camera.valid) {
+      // Metres to the line along its normal, through the exact interaction (px/m along n) at the estimate.
+      const Vec2 row =
+          CameraInteractionRow(config_.servo.camera, r.direction, estimate + r.cm_offset, config_.servo.min_range_m);
+      const double px_per_m = Dot(row, LeftNormal(r.direction));
+      distance = px_per_m > 0 ? std::abs(obs->signed_distance_px) / px_per_m : 0.0;
+    } else {
+      const double range =
+          std::max(r.has_cm_offset ? Norm(estimate + r.cm_offset - r.to) : config_.servo.nominal_range_m,
+                   config_.servo.min_range_m);
+      distance = std::abs(obs->signed_distance_px) * range / config_.servo.focal_px;
+    }
     speed = std::min(speed, std::max(config_.approach_tolerance_m, distance) / late);
   };
   for (int ray : step.active_rays) consider(ray);
@@ -453,9 +463,17 @@ void Executor::Update(const ExecutorInput& in, ExecutorOutput& out) {
   if (engaged_ray_ >= 0) {
     const CvcRay& ray = task_.rays[static_cast<std::size_t>(engaged_ray_)];
     const VisualObservation* obs = Find(in.frame, engaged_ray_);
-    const double range = ray.has_cm_offset ? Norm(out.estimate + ray.cm_offset - ray.to) : 0.0;
-    nominal =
-        VisualComplianceLaw(config_.servo, ray.direction, direction, speed_, obs->signed_distance_px, range).velocity;
+    if (config_.servo.camera.valid) {
+      // The calibrated camera: the exact interaction row at the tracked point (the CM vertex at the estimate).
+      const Vec2 row = CameraInteractionRow(config_.servo.camera, ray.direction, out.estimate + ray.cm_offset,
+                                            config_.servo.min_range_m);
+      nominal =
+          VisualComplianceLaw(config_.servo, ray.direction, direction, speed_, obs->signed_distance_px, row).velocity;
+    } else {
+      const double range = ray.has_cm_offset ? Norm(out.estimate + ray.cm_offset - ray.to) : 0.0;
+      nominal =
+          VisualComplianceLaw(config_.servo, ray.direction, direction, speed_, obs->signed_distance_px, range).velocity;
+    }
     mode_ = Mode::kVisualCompliant;
   } else {
     mode_ = step.terminate == TerminateKind::kVisualGuarded ? Mode::kVisualGuarded : Mode::kFree;

@@ -138,6 +138,18 @@ std::string ExecutorConfigToJson(const ExecutorConfig& c) {
                 {"nominal_range_m", c.servo.nominal_range_m},
                 {"min_range_m", c.servo.min_range_m},
                 {"max_normal_speed", c.servo.max_normal_speed}};
+  if (c.servo.camera.valid) {
+    const ServoCamera& k = c.servo.camera;
+    nlohmann::json r = nlohmann::json::array();
+    for (const auto& row : k.cRw) r.push_back({row[0], row[1], row[2]});
+    j["servo"]["camera"] = {{"px", k.px},
+                            {"py", k.py},
+                            {"u0", k.u0},
+                            {"v0", k.v0},
+                            {"cRw", r},
+                            {"ctw", {k.ctw[0], k.ctw[1], k.ctw[2]}},
+                            {"point_height_m", k.point_height_m}};
+  }
   j["limits"] = {
       {"max_speed", c.limits.max_speed}, {"max_accel", c.limits.max_accel}, {"bounds_margin", c.limits.bounds_margin}};
   // Doubles as JSON numbers round-trip exactly (nlohmann prints the shortest exact representation).
@@ -168,6 +180,18 @@ ExecutorConfig ExecutorConfigFromJson(const std::string& text, const std::string
     c.servo.nominal_range_m = s.at("nominal_range_m").get<double>();
     c.servo.min_range_m = s.at("min_range_m").get<double>();
     c.servo.max_normal_speed = s.at("max_normal_speed").get<double>();
+    if (s.contains("camera")) {  // logs from before the calibrated camera: the planar model
+      const auto& k = s.at("camera");
+      ServoCamera& cam = c.servo.camera;
+      cam.valid = true;
+      cam.px = k.at("px").get<double>(), cam.py = k.at("py").get<double>();
+      cam.u0 = k.at("u0").get<double>(), cam.v0 = k.at("v0").get<double>();
+      for (int i = 0; i < 3; ++i) {
+        for (int m = 0; m < 3; ++m) cam.cRw[i][m] = k.at("cRw").at(i).at(m).get<double>();
+        cam.ctw[i] = k.at("ctw").at(i).get<double>();
+      }
+      cam.point_height_m = k.at("point_height_m").get<double>();
+    }
     const auto& l = j.at("limits");
     c.limits.max_speed = l.at("max_speed").get<double>();
     c.limits.max_accel = l.at("max_accel").get<double>();

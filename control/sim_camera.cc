@@ -40,6 +40,18 @@ void AddObject(vision::RenderScene& scene, const vision::ObjectModel& object, co
 
 }  // namespace
 
+ServoCamera ServoCameraFromFiles(const RenderedCameraConfig& config) {
+  const vision::CameraModel camera = vision::LoadCamera(config.calibration_path, config.camera_name);
+  const Eigen::Isometry3d wMc = vision::LoadExtrinsics(config.extrinsics_path);
+  const vision::ObjectModels models = vision::LoadObjectModels(config.objects_path);
+  double r[3][3], t[3];
+  for (int i = 0; i < 3; ++i) {
+    for (int k = 0; k < 3; ++k) r[i][k] = wMc.linear()(i, k);
+    t[i] = wMc.translation()[i];
+  }
+  return MakeServoCamera(camera.px, camera.py, camera.u0, camera.v0, r, t, models.robot.height);
+}
+
 RenderedCamera::RenderedCamera(const RenderedCameraConfig& config) : impl_(std::make_unique<Impl>()) {
   impl_->config = config;
   impl_->camera = vision::LoadCamera(config.calibration_path, config.camera_name);

@@ -10,6 +10,7 @@
 #include <memory>
 #include <string>
 
+#include "control/servo_law.h"
 #include "control/types.h"
 #include "visco/image_t.hpp"
 
@@ -30,6 +31,10 @@ struct RenderedCameraConfig {
 struct CaptureConditions {
   bool robot_occluded = false;  // something hides the robot: neither its body nor its tags are drawn
 };
+
+/// The servo law's calibrated camera (servo_law.h) from the rendered camera's files, through vision's loaders (any
+/// calibration format vision reads): what `visco run --camera --extrinsics --objects` derives. @throws InputError.
+ServoCamera ServoCameraFromFiles(const RenderedCameraConfig& config);
 
 class RenderedCamera {
  public:

@@ -103,7 +103,6 @@ ExecutorConfig DemoExecutorConfig() {
   c.max_hold_s = 4.0;
   c.startup_timeout_s = 30.0;
   c.heartbeat_timeout_s = 0.5;
-  c.servo.focal_px = 560.0;  // the rendered camera's (data/sim/slot_camera.xml)
   return c;
 }
 
@@ -203,6 +202,8 @@ LockstepResult RunLockstep(const LockstepOptions& o) {
 
   ExecutorConfig executor_config = o.executor;
   executor_config.period_s = 1.0 / o.rate_hz;
+  // The servo law's interaction from the rendered camera's calibration and pose (docs/control.md).
+  if (!executor_config.servo.camera.valid) executor_config.servo.camera = ServoCameraFromFiles(o.render);
   Executor executor(task, executor_config);
   Outbox outbox;
   ControllerBridge bridge(bus, task, outbox, BridgeClock{[&t] { return t * 1000; }, now_utime});

@@ -74,7 +74,7 @@ loop() {
   pids=($sim $track)
   local t0=$SECONDS
   "$visco" run "$plan" --scene "$scene" --rays "$tmp/rays.json" --lcm-url "$url" --max-speed $max_speed \
-    --max-accel 4 --focal-px 560 --max-vision-age-ms $age_ms --max-hold 4 --startup-timeout 30 --status-timeout-ms 500 \
+    --max-accel 4 "${cam[@]}" --max-vision-age-ms $age_ms --max-hold 4 --startup-timeout 30 --status-timeout-ms 500 \
     --heartbeat-timeout-ms 1000 --no-realtime \
     >"$tmp/$name.run.json" 2>"$tmp/$name.run.log"
   run_status=$?

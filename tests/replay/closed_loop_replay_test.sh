@@ -42,7 +42,7 @@ sim=$!
 track=$!
 pids=($sim $track)
 "$visco" run "$plan" --scene "$scene" --rays "$tmp/rays.json" --lcm-url "$url" --max-speed 1 --max-accel 4 \
-  --focal-px 560 --max-vision-age-ms 400 --max-hold 4 --startup-timeout 30 --status-timeout-ms 500 \
+  "${cam[@]}" --max-vision-age-ms 400 --max-hold 4 --startup-timeout 30 --status-timeout-ms 500 \
   --heartbeat-timeout-ms 1000 --no-realtime --log "$tmp/run.lcmlog" >"$tmp/run.json" 2>"$tmp/run.log"
 run_status=$?
 kill -INT $sim $track
