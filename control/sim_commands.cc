@@ -213,7 +213,9 @@ void RegisterSimCommands(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--drop-rate", o.drop_rate, "probability of dropping a frame (both camera kinds)")
       ->capture_default_str();
-  cmd->add_option("--focal-px", o.focal_px, "synthetic events: the planar camera's focal length, px")
+  cmd->add_option("--focal-px", o.focal_px,
+                  "synthetic events only: the planar camera's focal length, px (give `visco run` the same --focal-px; "
+                  "the rendered camera's comes from --camera)")
       ->capture_default_str();
   cmd->add_option("--objects", o.render.objects_path,
                   "render images: vision's object models (robot and obstacles with their AprilTags; obstacle "
