@@ -14,6 +14,11 @@ double SyntheticCamera::SignedDistance(int ray, Vec2 q, double* range_m) const {
   const Vec2 a = q + r.cm_offset - r.to;
   const double rho = -Dot(r.direction, a);
   if (range_m != nullptr) *range_m = rho;
+  if (camera_.valid) {
+    bool in_front = false;
+    const double d = ModelSignedDistance(camera_, r.direction, q + r.cm_offset, &in_front);
+    return in_front ? d : std::nan("");
+  }
   if (rho <= 1e-9) return std::nan("");
   return config_.focal_px * Dot(LeftNormal(r.direction), a) / rho;
 }

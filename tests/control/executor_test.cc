@@ -12,6 +12,7 @@
 #include <string>
 
 #include "common/error.h"
+#include "control/servo_camera.h"
 #include "tests/control/harness.h"
 
 namespace visco::control {
@@ -149,6 +150,68 @@ TEST(Executor, VisualCompliantMotionServoesAlongTheRayUntilContact) {
   // It slid down the ray to the floor: the vertex ends near the ray's foot (2, 0).
   EXPECT_NEAR(h.plant.position.x + 0.1, 2.0, 0.02);
   EXPECT_NEAR(h.plant.position.y, 0.1, 1e-6);
+}
+
+// The compliant motion seen by the default scene's tilted camera (data/sim: 9 m up, 33 degrees from the vertical),
+// on the ray vc9 from the right lip (5.2, 2) to the camera's foot point (9.5, 7.5). The step moves up the ray at 30
+// degrees towards it from 10 cm on its right, engages when the vertex reaches the line, then servos. Returns the decay
+// rate of the true |d| (1/s, fitted on ln|d| from 0.1 s to 1.1 s after engagement) and the largest |d| late.
+struct CompliantDecay {
+  double rate = 0;
+  double late_px = 0;
+  bool engaged = false;
+};
+
+CompliantDecay TiltedCompliantDecay(bool calibrated) {
+  const ServoCamera camera =
+      LoadServoCamera("data/sim/slot_camera.xml", "data/sim/slot_extrinsics.json", "data/sim/slot_objects.json");
+  Task task;
+  task.rays.push_back(MakeRay("vc9.cm0", {5.2, 2.0}, {9.5, 7.5}, 0, {0.0, 0.0}));
+  testing::IndexRays(task);
+  const Vec2 t = task.rays[0].direction;
+  task.steps.push_back(MakeStep(std::atan2(t.y, t.x) + kPi / 6, TerminateKind::kContact, -1, {0}));
+  ExecutorConfig config = Config();
+  config.limits.max_speed = 1.0;
+  config.limits.max_accel = 50.0;
+  config.servo.max_normal_speed = 1.0;  // no saturation: the rate is the law's
+  config.servo.focal_px = camera.px;    // the planar law's best guess: the calibration's focal length
+  if (calibrated) config.servo.camera = camera;
+  Harness h(task, config, Vec2{5.2, 2.0} + 1.0 * t - 0.1 * LeftNormal(t), 1, &camera);
+  h.camera_period_s = 0.002;  // a frame every period, no latency: the continuous law's rate, up to the 2 ms step
+  h.camera_latency_s = 0.0;
+  h.Start();
+  CompliantDecay out;
+  double sum_t = 0, sum_l = 0, sum_tt = 0, sum_tl = 0;
+  int n = 0, since = -1;
+  for (int total = 0; total < 5000 && since < 700; ++total) {
+    const ExecutorOutput& o = h.Tick();
+    if (o.mode == Mode::kVisualCompliant) out.engaged = true;
+    if (!out.engaged) continue;
+    ++since;
+    const double time = since * 0.002, d = std::abs(h.camera().SignedDistance(0, h.plant.position));
+    if (time >= 0.1 && time <= 1.1) {
+      const double l = std::log(d);
+      sum_t += time, sum_l += l, sum_tt += time * time, sum_tl += time * l;
+      ++n;
+    }
+    if (time >= 1.0) out.late_px = std::max(out.late_px, d);
+  }
+  out.rate = -(n * sum_tl - sum_t * sum_l) / (n * sum_tt - sum_t * sum_t);
+  return out;
+}
+
+TEST(Executor, VisualCompliantMotionWithATiltedCameraConvergesAtTheGainsRate) {
+  const double gain = ServoConfig{}.gain;
+  const CompliantDecay exact = TiltedCompliantDecay(true);
+  const CompliantDecay planar = TiltedCompliantDecay(false);
+  ASSERT_TRUE(exact.engaged && planar.engaged);
+  std::printf(
+      "executor, default scene's tilted camera, gain %.1f/s: calibrated law %.3f/s, planar f/range law %.3f/s\n", gain,
+      exact.rate, planar.rate);
+  // The 2 ms period: |d| shrinks by (1 - 2 ms gain) a period, a rate of gain * 1.004.
+  EXPECT_NEAR(exact.rate / gain, 1.0, 0.02);
+  EXPECT_LT(exact.late_px, 0.05);
+  EXPECT_LT(planar.rate / gain, 0.8);  // the planar law with f = px is measurably slower on this camera
 }
 
 TEST(Executor, CompliantStepAfterAGuardedStopOnItsRayStartsEngaged) {

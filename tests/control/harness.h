@@ -41,13 +41,16 @@ inline void IndexRays(Task& task) {
 
 class Harness {
  public:
-  Harness(Task task, ExecutorConfig config, Vec2 start, std::uint64_t seed = 1)
+  /// `true_camera`: the camera that measures (default: the planar model of config.servo.focal_px).
+  Harness(Task task, ExecutorConfig config, Vec2 start, std::uint64_t seed = 1,
+          const ServoCamera* true_camera = nullptr)
       : task_(std::move(task)),
         config_(config),
         executor_(task_, config_),
         camera_config_{config.servo.focal_px, 1.0, 0.0},
         camera_(task_, camera_config_, seed) {
     plant.position = start;
+    if (true_camera != nullptr) camera_.UseCamera(*true_camera);
   }
 
   // Knobs.

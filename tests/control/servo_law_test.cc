@@ -57,6 +57,32 @@ TEST(ServoLaw, NominalRangeWhenUnknown) {
   EXPECT_NEAR(a.x, -config.focal_px / 2.0, 1e-12);
 }
 
+TEST(ServoLaw, WithAnInteractionRowTheImageVelocityIsMinusGainTimesTheError) {
+  ServoConfig config;
+  config.gain = 2.5;
+  config.max_normal_speed = 10.0;
+  const Vec2 t = FromAngle(0.7), n = LeftNormal(t);
+  const Vec2 J = 55.0 * n + 7.0 * t;  // off the line: moving along the ray changes d too
+  const Vec2 u = FromAngle(0.7 - 0.4);
+  for (double d : {-30.0, -0.5, 0.0, 3.0, 25.0}) {
+    const ServoOutput out = VisualComplianceLaw(config, t, u, 0.08, d, J);
+    EXPECT_NEAR(Dot(J, out.velocity), -config.gain * d, 1e-12);
+    EXPECT_NEAR(Dot(out.tangential, t), 0.08 * std::cos(0.4), 1e-15);  // the commanded motion along the ray
+    EXPECT_NEAR(Dot(out.normal, t), 0.0, 1e-15);                       // the correction is along n
+    EXPECT_FALSE(out.saturated || out.degenerate);
+  }
+  // A row that does not see motion along n (behind the camera, the horizon): no correction, said so.
+  const ServoOutput behind = VisualComplianceLaw(config, t, u, 0.08, 5.0, Vec2{} - J);
+  EXPECT_TRUE(behind.degenerate);
+  EXPECT_EQ(Norm(behind.normal), 0.0);
+  // Saturation as in the planar law.
+  config.max_normal_speed = 0.01;
+  const ServoOutput big = VisualComplianceLaw(config, t, u, 0.08, 500.0, J);
+  EXPECT_TRUE(big.saturated);
+  EXPECT_NEAR(Norm(big.normal), 0.01, 1e-15);
+  EXPECT_LT(Dot(big.normal, n), 0.0);
+}
+
 // Property: on seeded random rays, start offsets and commanded directions within 60 degrees of the ray, the law
 // closed through the exact camera model (sampled at 30 Hz, zero-order hold, 500 Hz control) brings the error below
 // 0.5 px within 2 s and keeps it there, while the vertex advances along the ray.
