@@ -164,11 +164,14 @@ std::string ReadText(const fs::path& p) {
   return ss.str();
 }
 
+// A process's JSON output, or an empty object when it wrote none or only part of one (it was killed, or failed
+// early): the run is then reported as failed with "no result", never as an exception from the fields read.
 nlohmann::json ReadJson(const fs::path& p) {
   try {
-    return nlohmann::json::parse(ReadText(p));
+    nlohmann::json j = nlohmann::json::parse(ReadText(p));
+    return j.is_object() ? j : nlohmann::json::object();
   } catch (const std::exception&) {
-    return nlohmann::json();
+    return nlohmann::json::object();
   }
 }
 
@@ -430,8 +433,7 @@ RunOutcome ExecuteLockstepRun(const Setup& su, int r, std::uint64_t seed, const 
   Stop(all);
   const double run_s = std::chrono::duration<double>(Clock::now() - started).count();
   nlohmann::json summary = ReadJson(rd / "lockstep.json");
-  const bool have_summary = summary.is_object();
-  if (!have_summary) summary = nlohmann::json::object();
+  const bool have_summary = !summary.empty();
   RunOutcome out = Outcome(su, r, seed, start, rd, summary, summary, run_s, commands);
   out.item["simulated_s"] = summary.value("simulated_s", 0.0);
   if (!have_summary)
@@ -590,6 +592,7 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
   const nlohmann::json run_json = ReadJson(rd / "run.json");
   const nlohmann::json driver_json = ReadJson(rd / "driver.json");  // the robot's true final position
   RunOutcome out = Outcome(su, r, seed, start, rd, run_json, driver_json, run_s, commands);
+  if (run_json.empty()) out.item["reason"] = "visco run wrote no summary (see run.log in " + rd.string() + ")";
   if (failed_early) out.item["reason"] = "a process ended early (see its log in " + rd.string() + ")";
   if (hosts != nullptr) {
     // Where each process ran: its host's namespace (name, address, inode) and the namespace it was seen in.
