@@ -5,6 +5,7 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
+#include <exception>
 #include <fstream>
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
@@ -18,6 +19,7 @@
 #include "vision/detect_json.h"
 #include "vision/image.h"
 #include "vision/multi_tag_pose.h"
+#include "vision/overlay.h"
 #include "vision/pipeline.h"
 #include "vision/pipeline_config.h"
 #include "vision/tag_detector.h"
@@ -38,6 +40,7 @@ struct TrackArgs {
   std::int64_t max_frames = 0;
   std::string out;
   std::string log;
+  std::string overlay;
 };
 
 const char* StateName(std::int8_t s) {
@@ -67,6 +70,12 @@ void RunTrack(const TrackArgs& a) {
   if (a.publish || a.lcm_input) {
     bus = std::make_unique<lcm::LCM>(a.lcm_url);
     if (!bus->good()) throw InputError("command line", "--lcm-url", "cannot open LCM bus '" + a.lcm_url + "'");
+  }
+  // The overlay's path is checked (and a video opened, when the calibration gives the frame size) before any frame.
+  std::unique_ptr<OverlayWriter> overlay;
+  if (!a.overlay.empty()) {
+    overlay = std::make_unique<OverlayWriter>(a.overlay, a.fps);
+    if (camera.width > 0 && camera.height > 0) overlay->Open(camera.width, camera.height);
   }
   std::unique_ptr<FrameSource> source;
   const std::int64_t start = NowUtime();
@@ -138,6 +147,21 @@ void RunTrack(const TrackArgs& a) {
         std::fflush(out);
         if (a.max_frames > 0 && frames >= a.max_frames) done = true;
       });
+  // One picture per pull (frame or bad frame), drawn and written on the pipeline thread; a write error ends the run.
+  std::unique_ptr<TrackOverlay> drawer;
+  std::exception_ptr overlay_error;  // read after the thread has stopped
+  if (overlay) {
+    drawer = std::make_unique<TrackOverlay>(camera, wMc, models);
+    thread.SetFrameCallback([&](const Frame& frame, const PipelineOutput& o) {
+      if (overlay_error) return;
+      try {
+        overlay->Write(drawer->Draw(frame, o, pipeline.features().last()));
+      } catch (...) {
+        overlay_error = std::current_exception();
+        done = true;
+      }
+    });
+  }
   g_interrupted = false;
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
@@ -146,10 +170,13 @@ void RunTrack(const TrackArgs& a) {
   thread.Stop();
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
+  if (overlay) overlay->Close();
+  if (overlay_error) std::rethrow_exception(overlay_error);
   nlohmann::json s;
   s["summary"] = {{"frames", frames},          {"bad_frames", bad},
                   {"robot_lost_frames", lost}, {"crossings", crossings},
                   {"full_detections", full},   {"mean_latency_ms", frames > 0 ? latency_sum / frames * 1e3 : 0.0}};
+  if (overlay) s["summary"]["overlay_frames"] = overlay->frames();
   std::fprintf(out, "%s\n", s.dump().c_str());
   if (log) std::fprintf(stderr, "track: %s\n", log->Close().c_str());
   if (frames == 0) throw JobFailed("no frame could be processed (" + std::to_string(bad) + " bad frames)");
@@ -162,6 +189,7 @@ struct DetectArgs {
   double tag_size = 0;
   std::string family = "tag36h11";
   std::string out;
+  std::string overlay;
   DetectorOptions detector;
   PoseOptions pose;
 };
@@ -179,6 +207,7 @@ void WriteOutput(const std::string& text, const std::string& out) {
 
 void RunDetect(const DetectArgs& a) {
   if (!(a.tag_size > 0)) throw InputError("command line", "--tag-size", "must be a positive length in metres");
+  if (!a.overlay.empty()) CheckOverlayImagePath(a.overlay);
   const CameraModel camera = LoadCamera(a.camera, a.camera_name);
   const GrayImage image = ReadGrayImage(a.image);
   if (camera.width > 0 && camera.height > 0 && (camera.width != image.width || camera.height != image.height)) {
@@ -189,7 +218,9 @@ void RunDetect(const DetectArgs& a) {
   }
   DetectorOptions d = a.detector;
   d.family = a.family;
-  WriteOutput(DetectToJson(image.view(), camera, a.tag_size, d, a.pose), a.out);
+  const DetectResult result = DetectTags(image.view(), camera, a.tag_size, d, a.pose);
+  WriteOutput(DetectResultToJson(result), a.out);
+  if (!a.overlay.empty()) WriteOverlayImage(DrawDetectOverlay(image.view(), camera, a.tag_size, result), a.overlay);
 }
 
 }  // namespace
@@ -209,6 +240,10 @@ void RegisterCommands(CLI::App& app) {
   detect->add_option("--tag-size", args->tag_size, "tag size in metres: the black border's outer edge")->required();
   detect->add_option("--family", args->family, "tag family")->capture_default_str();
   detect->add_option("--out", args->out, "write the JSON to this file instead of stdout");
+  detect->add_option("--overlay", args->overlay,
+                     "also draw the detections on the image into this picture (.png; .jpg, .bmp, .ppm, .tif also): "
+                     "each tag's border in green with a cross on corner 0 (orange: no pose), its id in red, its pose "
+                     "as a frame (x red, y green, z blue); docs/vision.md, \"Overlays\"");
   detect->add_option("--decimate", args->detector.quad_decimate, "quad decimation (1: full resolution)")
       ->capture_default_str();
   detect->add_option("--min-margin", args->detector.min_decision_margin, "reject decodes below this decision margin")
@@ -246,6 +281,12 @@ void RegisterCommands(CLI::App& app) {
   track->add_option("--log", targs->log,
                     "write an LCM event log (lcm-logger format) of the bus: every channel it publishes and receives, "
                     "images included (needs a udpm:// bus; docs/replay.md)");
+  track->add_option("--overlay", targs->overlay,
+                    "draw what vision saw on every frame into a video (.avi or .mkv: Motion JPEG; .mp4: MPEG-4) or a "
+                    "folder of PNG pictures (a path without extension, created if missing: 000000.png, ...), one "
+                    "picture per input frame (bad frames: black with the fault): tags and ids, searched windows, the "
+                    "objects' prisms, CM vertices, VC lines, signed distances, events as they fire, faults; the video "
+                    "runs at --fps; docs/vision.md, \"Overlays\"");
   track->callback([targs] { RunTrack(*targs); });
 }
 

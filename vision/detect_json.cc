@@ -4,16 +4,26 @@
 
 namespace visco::vision {
 
-std::string DetectToJson(const GrayImageView& image, const CameraModel& camera, double tag_size,
-                         const DetectorOptions& detector_options, const PoseOptions& pose_options) {
+DetectResult DetectTags(const GrayImageView& image, const CameraModel& camera, double tag_size,
+                        const DetectorOptions& detector_options, const PoseOptions& pose_options) {
   TagDetector detector(detector_options);
-  const auto tags = detector.Detect(image);
+  DetectResult r;
+  r.width = image.width;
+  r.height = image.height;
+  for (auto& tag : detector.Detect(image)) {
+    auto pose = EstimateTagPose(camera, tag.corners, tag_size, pose_options);
+    r.tags.push_back({std::move(tag), std::move(pose)});
+  }
+  r.rejected_decodes = detector.rejected_last();
+  return r;
+}
+
+std::string DetectResultToJson(const DetectResult& result) {
   nlohmann::json out;
-  out["image"] = {{"width", image.width}, {"height", image.height}};
+  out["image"] = {{"width", result.width}, {"height", result.height}};
   out["detections"] = nlohmann::json::array();
-  int rejected = detector.rejected_last();
-  for (const auto& tag : tags) {
-    const auto pose = EstimateTagPose(camera, tag.corners, tag_size, pose_options);
+  int rejected = result.rejected_decodes;
+  for (const auto& [tag, pose] : result.tags) {
     if (!pose) {
       ++rejected;
       continue;
@@ -35,6 +45,11 @@ std::string DetectToJson(const GrayImageView& image, const CameraModel& camera, 
   }
   out["rejected"] = rejected;
   return out.dump(2);
+}
+
+std::string DetectToJson(const GrayImageView& image, const CameraModel& camera, double tag_size,
+                         const DetectorOptions& detector_options, const PoseOptions& pose_options) {
+  return DetectResultToJson(DetectTags(image, camera, tag_size, detector_options, pose_options));
 }
 
 }  // namespace visco::vision

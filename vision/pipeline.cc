@@ -444,6 +444,8 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
   if (options_.expect_only_visible) tracker_.SetExpectedIds(ExpectedTags(out));
   out.expected_ids = tracker_.expected_ids();
   const auto tags = tracker_.Process(frame.image.view(), &out.full_detection);
+  out.roi_windows = tracker_.last_windows();
+  out.lost_tags = tracker_.lost_last();
   const FrameFeatures& f = features_.Update(tags);
   if (f.robot_pose.valid) last_known_wMo_[0] = f.robot_pose.wMo;
   for (std::size_t k = 0; k < f.obstacle_poses.size(); ++k) {
@@ -645,6 +647,7 @@ void PipelineThread::Run() {
       ForEachMessage(out, [this](const char* channel, const auto& message) { bus_->publish(channel, &message); });
     }
     if (on_output_) on_output_(out);
+    if (on_frame_) on_frame_(frame, out);
   }
   finished_ = true;
 }

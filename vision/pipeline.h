@@ -126,7 +126,9 @@ struct PipelineOutput {
     TagVisibility visibility;
   };
   std::vector<TagPrediction> predicted_tags;
-  std::vector<int> expected_ids;  ///< what the tracker expected in this frame
+  std::vector<int> expected_ids;       ///< what the tracker expected in this frame
+  std::vector<RoiWindow> roi_windows;  ///< the windows the tracker searched (empty after a full detection)
+  std::vector<int> lost_tags;          ///< tags tracked in the previous frame and not found in this one
 };
 
 /// Calls `f(channel, message)` for each message of `out`, in the order the pipeline thread publishes them: detections,
@@ -189,6 +191,11 @@ class PipelineThread {
   void Stop();
   /// Waits for the end of the stream.
   void Join();
+  /// Also called on the pipeline thread after each pull, after `on_output`, with the frame itself (for pictures:
+  /// vision/overlay.h). `frame.image` is this frame's only when `out.processed`. Set before Start().
+  void SetFrameCallback(std::function<void(const Frame&, const PipelineOutput&)> on_frame) {
+    on_frame_ = std::move(on_frame);
+  }
   std::int64_t frames() const { return frames_.load(); }
   std::int64_t bad_frames() const { return bad_frames_.load(); }
   /// True once the stream has ended or the thread was stopped.
@@ -201,6 +208,7 @@ class PipelineThread {
   lcm::LCM* bus_;
   LatestValue<VisionSnapshot>* latest_;
   std::function<void(const PipelineOutput&)> on_output_;
+  std::function<void(const Frame&, const PipelineOutput&)> on_frame_;
   std::thread thread_;
   std::atomic<bool> stop_{false};
   std::atomic<bool> finished_{false};

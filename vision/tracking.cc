@@ -212,6 +212,7 @@ std::vector<TagObservation> TagTracker::DetectInWindows(const GrayImageView& ima
   for (const Window& w : windows) {
     const float decimate =
         options_.decimate_min_side_px > 0 && w.min_side_px >= options_.decimate_min_side_px ? 2.0f : 1.0f;
+    windows_.push_back({w.x0, w.y0, w.x1, w.y1, decimate > 1.0f});
     for (auto& t : impl_->detector.DetectInRegion(image, w.x0, w.y0, w.x1 - w.x0, w.y1 - w.y0, decimate)) {
       // Only the tracked tags (new ones are found by the next full detection); a tag seen in two windows once. A tag
       // cut by the window's edge (not the image's) can decode with wrong corners (measured: 4.3 px off on
@@ -233,6 +234,7 @@ std::vector<TagObservation> TagTracker::DetectInWindows(const GrayImageView& ima
 
 std::vector<TagObservation> TagTracker::Process(const GrayImageView& image, bool* full_detection) {
   lost_.clear();
+  windows_.clear();
   bool missing = false;
   for (int id : options_.expected_ids) {
     missing = missing || std::none_of(last_.begin(), last_.end(), [&](const TagObservation& t) { return t.id == id; });

@@ -95,6 +95,12 @@ struct TagTrackerOptions {
   std::vector<int> expected_ids;
 };
 
+/// A window the tracker searched in one frame (TagTracker::last_windows): [x0, x1) x [y0, y1), pixels.
+struct RoiWindow {
+  int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+  bool decimated = false;  ///< searched with quad_decimate 2 (big tags), corners refined at full resolution
+};
+
 /// Follows tags frame after frame. The observations of tracked frames carry decision_margin 0 for KLT corners.
 class TagTracker {
  public:
@@ -107,6 +113,8 @@ class TagTracker {
   std::vector<TagObservation> Process(const GrayImageView& image, bool* full_detection = nullptr);
   /// Ids tracked in the previous frame that were not found in the last one.
   const std::vector<int>& lost_last() const { return lost_; }
+  /// The windows searched in the last frame (ROI detection only; empty after a full detection or with KLT).
+  const std::vector<RoiWindow>& last_windows() const { return windows_; }
   /// Forces a full detection in the next frame.
   void Reset() { since_full_ = -1; }
   /// Replaces TagTrackerOptions::expected_ids from the next frame on.
@@ -123,6 +131,7 @@ class TagTracker {
   std::vector<TagObservation> last_;
   std::vector<TagObservation> before_last_;  // the frame before, for the motion prediction
   std::vector<int> lost_;
+  std::vector<RoiWindow> windows_;
 };
 
 }  // namespace visco::vision

@@ -27,6 +27,7 @@
 
 #include "lcmtypes/channels.h"
 #include "tests/vision/demo_world.h"
+#include "tests/vision/sliding_robot_world.h"
 #include "visco/fault_t.hpp"
 #include "visco/image_t.hpp"
 #include "visco/object_poses_t.hpp"
@@ -43,42 +44,9 @@ extern char** environ;
 namespace visco::vision {
 namespace {
 
-const CameraModel& kCam = test_world::kDemoCamera;
-constexpr int kFrames = 24;
+constexpr int kFrames = test_world::SlidingRobotWorld::kFrames;
 
-using test_world::Planar;
-
-struct World {
-  ObjectModels models = LoadObjectModels("data/vision/demo_objects.json");
-  Eigen::Isometry3d wMc = LoadExtrinsics("data/vision/demo_extrinsics.json");
-  Eigen::Isometry3d wMo = Planar(0.02, 0.12, 0.3);
-  Eigen::Isometry3d Robot(int i) const { return Planar(-0.16 + 0.01 * i, 0.0, 0.1); }
-  GrayImage Render(int i) const {
-    RenderScene scene;
-    scene.polygons.push_back({{{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}}, 120});
-    const Eigen::Isometry3d wMr = Robot(i);
-    AddPrism(scene, models.robot.polygon, models.robot.height, wMr, 70, 60);
-    scene.tags.push_back({"tag36h11", 0, models.robot.tags[0].size, wMr * models.robot.tags[0].oMt});
-    AddPrism(scene, models.obstacles[0].polygon, models.obstacles[0].height, wMo, 160, 140);
-    scene.tags.push_back({"tag36h11", 1, models.obstacles[0].tags[0].size, wMo * models.obstacles[0].tags[0].oMt});
-    RenderOptions ro;
-    ro.noise_stddev = 1;
-    ro.blur_sigma = 0.5;
-    ro.seed = 300 + i;
-    return visco::vision::Render(kCam, wMc, scene, ro);
-  }
-  // First frame at which the true signed distance of block.v0.cm1 has changed sign.
-  int TrueCrossing() const {
-    double prev = 0;
-    for (int i = 0; i < kFrames; ++i) {
-      const double d = SignedImageDistance(kCam, wMc, models.robot, wMc.inverse() * Robot(i), 1, models.obstacles[0],
-                                           wMc.inverse() * wMo, 0);
-      if (i > 0 && (d > 0) != (prev > 0)) return i;
-      prev = d;
-    }
-    return -1;
-  }
-};
+using World = test_world::SlidingRobotWorld;
 
 std::filesystem::path TempDir(const std::string& name) {
   const auto dir = std::filesystem::temp_directory_path() / (name + "_" + std::to_string(::getpid()));
