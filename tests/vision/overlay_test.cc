@@ -274,6 +274,51 @@ TEST(Overlay, TrackPicturesAgainstTruth) {
   EXPECT_LE(reported, truth + 3);
 }
 
+TEST(Overlay, LostTagsAndFaultsAreMarked) {
+  const World w;
+  PipelineOptions po;
+  po.detector.quad_sigma = 0.8f;
+  VisionPipeline pipeline(w.camera, w.wMc, w.models, po);
+  TrackOverlay overlay(w.camera, w.wMc, w.models);
+  auto draw = [&](int i, std::int64_t seq, bool robot_tag, PipelineOutput& out, GrayImage& image) {
+    Frame frame;
+    frame.seq = seq;
+    frame.utime = 1'000'000 + seq * 33'333;
+    frame.image = w.Render(i, robot_tag);
+    image = frame.image;
+    out = pipeline.Process(frame, frame.utime);
+    return overlay.Draw(frame, out, pipeline.features().last());
+  };
+  auto grey = [](const ColorImage& p, const GrayImage& in, int u, int v) {
+    return p.at(u, v) == Bgr{in.at(u, v), in.at(u, v), in.at(u, v)};
+  };
+  PipelineOutput out;
+  GrayImage image;
+  for (int i = 0; i < 3; ++i) {
+    const ColorImage p = draw(i, i, true, out, image);
+    EXPECT_TRUE(grey(p, image, 1, 240)) << "frame " << i << ": a fault border without a fault";
+  }
+  // Frame 3: the robot's tag is not seen. An X over where it was in frame 2 (its diagonals cross at the tag's
+  // centre), "robot not seen", the robot-lost fault with the red border.
+  ColorImage p = draw(3, 3, false, out, image);
+  ASSERT_EQ(out.lost_tags, std::vector<int>{0});
+  const auto last = TagImage(w, w.models.robot.tags[0], w.Robot(2));
+  EXPECT_LE(Nearest(p, overlay_color::kLost, (last[0] + last[2]) / 2), 1.0) << "no X at the lost tag";
+  EXPECT_LE(Nearest(p, overlay_color::kLost, (3 * last[0] + last[2]) / 4), 1.5) << "no X along the diagonal";
+  EXPECT_EQ(Count(p, overlay_color::kCmVertex, 0, 0, p.width - 1, p.height - 1), 0) << "CM vertices of no robot";
+  EXPECT_EQ(p.at(1, 240), overlay_color::kFault);
+  EXPECT_GT(Count(p, overlay_color::kFault, 4, p.height - 18, 300, p.height - 4), 50) << "no fault text";
+  // Frames 4 and 5 lost on the way (seq 6 follows seq 3): the gap is a fault of this picture; the robot seen again
+  // is a cleared fault (green text at the bottom).
+  p = draw(4, 6, true, out, image);
+  EXPECT_EQ(p.at(1, 240), overlay_color::kFault);
+  EXPECT_GT(Count(p, overlay_color::kCleared, 4, p.height - 48, 300, p.height - 4), 50) << "no cleared fault";
+  // Then a good frame: no border.
+  p = draw(5, 7, true, out, image);
+  EXPECT_TRUE(out.faults.empty());
+  EXPECT_TRUE(grey(p, image, 1, 240));
+}
+
 TEST(Overlay, DetectCommandPicture) {
   const World w;
   const auto dir = TempDir("visco_overlay_detect");

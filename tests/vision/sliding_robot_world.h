@@ -20,12 +20,13 @@ struct SlidingRobotWorld {
   Eigen::Isometry3d wMc = LoadExtrinsics("data/vision/demo_extrinsics.json");
   Eigen::Isometry3d wMo = Planar(0.02, 0.12, 0.3);  // the block
   Eigen::Isometry3d Robot(int i) const { return Planar(-0.16 + 0.01 * i, 0.0, 0.1); }
-  GrayImage Render(int i) const {
+  /// Frame i; `robot_tag` false leaves the robot's tag out (the robot is there, its tag is not seen).
+  GrayImage Render(int i, bool robot_tag = true) const {
     RenderScene scene;
     scene.polygons.push_back({{{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}}, 120});
     const Eigen::Isometry3d wMr = Robot(i);
     AddPrism(scene, models.robot.polygon, models.robot.height, wMr, 70, 60);
-    scene.tags.push_back({"tag36h11", 0, models.robot.tags[0].size, wMr * models.robot.tags[0].oMt});
+    if (robot_tag) scene.tags.push_back({"tag36h11", 0, models.robot.tags[0].size, wMr * models.robot.tags[0].oMt});
     AddPrism(scene, models.obstacles[0].polygon, models.obstacles[0].height, wMo, 160, 140);
     scene.tags.push_back({"tag36h11", 1, models.obstacles[0].tags[0].size, wMo * models.obstacles[0].tags[0].oMt});
     RenderOptions ro;
