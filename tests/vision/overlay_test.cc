@@ -274,6 +274,55 @@ TEST(Overlay, TrackPicturesAgainstTruth) {
   EXPECT_LE(reported, truth + 3);
 }
 
+TEST(Overlay, MarksFollowTheLensDistortion) {
+  // Barrel distortion (OpenCV's k1 = -0.3): the features live in ideal pixels, the picture in observed ones.
+  World w;
+  w.camera.distortion = DistortionModel::kOpenCV;
+  w.camera.dist = {-0.3, 0, 0, 0};
+  PipelineOptions po;
+  po.detector.quad_sigma = 0.8f;
+  VisionPipeline pipeline(w.camera, w.wMc, w.models, po);
+  TrackOverlay overlay(w.camera, w.wMc, w.models);
+  double largest_shift = 0;
+  for (int i = 0; i < kFrames; i += 4) {
+    SCOPED_TRACE("frame " + std::to_string(i));
+    Frame frame;
+    frame.seq = i;
+    frame.utime = 1'000'000 + i * 33'333;
+    frame.image = w.Render(i);
+    const PipelineOutput out = pipeline.Process(frame, frame.utime);
+    ASSERT_TRUE(pipeline.features().last().robot.valid);
+    const ColorImage pic = overlay.Draw(frame, out, pipeline.features().last());
+    const Eigen::Isometry3d cMr = w.wMc.inverse() * w.Robot(i);
+    for (const auto& p : w.models.robot.polygon) {
+      const Eigen::Vector3d top = cMr * Eigen::Vector3d(p.x(), p.y(), w.models.robot.height);
+      const Eigen::Vector2d t = w.camera.Project(top);
+      largest_shift = std::max(largest_shift, (t - w.camera.ProjectIdeal(top)).norm());
+      EXPECT_LE(Nearest(pic, overlay_color::kCmVertex, t), 1.0) << "CM vertex at " << t.transpose();
+      for (const Eigen::Vector2d& d :
+           {Eigen::Vector2d(1, 0), Eigen::Vector2d(-1, 0), Eigen::Vector2d(0, 1), Eigen::Vector2d(0, -1)}) {
+        EXPECT_LE(Nearest(pic, overlay_color::kCmVertex, t + (OverlayMarks::kCmCrossHalf - 1) * d), 1.0)
+            << "CM vertex cross arm " << d.transpose() << " at " << t.transpose();
+      }
+    }
+    // The VC line of the block's vertex 0 is straight in ideal pixels and bent in the picture.
+    const Eigen::Isometry3d cMo = w.wMc.inverse() * w.wMo;
+    const auto& v0 = w.models.obstacles[0].polygon[0];
+    const Eigen::Vector2d b = w.camera.ProjectIdeal(cMo * Eigen::Vector3d(v0.x(), v0.y(), 0));
+    const Eigen::Vector2d a =
+        w.camera.ProjectIdeal(cMo * Eigen::Vector3d(v0.x(), v0.y(), w.models.obstacles[0].height));
+    for (const double v : {380.0, 450.0}) {
+      const Eigen::Vector2d ideal(a.x() + (b.x() - a.x()) * (v - a.y()) / (b.y() - a.y()), v);
+      const Eigen::Vector2d seen = w.camera.NormalizedToPixel(
+          {(ideal.x() - w.camera.u0) / w.camera.px, (ideal.y() - w.camera.v0) / w.camera.py});
+      largest_shift = std::max(largest_shift, (seen - ideal).norm());
+      EXPECT_LE(Nearest(pic, overlay_color::kVcLine, seen), 1.5) << "VC line at " << seen.transpose();
+    }
+  }
+  std::printf("lens distortion moves the checked marks by up to %.1f px\n", largest_shift);
+  EXPECT_GT(largest_shift, 3.0);  // the test would fail if the marks were drawn in ideal pixels
+}
+
 TEST(Overlay, LostTagsAndFaultsAreMarked) {
   const World w;
   PipelineOptions po;

@@ -15,7 +15,7 @@ namespace visco::vision::test_world {
 
 struct SlidingRobotWorld {
   static constexpr int kFrames = 24;
-  const CameraModel& camera = kDemoCamera;
+  CameraModel camera = kDemoCamera;  // a test may give it lens distortion
   ObjectModels models = LoadObjectModels("data/vision/demo_objects.json");
   Eigen::Isometry3d wMc = LoadExtrinsics("data/vision/demo_extrinsics.json");
   Eigen::Isometry3d wMo = Planar(0.02, 0.12, 0.3);  // the block
