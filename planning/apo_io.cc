@@ -208,7 +208,7 @@ class Parser {
     for (size_t i = 0; i < root["operations"].size(); ++i) {
       const json& o = root["operations"][i];
       const std::string where = fmt::format("operations[{}]", i);
-      Keys(o, where, {"object", "pose", "remove", "carries", "contacts", "note"});
+      Keys(o, where, {"object", "pose", "remove", "carries", "contacts", "note", "pose_noise", "pose_covariance"});
       ApoOperation op;
       if (!o.contains("object")) Fail(where, "needs the manipulated 'object'");
       op.object = Object(o["object"], where + ".object", obs.objects);
@@ -221,6 +221,16 @@ class Parser {
         if (!o.contains("pose"))
           Fail(where, "needs the observed 'pose' of the manipulated object (or \"remove\": true)");
         op.observed = Pose(o["pose"], where + ".pose");
+      }
+      if (o.contains("pose_noise") && o.contains("pose_covariance")) {
+        Fail(where, "give 'pose_noise' or 'pose_covariance', not both");
+      }
+      if ((o.contains("pose_noise") || o.contains("pose_covariance")) && remove) {
+        Fail(where, "a removal has no observed pose, so no pose noise");
+      }
+      if (o.contains("pose_noise")) op.covariance = PoseNoise(o["pose_noise"], where + ".pose_noise");
+      if (o.contains("pose_covariance")) {
+        op.covariance = Covariance(o["pose_covariance"], where + ".pose_covariance");
       }
       if (o.contains("carries")) {
         if (!o["carries"].is_array()) Fail(where + ".carries", "must be an array of object ids");
@@ -260,10 +270,66 @@ class Parser {
     return input;
   }
 
+  // A standard deviation: one number for every axis, or one per axis.
+  Vector3d Stddev3(const json& j, const std::string& where) const {
+    Vector3d v;
+    if (j.is_number()) {
+      v.setConstant(j.get<double>());
+    } else {
+      v = Vec3(j, where);
+    }
+    if (!(v.minCoeff() >= 0) || !v.allFinite()) Fail(where, "standard deviations must be finite and not negative");
+    return v;
+  }
+
+  // {"t": metres, "rxyz_deg": degrees}: 1-sigma noise of a pose's perturbation observed·ΔT(q) (object frame), each
+  // a number (every axis) or [x, y, z]; independent axes.
+  PoseCovariance PoseNoise(const json& j, const std::string& where) const {
+    if (!j.is_object()) Fail(where, "must be {\"t\": metres, \"rxyz_deg\": degrees}");
+    Keys(j, where, {"t", "rxyz_deg"});
+    if (!j.contains("t") || !j.contains("rxyz_deg")) Fail(where, "needs 't' and 'rxyz_deg'");
+    Vector6d sd;
+    sd << Stddev3(j["t"], where + ".t"), Stddev3(j["rxyz_deg"], where + ".rxyz_deg") * std::numbers::pi / 180;
+    return sd.cwiseAbs2().asDiagonal();
+  }
+
+  // 6 rows of 6: covariance of (x, y, z, α, β, γ) in metres and radians; symmetric, positive semi-definite.
+  PoseCovariance Covariance(const json& j, const std::string& where) const {
+    if (!j.is_array() || j.size() != 6) Fail(where, "must be 6 rows of 6 numbers (x, y, z in m, α, β, γ in rad)");
+    PoseCovariance c;
+    for (size_t r = 0; r < 6; ++r) {
+      const auto row = Numbers(j[r], fmt::format("{}[{}]", where, r), 6);
+      for (size_t k = 0; k < 6; ++k) c(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(k)) = row[k];
+    }
+    if (!c.allFinite() ||
+        (c - c.transpose()).cwiseAbs().maxCoeff() > 1e-12 * std::max(1e-30, c.cwiseAbs().maxCoeff())) {
+      Fail(where, "must be symmetric");
+    }
+    const Eigen::SelfAdjointEigenSolver<PoseCovariance> eig(c);
+    if (eig.eigenvalues().minCoeff() < -1e-12 * std::max(1e-30, eig.eigenvalues().maxCoeff())) {
+      Fail(where, "must be positive semi-definite");
+    }
+    return c;
+  }
+
   void Settings(const json& s, ApoOptions& options) const {
     Keys(s, "settings",
          {"mode", "contact_distance", "contact_angle_deg", "min_contact_width", "residue_threshold",
-          "characteristic_length", "max_iterations"});
+          "characteristic_length", "max_iterations", "pose_noise", "false_miss_probability", "min_contact_distance",
+          "min_contact_angle_deg"});
+    if (s.contains("pose_noise")) options.pose_noise = PoseNoise(s["pose_noise"], "settings.pose_noise");
+    if (s.contains("false_miss_probability")) {
+      const double p = Positive(s["false_miss_probability"], "settings.false_miss_probability");
+      if (!(p < 0.5)) Fail("settings.false_miss_probability", "must be below 0.5");
+      options.contact.false_miss_probability = p;
+    }
+    if (s.contains("min_contact_distance")) {
+      options.contact.min_distance = Positive(s["min_contact_distance"], "settings.min_contact_distance");
+    }
+    if (s.contains("min_contact_angle_deg")) {
+      options.contact.min_angle_deg = Positive(s["min_contact_angle_deg"], "settings.min_contact_angle_deg");
+      if (options.contact.min_angle_deg >= 90) Fail("settings.min_contact_angle_deg", "must be below 90");
+    }
     if (s.contains("mode")) {
       const std::string mode = s["mode"].is_string() ? s["mode"].get<std::string>() : "";
       if (mode == "iterative") {

@@ -239,6 +239,47 @@ class Planner {
     }
   }
 
+  // The covariance of a motion parameter's observation: the operation's own, else the global pose noise; none for
+  // stable objects (exact).
+  std::optional<PoseCovariance> ParamCovariance(int param) const {
+    if (param < result_.stable_count) return std::nullopt;
+    const ApoOperation& op = obs_.operations[static_cast<size_t>(OperationOf(param))];
+    return op.covariance ? op.covariance : options_.pose_noise;
+  }
+
+  // Covariance of the perturbations (q_a, q_b) of a's and b's current poses (PoseOf·ΔT(q)) from the covariances of
+  // the motion parameters in their ODLs (independent observations; a parameter in both ODLs correlates them, as for
+  // a carried object and its carrier): Σ_p J_p Σ_p J_pᵀ, J_p by central differences. None when no parameter has one.
+  std::optional<PairCovariance> PairCovarianceOf(int a, int b) const {
+    const Matrix4d a_inv = RigidInverse(PoseOf(world_.odl[a], params_));
+    const Matrix4d b_inv = RigidInverse(PoseOf(world_.odl[b], params_));
+    std::set<int> seen;
+    std::optional<PairCovariance> out;
+    for (const Odl* odl : {&world_.odl[a], &world_.odl[b]}) {
+      for (const OdlFactor& f : *odl) {
+        const std::optional<PoseCovariance> cov = ParamCovariance(f.param);
+        if (!cov || !seen.insert(f.param).second) continue;
+        Eigen::Matrix<double, 12, 6> jac;
+        for (int k = 0; k < 6; ++k) {
+          const double h = k < 3 ? 1e-7 : 1e-6;
+          Eigen::Matrix<double, 12, 1> side[2];
+          for (int s = 0; s < 2; ++s) {
+            Vector6d q = Vector6d::Zero();
+            q[k] = s == 0 ? h : -h;
+            std::vector<Matrix4d> params = params_;
+            params[static_cast<size_t>(f.param)] = params_[static_cast<size_t>(f.param)] * DeltaTransform(q);
+            side[s] << DeltaParameters(a_inv * PoseOf(world_.odl[a], params)),
+                DeltaParameters(b_inv * PoseOf(world_.odl[b], params));
+          }
+          jac.col(k) = (side[0] - side[1]) / (2 * h);
+        }
+        if (!out) out = PairCovariance::Zero();
+        *out += jac * *cov * jac.transpose();
+      }
+    }
+    return out;
+  }
+
   // Apply operation i to the world and the relation graph (§3.2): update ODLs, mark disappeared relations, find
   // (or take) the new relations at the current parameters.
   void ApplyOperation(int i, ApoStep& step) {
@@ -306,9 +347,10 @@ class Planner {
     for (int a : moved) {
       for (int b = 0; b < static_cast<int>(obs_.objects.size()); ++b) {
         if (!world_.present[b] || Contains(moved, b)) continue;
+        const std::optional<PairCovariance> covariance = PairCovarianceOf(a, b);
         add(a, b,
             FindFaceContacts(obs_.objects[a].model, PoseOf(world_.odl[a], params_), obs_.objects[b].model,
-                             PoseOf(world_.odl[b], params_), options_.contact),
+                             PoseOf(world_.odl[b], params_), options_.contact, covariance ? &*covariance : nullptr),
             false);
       }
     }

@@ -42,6 +42,9 @@ struct ApoOperation {
   Eigen::Matrix4d observed = Eigen::Matrix4d::Identity();  ///< place: observed goal configuration (wMo).
   std::vector<int> carries;                                ///< sub-assembled objects moving with `object`.
   std::optional<std::vector<GivenContact>> contacts;       ///< place: given contacts (otherwise found).
+  /// place: covariance of the observed pose (PoseCovariance: observed·ΔT(q), object frame); otherwise
+  /// ApoOptions::pose_noise. With one, contacts are found with thresholds derived from it (ContactThresholds).
+  std::optional<PoseCovariance> covariance;
 };
 
 struct ApoObservation {
@@ -55,7 +58,10 @@ enum class ApoMode { kIterative, kAllAtOnce };
 
 struct ApoOptions {
   ApoMode mode = ApoMode::kIterative;
-  ContactThresholds contact;           ///< what counts as touching in the observed poses.
+  ContactThresholds contact;  ///< what counts as touching in the observed poses.
+  /// Covariance of every observed operation pose without its own (ApoOperation::covariance); none: the fixed
+  /// thresholds of `contact`. Stable objects are exact.
+  std::optional<PoseCovariance> pose_noise;
   double residue_threshold = 1e-9;     ///< metres: relations with a larger residue are selected for correction.
   SolverOptions solver;                ///< its residue_tolerance must be below residue_threshold.
   std::string source = "observation";  ///< the file name, for error messages.

@@ -35,8 +35,13 @@ FlushResult MakeFlush(const std::vector<FlushObject>& objects, const FlushOption
       // Face side: the non-stable object; the later one when both move.
       const size_t a = objects[j].stable ? i : j;
       const size_t b = a == j ? i : j;
-      for (const FacePatch& patch : FindFaceContacts(objects[a].model, problem.params[param[a]], objects[b].model,
-                                                     problem.params[param[b]], options.contact)) {
+      PairCovariance covariance = PairCovariance::Zero();
+      covariance.topLeftCorner<6, 6>() = objects[a].covariance;
+      covariance.bottomRightCorner<6, 6>() = objects[b].covariance;
+      const bool derived = covariance.cwiseAbs().maxCoeff() > 0;
+      for (const FacePatch& patch :
+           FindFaceContacts(objects[a].model, problem.params[param[a]], objects[b].model, problem.params[param[b]],
+                            options.contact, derived ? &covariance : nullptr)) {
         ContactGroup g;
         g.chain = {{param[a], true}, {param[b], false}};
         g.plane = FacePlane(objects[a].model, patch.face);

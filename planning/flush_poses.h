@@ -27,10 +27,14 @@ struct FlushObject {
   Polyhedron model;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   bool stable = false;
+  /// Covariance of the observed pose (planning/polyhedron.h PoseCovariance: wMo·ΔT(q), object frame). Zero: exact or
+  /// unknown. When any object of a pair has one, that pair's contact thresholds are derived from it
+  /// (ContactThresholds: false_miss_probability, min_distance, min_angle_deg) instead of the fixed ones.
+  PoseCovariance covariance = PoseCovariance::Zero();
 };
 
 struct FlushOptions {
-  ContactThresholds contact;  ///< what counts as touching in the observed poses (3 mm, 3°, 2 mm wide).
+  ContactThresholds contact;  ///< what counts as touching in the observed poses (3 mm, 3°, 2 mm wide, or derived).
   SolverOptions solver;       ///< characteristic length (0.1 m) and tolerances.
 };
 

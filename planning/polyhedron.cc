@@ -280,8 +280,103 @@ std::optional<FacePatch> FaceOverlap(const Polyhedron& a, const Matrix4d& wMa, i
   return patch;
 }
 
+double NormalQuantile(double p) {
+  double lo = -40, hi = 40;
+  for (int i = 0; i < 200; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (0.5 * std::erfc(-mid / std::numbers::sqrt2) < p ? lo : hi) = mid;
+  }
+  return 0.5 * (lo + hi);
+}
+
+namespace {
+
+// The observables of a face pair at the poses wMa·ΔT(q_a), wMb·ΔT(q_b): the deviation of the normals from opposite
+// (N_a + N_b along two directions t1, t2 of A's face plane, fixed), then the gap of every contact point (B's frame)
+// to A's face plane.
+Eigen::VectorXd PairObservables(const Polyhedron& a, const Matrix4d& wMa, int fa, const Polyhedron& b,
+                                const Matrix4d& wMb, int fb, const std::vector<Vector3d>& points, const Vector3d& t1,
+                                const Vector3d& t2, const Eigen::Matrix<double, 12, 1>& q) {
+  const Matrix4d ma = wMa * DeltaTransform(q.head<6>());
+  const Matrix4d mb = wMb * DeltaTransform(q.tail<6>());
+  const Eigen::Vector4d plane_a = FacePlane(a, fa);
+  const Vector3d sum = ma.block<3, 3>(0, 0) * plane_a.head<3>() + mb.block<3, 3>(0, 0) * FacePlane(b, fb).head<3>();
+  Eigen::VectorXd out(2 + static_cast<Eigen::Index>(points.size()));
+  out[0] = t1.dot(sum);
+  out[1] = t2.dot(sum);
+  const Matrix4d aMb = RigidInverse(ma) * mb;
+  for (size_t i = 0; i < points.size(); ++i) {
+    out[2 + static_cast<Eigen::Index>(i)] = plane_a.head<3>().dot(Transform(aMb, points[i])) + plane_a[3];
+  }
+  return out;
+}
+
+// Covariance of PairObservables at q = 0: J Σ Jᵀ, J by central differences (steps 1e-7 m, 1e-6 rad; the observables
+// are smooth products of rotations and positions of order 1, truncation and rounding errors ~1e-10 relative).
+Eigen::MatrixXd ObservableCovariance(const Polyhedron& a, const Matrix4d& wMa, int fa, const Polyhedron& b,
+                                     const Matrix4d& wMb, int fb, const std::vector<Vector3d>& points,
+                                     const Vector3d& t1, const Vector3d& t2, const PairCovariance& covariance) {
+  Eigen::MatrixXd jac(2 + static_cast<Eigen::Index>(points.size()), 12);
+  for (int k = 0; k < 12; ++k) {
+    const double h = k % 6 < 3 ? 1e-7 : 1e-6;
+    Eigen::Matrix<double, 12, 1> q = Eigen::Matrix<double, 12, 1>::Zero();
+    q[k] = h;
+    const Eigen::VectorXd plus = PairObservables(a, wMa, fa, b, wMb, fb, points, t1, t2, q);
+    q[k] = -h;
+    jac.col(k) = (plus - PairObservables(a, wMa, fa, b, wMb, fb, points, t1, t2, q)) / (2 * h);
+  }
+  return jac * covariance * jac.transpose();
+}
+
+}  // namespace
+
 std::vector<FacePatch> FindFaceContacts(const Polyhedron& a, const Matrix4d& wMa, const Polyhedron& b,
-                                        const Matrix4d& wMb, const ContactThresholds& thresholds) {
+                                        const Matrix4d& wMb, const ContactThresholds& thresholds,
+                                        const PairCovariance* covariance) {
+  if (covariance != nullptr && covariance->cwiseAbs().maxCoeff() > 0) {
+    // Derived thresholds. A true contact's observables are zero-mean Gaussian with covariance C = J Σ Jᵀ (first
+    // order). Angle: the normals' deviation δ (2 dof) is accepted while δᵀ C_δ⁻¹ δ ≤ χ²₂(1 − α/2) = −2 ln(α/2).
+    // Gaps: each of the m contact points while |g_i| ≤ k σ_i, k = Φ⁻¹(1 − α/(4m)) (two-sided, Bonferroni over the
+    // points). So a true contact is missed with probability ≤ α. Floors: min_angle_deg, min_distance.
+    const double alpha = thresholds.false_miss_probability;
+    const double chi2 = -2 * std::log(alpha / 2);
+    const double floor_angle = thresholds.min_angle_deg * std::numbers::pi / 180.0;
+    std::vector<FacePatch> patches;
+    for (int fa = 0; fa < static_cast<int>(a.faces.size()); ++fa) {
+      const Vector3d na = wMa.block<3, 3>(0, 0) * FacePlane(a, fa).head<3>();
+      const Vector3d t1 = na.unitOrthogonal(), t2 = na.cross(t1);
+      for (int fb = 0; fb < static_cast<int>(b.faces.size()); ++fb) {
+        const Vector3d nb = wMb.block<3, 3>(0, 0) * FacePlane(b, fb).head<3>();
+        if (na.dot(nb) >= 0) continue;  // more than 90° from opposite: no noise model makes that a contact
+        std::optional<FacePatch> patch = FaceOverlap(a, wMa, fa, b, wMb, fb, thresholds.min_width);
+        if (!patch) continue;
+        const Eigen::MatrixXd c = ObservableCovariance(a, wMa, fa, b, wMb, fb, patch->points, t1, t2, *covariance);
+        const Eigen::Vector2d delta(t1.dot(na + nb), t2.dot(na + nb));
+        const double angle = std::acos(std::clamp(-na.dot(nb), -1.0, 1.0));
+        if (angle > floor_angle) {
+          const Eigen::Matrix2d cd = c.topLeftCorner<2, 2>();
+          const Eigen::LDLT<Eigen::Matrix2d> ldlt(cd);
+          if (cd.determinant() <= 0 || !(delta.dot(ldlt.solve(delta)) <= chi2)) continue;
+        }
+        const int m = static_cast<int>(patch->points.size());
+        const double k = NormalQuantile(1 - alpha / (4.0 * m));
+        bool touching = true;
+        double worst_threshold = 0;
+        const Matrix4d aMb = RigidInverse(wMa) * wMb;
+        const Eigen::Vector4d plane_a = FacePlane(a, fa);
+        for (int i = 0; i < m; ++i) {
+          const double gap = plane_a.head<3>().dot(Transform(aMb, patch->points[static_cast<size_t>(i)])) + plane_a[3];
+          const double threshold = std::max(thresholds.min_distance, k * std::sqrt(std::max(0.0, c(2 + i, 2 + i))));
+          worst_threshold = std::max(worst_threshold, threshold);
+          touching = touching && std::abs(gap) <= threshold;
+        }
+        if (!touching) continue;
+        patch->distance_threshold = worst_threshold;
+        patches.push_back(std::move(*patch));
+      }
+    }
+    return patches;
+  }
   std::vector<FacePatch> patches;
   const double cos_limit = std::cos(thresholds.angle_deg * std::numbers::pi / 180.0);
   for (int fa = 0; fa < static_cast<int>(a.faces.size()); ++fa) {
@@ -290,7 +385,10 @@ std::vector<FacePatch> FindFaceContacts(const Polyhedron& a, const Matrix4d& wMa
       const Vector3d nb = wMb.block<3, 3>(0, 0) * FacePlane(b, fb).head<3>();
       if (na.dot(nb) > -cos_limit) continue;
       std::optional<FacePatch> patch = FaceOverlap(a, wMa, fa, b, wMb, fb, thresholds.min_width);
-      if (patch && patch->max_gap <= thresholds.distance) patches.push_back(std::move(*patch));
+      if (patch && patch->max_gap <= thresholds.distance) {
+        patch->distance_threshold = thresholds.distance;
+        patches.push_back(std::move(*patch));
+      }
     }
   }
   return patches;
