@@ -55,6 +55,22 @@ double Residue(const ContactEquations& c, const std::vector<Eigen::Isometry3d>& 
   return worst;
 }
 
+// The object's pose covariance in planning's parametrisation (wMo·ΔT(q), q = (p, φ) in the object frame): to first
+// order Exp(w)·R = R·Exp(Rᵀw) and t + v = t + R·(Rᵀv), so q = [Rᵀv, Rᵀw] (and Rx·Ry·Rz of small angles is the
+// rotation vector). Without a covariance: isotropic from the stddevs.
+planning::PoseCovariance PlanningCovariance(const ContactObject& o) {
+  PoseCovariance c = o.covariance;
+  if (!(c.trace() > 0)) {
+    c.setZero();
+    c.diagonal() << Eigen::Vector3d::Constant(o.orientation_stddev * o.orientation_stddev),
+        Eigen::Vector3d::Constant(o.position_stddev * o.position_stddev);
+  }
+  Eigen::Matrix<double, 6, 6> g = Eigen::Matrix<double, 6, 6>::Zero();
+  g.block<3, 3>(0, 3) = o.wMo.linear().transpose();  // p from v
+  g.block<3, 3>(3, 0) = o.wMo.linear().transpose();  // φ from w
+  return g * c * g.transpose();
+}
+
 }  // namespace
 
 PrismMesh ObjectPrism(const ObjectModel& model) {
@@ -78,13 +94,18 @@ PrismMesh ObjectPrism(const ObjectModel& model) {
 ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, const ContactOptions& options) {
   ContactRefinement out;
   for (const auto& o : objects) out.wMo.push_back(o.wMo), out.covariance.push_back(o.covariance);
+  out.joint_covariance = Eigen::MatrixXd::Zero(6 * static_cast<Eigen::Index>(objects.size()),
+                                               6 * static_cast<Eigen::Index>(objects.size()));
+  for (std::size_t i = 0; i < objects.size(); ++i) {
+    out.joint_covariance.block<6, 6>(6 * static_cast<Eigen::Index>(i), 6 * static_cast<Eigen::Index>(i)) =
+        objects[i].covariance;
+  }
   out.in_contact.assign(objects.size(), false);
   if (!options.enabled || objects.empty()) {
     out.message = "contact refinement off";
     return out;
   }
   std::vector<planning::FlushObject> flush;
-  double sigma_pos = 0, sigma_rot = 0;
   Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e18), hi = Eigen::Vector2d::Constant(-1e18);
   for (const auto& o : objects) {
     const PrismMesh mesh = ObjectPrism(*o.model);
@@ -93,9 +114,8 @@ ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, cons
     f.model.vertices = mesh.vertices;
     f.model.faces = mesh.faces;
     f.pose = o.wMo;
+    f.covariance = PlanningCovariance(o);
     flush.push_back(std::move(f));
-    sigma_pos = std::max(sigma_pos, o.position_stddev);
-    sigma_rot = std::max(sigma_rot, o.orientation_stddev);
     for (const auto& v : mesh.vertices) {
       const Eigen::Vector2d w = (o.wMo * v).head<2>();
       lo = lo.cwiseMin(w), hi = hi.cwiseMax(w);
@@ -111,8 +131,9 @@ ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, cons
   flush.push_back(table);
 
   planning::FlushOptions fo;
-  fo.contact.distance = std::max(options.min_distance_m, options.k_sigma * sigma_pos);
-  fo.contact.angle_deg = std::max(options.min_angle_deg, options.k_sigma * sigma_rot * 180 / M_PI);
+  fo.contact.false_miss_probability = options.false_miss_probability;
+  fo.contact.min_distance = options.min_distance_m;
+  fo.contact.min_angle_deg = options.min_angle_deg;
   planning::FlushResult r;
   try {
     r = planning::MakeFlush(flush, fo);
@@ -248,6 +269,10 @@ ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, cons
     if (k < 0) continue;
     out.wMo[static_cast<std::size_t>(i)] = refined[static_cast<std::size_t>(i)];
     out.covariance[static_cast<std::size_t>(i)] = post.block<6, 6>(6 * k, 6 * k);
+    for (int other = 0; other < n; ++other) {
+      const int l = var[static_cast<std::size_t>(other)];
+      if (l >= 0) out.joint_covariance.block<6, 6>(6 * i, 6 * other) = post.block<6, 6>(6 * k, 6 * l);
+    }
   }
   out.max_residue_m = residue;
   out.covariance_propagated = true;

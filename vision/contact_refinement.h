@@ -9,6 +9,7 @@
 // compiled as C++17 for ViSP 3.5's headers, so contact_refinement.cc alone is compiled as C++20 (it includes no
 // ViSP or OpenCV header).
 
+#include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <string>
 #include <vector>
@@ -17,13 +18,15 @@
 
 namespace visco::vision {
 
-/// When two faces count as touching: within `k_sigma` standard deviations of the poses' own uncertainty (a gap or
-/// tilt the measurement cannot tell from zero), and never below planning's defaults (3 mm, 3 degrees).
+/// When two faces count as touching: per face pair, within what the two poses' own uncertainty explains (the gaps
+/// and the normals' angle propagated through the pair's geometry from the covariances, thresholded so that a true
+/// contact is missed with probability at most `false_miss_probability`: planning's ContactThresholds), never below
+/// the floors `min_distance_m` and `min_angle_deg` (model tolerance). docs/vision.md, "Face contacts".
 struct ContactOptions {
   bool enabled = true;
-  double k_sigma = 3.29;  ///< the hysteresis k_hi (alpha = 1e-3; docs/vision.md)
-  double min_distance_m = 0.003;
-  double min_angle_deg = 3.0;
+  double false_miss_probability = 1e-3;  ///< as the hysteresis' false alarm (alpha = 1e-3; docs/vision.md)
+  double min_distance_m = 0.0005;
+  double min_angle_deg = 0.5;
   double table_thickness_m = 0.05;  ///< the table, a stable box whose top face is the plane z = 0
 };
 
@@ -41,8 +44,9 @@ struct ContactObject {
   double position_stddev = 0;     ///< metres, 1 sigma
   double orientation_stddev = 0;  ///< radians, 1 sigma
   /// Covariance of wMo in the world frame: rotation vector perturbation on the left (R' = Exp(w) R, radians), then
-  /// translation of the origin (t' = t + v, metres). Zero: unknown (then the poses are MakeFlush's and no covariance
-  /// is propagated, see RefineContacts).
+  /// translation of the origin (t' = t + v, metres). Zero: unknown (then the contact thresholds are derived from
+  /// the stddevs above as an isotropic covariance, the poses are MakeFlush's and no covariance is propagated, see
+  /// RefineContacts).
   PoseCovariance covariance = PoseCovariance::Zero();
 };
 
@@ -56,6 +60,10 @@ struct ContactRefinement {
   /// Per object, the covariance of `wMo` (ContactObject::covariance's convention): the measured one propagated
   /// through the contact constraints when `covariance_propagated`, else the input's.
   std::vector<PoseCovariance> covariance;
+  /// The joint covariance of all objects' wMo (6 rows per object, input order, the same convention): the projection
+  /// moves the objects in contact together, so their refined poses are correlated (off-diagonal blocks). Without
+  /// propagation, block-diagonal with the inputs' covariances.
+  Eigen::MatrixXd joint_covariance;
   bool covariance_propagated = false;
   std::string message;
 };
@@ -70,11 +78,11 @@ PrismMesh ObjectPrism(const ObjectModel& model);
 
 /// Makes the objects flush with the table (z = 0) and with each other. Not real-time safe (allocates).
 ///
-/// planning's MakeFlush finds the touching faces (within the thresholds of ContactOptions). When every object in a
-/// contact has a covariance, the flush poses are then the measured ones projected onto the contact constraints in
-/// the metric of their covariance (the most likely poses that satisfy the contacts: minimise d^T Sigma^-1 d subject
-/// to c(d) = 0, Gauss-Newton from the measurement), and their covariance is propagated to first order:
-/// Sigma' = Sigma - Sigma J^T (J Sigma J^T)^+ J Sigma, J the Jacobian of the contact equations c (per contact:
+/// planning's MakeFlush finds the touching faces (thresholds derived from each pair's covariance, ContactOptions). When
+/// every object in a contact has a covariance, the flush poses are then the measured ones projected onto the contact
+/// constraints in the metric of their covariance (the most likely poses that satisfy the contacts: minimise d^T
+/// Sigma^-1 d subject to c(d) = 0, Gauss-Newton from the measurement), and their covariance is propagated to first
+/// order: Sigma' = Sigma - Sigma J^T (J Sigma J^T)^+ J Sigma, J the Jacobian of the contact equations c (per contact:
 /// the two faces' normals opposite, 2 equations, and the face planes coincident, 1 equation) with respect to the
 /// stacked pose perturbations, by central differences at the flush poses (docs/vision.md). Otherwise the poses are
 /// MakeFlush's own (the smallest change in its characteristic-length metric) and the covariances are left as given.

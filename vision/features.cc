@@ -251,11 +251,18 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
   for (auto& o : f.obstacle_poses) finish_object(o);
 
   // Face contacts: the poses made flush with the table and with each other (the tag poses cMt stay as measured).
+  // The joint covariance of robot and obstacles in the camera frame (cov_cMo's convention), 6 rows per estimate
+  // (robot, then obstacles): block-diagonal, with the cross terms of the objects the contact projection moved
+  // together.
+  const int n_est = 1 + static_cast<int>(f.obstacle_poses.size());
+  Eigen::MatrixXd joint = Eigen::MatrixXd::Zero(6 * n_est, 6 * n_est);
   {
     std::vector<ContactObject> objs;
     std::vector<ObjectEstimate*> ests;
+    std::vector<int> est_index;  // objs -> 0 robot, 1 + k obstacle k
     auto add = [&](ObjectEstimate& o, const ObjectModel& m) {
       if (!o.valid) return;
+      est_index.push_back(&o == &f.robot_pose ? 0 : 1 + static_cast<int>(&o - f.obstacle_poses.data()));
       objs.push_back({&m, o.wMo, o.position_stddev, o.orientation_stddev, to_world * o.cov_cMo * to_world.transpose()});
       ests.push_back(&o);
     };
@@ -273,6 +280,16 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
           ests[i]->cov_cMo = to_world.transpose() * f.contact.covariance[i] * to_world;
           set_stddevs(*ests[i], f.contact.covariance[i]);
         }
+      }
+    }
+    for (std::size_t i = 0; i < ests.size(); ++i) {
+      joint.block<6, 6>(6 * est_index[i], 6 * est_index[i]) = ests[i]->cov_cMo;
+      if (!f.contact.ok || !f.contact.covariance_propagated) continue;
+      for (std::size_t j = 0; j < ests.size(); ++j) {
+        if (i == j) continue;
+        const Eigen::Matrix<double, 6, 6> w =
+            f.contact.joint_covariance.block<6, 6>(6 * static_cast<Eigen::Index>(i), 6 * static_cast<Eigen::Index>(j));
+        joint.block<6, 6>(6 * est_index[i], 6 * est_index[j]) = to_world.transpose() * w * to_world;
       }
     }
   }
@@ -308,17 +325,22 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
     pm.valid = true;
     pm.signed_distance_px = SignedImageDistance(camera_, wMc_, models_.robot, f.robot_pose.cMo, ev.cm_vertex, om,
                                                 ob.cMo, ev.vertex, &pm.vc_line, &pm.cm_image);
+    // First order through the joint covariance of the two poses d is computed from (the refined ones, correlated
+    // when the contact projection moved them together), the Jacobians at those poses.
     const auto gr = NumericJacobian<1>([&](const Vec6& d) -> Eigen::Matrix<double, 1, 1> {
-      return Eigen::Matrix<double, 1, 1>(SignedImageDistance(camera_, wMc_, models_.robot,
-                                                             PerturbPose(f.robot_pose.cMo_measured, d), ev.cm_vertex,
-                                                             om, ob.cMo, ev.vertex));
+      return Eigen::Matrix<double, 1, 1>(SignedImageDistance(
+          camera_, wMc_, models_.robot, PerturbPose(f.robot_pose.cMo, d), ev.cm_vertex, om, ob.cMo, ev.vertex));
     });
     const auto go = NumericJacobian<1>([&](const Vec6& d) -> Eigen::Matrix<double, 1, 1> {
       return Eigen::Matrix<double, 1, 1>(SignedImageDistance(camera_, wMc_, models_.robot, f.robot_pose.cMo,
-                                                             ev.cm_vertex, om, PerturbPose(ob.cMo_measured, d),
-                                                             ev.vertex));
+                                                             ev.cm_vertex, om, PerturbPose(ob.cMo, d), ev.vertex));
     });
-    const double var = (gr * f.robot_pose.cov_cMo * gr.transpose())(0, 0) + (go * ob.cov_cMo * go.transpose())(0, 0);
+    Eigen::Matrix<double, 1, 12> g;
+    g << gr, go;
+    const Eigen::Index ko = 6 * (1 + static_cast<Eigen::Index>(ev.obstacle));
+    Eigen::Matrix<double, 12, 12> pair_cov;
+    pair_cov << joint.block<6, 6>(0, 0), joint.block<6, 6>(0, ko), joint.block<6, 6>(ko, 0), joint.block<6, 6>(ko, ko);
+    const double var = (g * pair_cov * g.transpose())(0, 0);
     pm.stddev_px = std::sqrt(std::max(var, 1e-12));
     const SideState prev = states_[e];
     pm.state = NextSideState(prev, pm.signed_distance_px, pm.stddev_px, k_);
