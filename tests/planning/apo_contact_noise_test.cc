@@ -140,7 +140,7 @@ void Tally(const NoisyScene& s, const std::set<Key>& truth, const std::set<Key>&
 }
 
 #if defined(__SANITIZE_ADDRESS__)
-constexpr unsigned kSeeds = 60;
+constexpr unsigned kSeeds = 120;  // the first 120 seeds: 8 false relations of the fixed thresholds with precise poses
 #else
 constexpr unsigned kSeeds = 400;
 #endif
@@ -205,7 +205,7 @@ TEST(ContactNoise, RealObservationNoiseDerivedThresholdsMissFewerTrueRelations) 
 TEST(ContactNoise, PreciseObservationsDerivedThresholdsFindNoFalseRelations) {
   const auto [old_counts, new_counts] = Compare({1e-4, 3e-4, 0.05, 0.2});
   EXPECT_LE(new_counts.missed, Promise(new_counts));
-  EXPECT_GT(old_counts.false_found, 10);
+  EXPECT_GE(old_counts.false_found, static_cast<int>(kSeeds) / 24);  // 28 in 400 scenes, 8 in the first 120
   EXPECT_LE(new_counts.false_found, 2);
 }
 
