@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "common/extrinsics.h"
 
 namespace visco::control {
 namespace {
@@ -104,68 +105,6 @@ void OpenCVJsonIntrinsics(const std::string& path, double (&k)[4]) {
   k[0] = d[0].get<double>(), k[1] = d[4].get<double>(), k[2] = d[2].get<double>(), k[3] = d[5].get<double>();
 }
 
-void Rotation(double roll, double pitch, double yaw, double (&r)[3][3]) {
-  const double cr = std::cos(roll), sr = std::sin(roll), cp = std::cos(pitch), sp = std::sin(pitch), cy = std::cos(yaw),
-               sy = std::sin(yaw);
-  // Rz(yaw) Ry(pitch) Rx(roll), as vision::RotationFromRpy.
-  const double m[3][3] = {{cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr},
-                          {sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr},
-                          {-sp, cp * sr, cp * cr}};
-  for (int i = 0; i < 3; ++i) {
-    for (int k = 0; k < 3; ++k) r[i][k] = m[i][k];
-  }
-}
-
-void Extrinsics(const std::string& path, double (&r)[3][3], double (&t)[3]) {
-  const nlohmann::json j = ParseJson(path, "extrinsics");
-  if (!j.is_object() || !j.contains("wMc") || !j["wMc"].is_object()) {
-    throw InputError(path, "wMc", "missing (expected {\"wMc\": {\"t\": [x, y, z], \"R\": [[...]x3]}})");
-  }
-  const auto& m = j["wMc"];
-  if (!m.contains("t") || !m["t"].is_array() || m["t"].size() != 3) {
-    throw InputError(path, "wMc.t", "must be an array of 3 numbers (metres)");
-  }
-  for (int i = 0; i < 3; ++i) {
-    if (!m["t"][i].is_number()) throw InputError(path, "wMc.t", "must be an array of 3 numbers (metres)");
-    t[i] = m["t"][i].get<double>();
-    if (!std::isfinite(t[i])) throw InputError(path, "wMc.t", "is not finite");
-  }
-  if (m.contains("R") == m.contains("rpy_deg")) {
-    throw InputError(path, "wMc", "give exactly one of \"R\" (3x3 rotation) and \"rpy_deg\"");
-  }
-  if (m.contains("R")) {
-    const auto& jr = m["R"];
-    if (!jr.is_array() || jr.size() != 3) throw InputError(path, "wMc.R", "must be a 3x3 array");
-    for (int i = 0; i < 3; ++i) {
-      if (!jr[i].is_array() || jr[i].size() != 3) throw InputError(path, "wMc.R", "must be a 3x3 array");
-      for (int k = 0; k < 3; ++k) {
-        if (!jr[i][k].is_number()) throw InputError(path, "wMc.R", "must hold numbers");
-        r[i][k] = jr[i][k].get<double>();
-      }
-    }
-    double err = 0, det = 0;
-    for (int i = 0; i < 3; ++i) {
-      for (int k = 0; k < 3; ++k) {
-        double dot = 0;
-        for (int l = 0; l < 3; ++l) dot += r[i][l] * r[k][l];
-        err += (dot - (i == k ? 1 : 0)) * (dot - (i == k ? 1 : 0));
-      }
-    }
-    det = r[0][0] * (r[1][1] * r[2][2] - r[1][2] * r[2][1]) - r[0][1] * (r[1][0] * r[2][2] - r[1][2] * r[2][0]) +
-          r[0][2] * (r[1][0] * r[2][1] - r[1][1] * r[2][0]);
-    if (!(std::sqrt(err) <= 1e-6) || !(std::abs(det - 1) <= 1e-6)) {
-      throw InputError(path, "wMc.R", "is not a rotation matrix (orthonormal with determinant +1, within 1e-6)");
-    }
-  } else {
-    const auto& a = m["rpy_deg"];
-    if (!a.is_array() || a.size() != 3 || !a[0].is_number() || !a[1].is_number() || !a[2].is_number()) {
-      throw InputError(path, "wMc.rpy_deg", "must be an array of 3 angles in degrees");
-    }
-    const double k = M_PI / 180;
-    Rotation(a[0].get<double>() * k, a[1].get<double>() * k, a[2].get<double>() * k, r);
-  }
-}
-
 double RobotHeight(const std::string& path) {
   const nlohmann::json j = ParseJson(path, "object models");
   if (!j.is_object() || !j.contains("robot") || !j["robot"].is_object() || !j["robot"].contains("height") ||
@@ -199,8 +138,12 @@ ServoCamera LoadServoCamera(const std::string& calibration_path, const std::stri
   if (!std::isfinite(k[2]) || !std::isfinite(k[3])) {
     throw InputError(calibration_path, "u0", "principal point is not finite");
   }
+  const Eigen::Isometry3d wMc = LoadExtrinsics(extrinsics_path);
   double r[3][3] = {}, t[3] = {};
-  Extrinsics(extrinsics_path, r, t);
+  for (int i = 0; i < 3; ++i) {
+    t[i] = wMc.translation()[i];
+    for (int j = 0; j < 3; ++j) r[i][j] = wMc.linear()(i, j);
+  }
   return MakeServoCamera(k[0], k[1], k[2], k[3], r, t, RobotHeight(objects_path));
 }
 

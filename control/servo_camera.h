@@ -13,7 +13,7 @@ namespace visco::control {
 
 /// Reads the three files. Intrinsics: of ViSP XML's first camera, the model with distortion when both are given (the
 /// ideal pixels vision measures in, vision/camera.h); of an OpenCV JSON calibration, camera_matrix. Extrinsics: the
-/// JSON of vision::LoadExtrinsics ("t" and "R" or "rpy_deg"). Objects: "robot"."height".
+/// JSON of common/extrinsics.h ("t" and "R" or "rpy_deg"). Objects: "robot"."height".
 /// @throws InputError naming the file and the entry that is missing or wrong.
 ServoCamera LoadServoCamera(const std::string& calibration_path, const std::string& extrinsics_path,
                             const std::string& objects_path);

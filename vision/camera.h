@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "common/extrinsics.h"
+
 namespace visco::vision {
 
 /// Lens distortion model of a calibration.
@@ -64,12 +66,9 @@ void SaveCameraViSP(const CameraModel& camera, const std::string& path);
 /// image_height). @throws JobFailed if the file cannot be written.
 void SaveCameraOpenCV(const CameraModel& camera, const std::string& path);
 
-/// Camera extrinsics: the camera pose in the world, wMc.
-/// File (JSON): {"camera": "name", "wMc": {"t": [x, y, z], "R": [[...], [...], [...]]}} with metres; or instead of
-/// "R", "rpy_deg": [roll, pitch, yaw] (R = Rz(yaw) Ry(pitch) Rx(roll)). R must be a rotation (orthonormal,
-/// det +1, within 1e-6).
-/// @throws InputError naming the file and the entry that is missing or wrong.
-Eigen::Isometry3d LoadExtrinsics(const std::string& path);
+/// Camera extrinsics (common/extrinsics.h: the file format, one reader for vision and control).
+using visco::LoadExtrinsics;
+using visco::RotationFromRpy;
 
 /// Writes extrinsics in the format LoadExtrinsics reads. @throws JobFailed if the file cannot be written.
 void SaveExtrinsics(const Eigen::Isometry3d& wMc, const std::string& path);
@@ -79,8 +78,5 @@ void SaveExtrinsics(const Eigen::Isometry3d& wMc, const std::string& path);
 inline Eigen::Isometry3d ExtrinsicsFromTableTag(const Eigen::Isometry3d& wMt, const Eigen::Isometry3d& cMt) {
   return wMt * cMt.inverse();
 }
-
-/// A rotation as Rz(yaw) Ry(pitch) Rx(roll), angles in radians.
-Eigen::Matrix3d RotationFromRpy(double roll, double pitch, double yaw);
 
 }  // namespace visco::vision
