@@ -145,7 +145,9 @@ ObjectEstimate FeatureEstimator::EstimateObject(const ObjectModel& model, const 
     }
     std::optional<Eigen::Vector3d> normal;
     if (std::abs(mount.oMt.linear()(2, 2)) > 0.9) normal = table_normal_c * (mount.oMt.linear()(2, 2) > 0 ? 1 : -1);
-    const auto pose = EstimateTagPose(camera_, obs->corners, mount.size, pose_options_, priors[i], normal);
+    PoseOptions tag_options = pose_options_;
+    tag_options.corner_noise_px = std::sqrt(sigma2_);  // the ambiguity rule on the online noise estimate
+    const auto pose = EstimateTagPose(camera_, obs->corners, mount.size, tag_options, priors[i], normal);
     if (!pose) {
       priors[i].reset();
       continue;

@@ -435,8 +435,10 @@ std::optional<TagPose> EstimateTagPose(const CameraModel& camera, const Corners&
   std::size_t chosen = 0;
   TagPose out;
   if (cands.size() > 1) {
+    const double ssr_excess =
+        4 * (cands[1].rms_error_px * cands[1].rms_error_px - cands[0].rms_error_px * cands[0].rms_error_px);
     const bool ambiguous =
-        cands[1].rms_error_px - cands[0].rms_error_px < options.ambiguity_sigmas * options.corner_noise_px;
+        ssr_excess < 2 * std::log(1 / options.ambiguity_alpha) * options.corner_noise_px * options.corner_noise_px;
     out.ambiguous = ambiguous;
     if (ambiguous && prior_cMo) {
       chosen = RotationDistance(cands[1].cMo.linear(), prior_cMo->linear()) <

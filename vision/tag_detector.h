@@ -110,10 +110,13 @@ struct PoseOptions {
   /// before the pose is computed. ViSP's vpDetectorAprilTag does not correct it (0 reproduces its poses).
   double corner_offset_px = 0.5;
   double max_rms_error_px = 2.0;  ///< reject poses whose best reprojection error exceeds this (bad corners)
-  /// The two planar solutions are told apart by their errors when the worse one exceeds the better one by more than
-  /// this many times the corner noise (below it the data cannot decide: the pose is ambiguous).
+  /// The two planar solutions are told apart by their errors when the worse one is unlikely for the corner noise
+  /// sigma_c = `corner_noise_px`: its likelihood relative to the better one, exp(-(SSR_worse - SSR_better) /
+  /// (2 sigma_c^2)) (SSR = 4 rms^2 over the 4 corners), below `ambiguity_alpha` (SSR excess > 2 ln(1/alpha) sigma_c^2
+  /// = 13.8 sigma_c^2); otherwise the data cannot decide and the pose is ambiguous. FeatureEstimator sets
+  /// corner_noise_px to its online estimate before every tag (docs/vision.md, "Pose ambiguity and rejection").
   double corner_noise_px = 0.3;
-  double ambiguity_sigmas = 3.0;
+  double ambiguity_alpha = 1e-3;
   // Objects with several tags (multi_tag_pose.h): one pose from all their tags' corners at once.
   /// Fit one pose to all tags of an object seen in a frame; false keeps the old rule (the single best tag).
   bool joint_fit = true;

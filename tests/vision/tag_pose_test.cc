@@ -76,6 +76,46 @@ TEST(TagPose, AmbiguityResolvedByPriorAndTablePlane) {
   EXPECT_EQ(right_with_table, n);
 }
 
+TEST(TagPose, AmbiguityRuleFollowsTheCornerNoise) {
+  // The single-tag rule is a likelihood ratio on the corner noise sigma_c (FeatureEstimator passes its online
+  // estimate): a tag decided by its error must be right, and a camera with less corner noise decides more tags.
+  // Moderately tilted tags at 1 m whose mirror solution fits about 0.1-0.5 px worse.
+  std::uniform_real_distribution<double> tilt(0.25, 0.45), spin(-M_PI, M_PI);
+  int two[2] = {0, 0}, decided[2] = {0, 0}, wrong[2] = {0, 0}, old_rule_decided[2] = {0, 0};
+  const double noise[2] = {0.05, 0.15};
+  const int n = 300;
+  for (int level = 0; level < 2; ++level) {
+    std::mt19937 rng(63 + level);
+    PoseOptions opt;
+    opt.corner_noise_px = noise[level];
+    for (int i = 0; i < n; ++i) {
+      Eigen::Isometry3d cMt = Eigen::Isometry3d::Identity();
+      cMt.linear() = RotationFromRpy(M_PI + tilt(rng), 0.0, spin(rng));
+      cMt.translation() = Eigen::Vector3d(0.02, -0.01, 1.0);
+      const Corners c = ProjectCorners(cMt, 0.04, noise[level], rng);
+      const auto pose = EstimateTagPose(kCam, c, 0.04, opt);
+      ASSERT_TRUE(pose) << level << " " << i;
+      if (!pose->alternative) continue;  // one planar solution only: nothing to tell apart
+      ++two[level];
+      if (pose->alternative->rms_error_px - pose->rms_error_px >= 3 * 0.3) ++old_rule_decided[level];
+      if (pose->ambiguous) continue;
+      ++decided[level];
+      if (Angle(pose->cMo.linear(), cMt.linear()) > Angle(pose->alternative->cMo.linear(), cMt.linear())) {
+        ++wrong[level];
+      }
+    }
+  }
+  std::printf(
+      "decided by the error: %d/%d at 0.05 px (rule before: %d), %d/%d at 0.15 px (before: %d); wrong: %d, %d\n",
+      decided[0], two[0], old_rule_decided[0], decided[1], two[1], old_rule_decided[1], wrong[0], wrong[1]);
+  EXPECT_GT(two[0], n / 2);
+  EXPECT_GT(two[1], n / 2);
+  EXPECT_EQ(wrong[0], 0);
+  EXPECT_EQ(wrong[1], 0);
+  EXPECT_GT(decided[0], decided[1]);                   // less noise, more tags told apart
+  EXPECT_GT(decided[0], old_rule_decided[0] + n / 4);  // the fixed 0.9 px rule ignored a quiet camera
+}
+
 TEST(TagPose, RejectsLargeReprojectionErrorAndDegenerateQuads) {
   std::mt19937 rng(63);
   Eigen::Isometry3d cMt = Eigen::Isometry3d::Identity();
