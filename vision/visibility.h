@@ -27,7 +27,8 @@ const char* TagVisibilityName(TagVisibility v);
 struct VisibilityOptions {
   /// A tag whose shortest projected side spans fewer pixels per cell (cells across the black border: 8 for
   /// tag36h11) is not expected to decode. At a grazing angle the side shrinks as the cosine of the angle. The value
-  /// is a chosen one (the decoder samples one point per cell), not yet measured against the detector.
+  /// is measured: rendered tag36h11 tags from face-on to 70 degrees, blurred and noisy, are all detected from 1.45 px
+  /// per cell (tests/vision/tag_size_limit_test.cc).
   double min_cell_px = 1.5;
   /// Points on a tag are moved this far (metres) along its normal before the line of sight to the camera is tested
   /// against the prisms, so that the face the tag is glued on does not hide it.
