@@ -224,7 +224,7 @@ ObjectEstimate FeatureEstimator::EstimateObject(const ObjectModel& model, const 
   return out;
 }
 
-const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>& tags) {
+const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>& tags, const RobotPoseRefiner& refine) {
   FrameFeatures f;
   last_.tags_used = 0;
   f.robot_pose = EstimateObject(models_.robot, tags, robot_priors_, robot_object_prior_);
@@ -251,6 +251,17 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
   };
   finish_object(f.robot_pose);
   for (auto& o : f.obstacle_poses) finish_object(o);
+  if (refine) {
+    if (const std::optional<RobotPoseMeasurement> m = refine(f.robot_pose)) {
+      ObjectEstimate& r = f.robot_pose;
+      r.valid = true;
+      r.model_tracked = true;
+      r.cMo = r.cMo_measured = m->cMo;
+      r.wMo = wMc_ * r.cMo;
+      r.cov_cMo = r.cov_cMo_measured = m->cov_cMo;
+      set_stddevs(r, to_world * r.cov_cMo * to_world.transpose());
+    }
+  }
 
   // Face contacts: the poses made flush with the table and with each other (the tag poses cMt stay as measured).
   // The joint covariance of robot and obstacles in the camera frame (cov_cMo's convention), 6 rows per estimate

@@ -20,6 +20,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -77,7 +78,20 @@ struct ObjectEstimate {
   /// cMo / wMo were made flush with the table and the touching objects (contact_refinement.h); cMo_measured and the
   /// tags' cMt stay the measurements.
   bool contact_refined = false;
+  /// cMo_measured and cov_cMo_measured come from the model-based tracker (the robot's silhouette edges,
+  /// vision/model_tracker.h), not from the tags; `tags` and `tags_used` still say which tags were seen.
+  bool model_tracked = false;
 };
+
+/// A pose of the robot measured otherwise than by its tags (the model-based tracker): replaces the tags' pose before
+/// the contact refinement. Covariance in ObjectEstimate::cov_cMo's convention.
+struct RobotPoseMeasurement {
+  Eigen::Isometry3d cMo = Eigen::Isometry3d::Identity();
+  Eigen::Matrix<double, 6, 6> cov_cMo = Eigen::Matrix<double, 6, 6>::Zero();
+};
+/// Called by FeatureEstimator::Update with the robot's pose from its tags (valid or not, covariance scaled); returns
+/// the pose to use instead, or nothing to keep the tags'.
+using RobotPoseRefiner = std::function<std::optional<RobotPoseMeasurement>(const ObjectEstimate& from_tags)>;
 
 /// The robot on the motion plane.
 struct RobotPlanarEstimate {
@@ -131,8 +145,9 @@ class FeatureEstimator {
                    const NoiseModel& noise = {}, const PoseOptions& pose_options = {},
                    const ContactOptions& contact_options = {});
 
-  /// Processes the tag observations of one frame (detected or tracked corners, AprilTag convention).
-  const FrameFeatures& Update(const std::vector<TagObservation>& tags);
+  /// Processes the tag observations of one frame (detected or tracked corners, AprilTag convention). `refine` (may
+  /// be empty) may replace the robot's pose measured from the tags (TagTrackingMode::kModelBased).
+  const FrameFeatures& Update(const std::vector<TagObservation>& tags, const RobotPoseRefiner& refine = {});
 
   /// Forgets priors and event states (e.g. after a gap in the stream).
   void Reset();

@@ -350,6 +350,74 @@ VisionPipeline::VisionPipeline(const CameraModel& camera, const Eigen::Isometry3
   tag_cells_.push_back(cells(models.robot));
   for (const auto& o : models.obstacles) tag_cells_.push_back(cells(o));
   last_known_wMo_.assign(tag_cells_.size(), std::nullopt);
+  if (options.tracker.mode == TagTrackingMode::kModelBased) {
+    model_tracker_ = std::make_unique<PrismModelTracker>(camera, models.robot, options.model_tracker);
+  }
+}
+
+VisionPipeline::~VisionPipeline() = default;
+
+void VisionPipeline::ResetModelTracking() {
+  model_last_.reset();
+  model_before_last_.reset();
+  model_frames_without_tags_ = 0;
+}
+
+std::optional<RobotPoseMeasurement> VisionPipeline::TrackRobotModel(const GrayImageView& image,
+                                                                    const ObjectEstimate& from_tags,
+                                                                    PipelineOutput& out) {
+  const ModelTrackerOptions& o = options_.model_tracker;
+  std::optional<Eigen::Isometry3d> prediction;
+  if (from_tags.valid) {
+    // The tags' pose of this frame: the best start there is (sub-pixel), so the edge search can stay short.
+    prediction = from_tags.cMo_measured;
+    model_frames_without_tags_ = 0;
+  } else if (model_last_ && model_frames_without_tags_ < o.max_frames_without_tags) {
+    // No tag: the tracker goes on alone for a while, at constant velocity (camera frame).
+    ++model_frames_without_tags_;
+    prediction = model_before_last_ ? Eigen::Isometry3d(*model_last_ * model_before_last_->inverse() * *model_last_)
+                                    : *model_last_;
+  }
+  if (!prediction) {
+    ResetModelTracking();
+    return std::nullopt;
+  }
+  ModelTrackResult r = model_tracker_->Track(image, *prediction);
+  out.model.ran = true;
+  out.model.from_tags = from_tags.valid;
+  out.model.edge_features = r.edge_features;
+  out.model.rms_px = r.rms_px;
+  out.model.failure = r.failure;
+  if (r.valid && from_tags.valid) {
+    // The edges must agree with the tags: a pose whose vertices (top and base) lie off the tags' by more than the gate
+    // has latched onto other edges.
+    const ObjectModel& robot = features_.models().robot;
+    double worst = 0;
+    for (const auto& v : robot.polygon) {
+      for (double z : {0.0, robot.height}) {
+        const Eigen::Vector3d p(v.x(), v.y(), z);
+        worst = std::max(worst,
+                         (camera_.ProjectIdeal(r.cMo * p) - camera_.ProjectIdeal(from_tags.cMo_measured * p)).norm());
+      }
+    }
+    if (worst > o.tag_gate_px) {
+      r.valid = false;
+      out.model.failure = "disagrees with the tags";
+    }
+  }
+  if (!r.valid) {
+    if (from_tags.valid) {
+      model_before_last_ = model_last_;
+      model_last_ = from_tags.cMo_measured;
+    } else {
+      ResetModelTracking();
+    }
+    return std::nullopt;
+  }
+  out.model.used = true;
+  model_before_last_ = model_last_;
+  model_last_ = r.cMo;
+  return RobotPoseMeasurement{r.cMo, r.cov_cMo};
 }
 
 std::vector<int> VisionPipeline::ExpectedTags(PipelineOutput& out) const {
@@ -383,6 +451,7 @@ visco::fault_t VisionPipeline::BadFrame(const Frame& frame, const std::string& e
     // A frame of the sequence is missing: the tracker's prediction from the last good frame is one frame short.
     last_seq_ = frame.seq;
     tracker_.Reset();
+    ResetModelTracking();
   }
   return Fault(frame.utime, visco::fault_t::CODE_BAD_MESSAGE, visco::fault_t::SEVERITY_WARNING,
                Describe(frame) + ": " + error + "; dropped");
@@ -417,6 +486,7 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
                                      " (" + std::to_string(frame.seq - previous - 1) + ") lost before " +
                                      Describe(frame) + ": full detection"));
       tracker_.Reset();
+      ResetModelTracking();
     } else if (frame.seq == previous) {
       // A camera whose counter does not advance: frames are taken by time, and gaps cannot be seen (said once).
       if (!unsequenced_) {
@@ -433,6 +503,7 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
                                      ": tracker and features reset"));
       tracker_.Reset();
       features_.Reset();
+      ResetModelTracking();
       last_known_wMo_.assign(last_known_wMo_.size(), std::nullopt);
       unsequenced_ = false;
     }
@@ -446,7 +517,11 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
   const auto tags = tracker_.Process(frame.image.view(), &out.full_detection);
   out.roi_windows = tracker_.last_windows();
   out.lost_tags = tracker_.lost_last();
-  const FrameFeatures& f = features_.Update(tags);
+  RobotPoseRefiner refine;
+  if (model_tracker_) {
+    refine = [&](const ObjectEstimate& from_tags) { return TrackRobotModel(frame.image.view(), from_tags, out); };
+  }
+  const FrameFeatures& f = features_.Update(tags, refine);
   if (f.robot_pose.valid) last_known_wMo_[0] = f.robot_pose.wMo;
   for (std::size_t k = 0; k < f.obstacle_poses.size(); ++k) {
     if (f.obstacle_poses[k].valid) last_known_wMo_[k + 1] = f.obstacle_poses[k].wMo;

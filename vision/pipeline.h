@@ -27,6 +27,7 @@
 #include "vision/camera.h"
 #include "vision/features.h"
 #include "vision/image.h"
+#include "vision/model_tracker.h"
 #include "vision/object_model.h"
 #include "vision/tracking.h"
 #include "vision/visibility.h"
@@ -103,6 +104,8 @@ struct PipelineOptions {
   /// model tag is expected (the rule before issue 16; a tag that cannot be seen then forces full detections).
   bool expect_only_visible = true;
   VisibilityOptions visibility;
+  /// The robot's model-based tracker (tracker.mode == TagTrackingMode::kModelBased).
+  ModelTrackerOptions model_tracker;
   std::string camera_name = "camera";
   /// Publication times (microseconds since the epoch) of the outputs; empty: the system clock. A replay sets the
   /// log's clock here, so that nothing the pipeline produces depends on the wall clock.
@@ -129,6 +132,15 @@ struct PipelineOutput {
   std::vector<int> expected_ids;       ///< what the tracker expected in this frame
   std::vector<RoiWindow> roi_windows;  ///< the windows the tracker searched (empty after a full detection)
   std::vector<int> lost_tags;          ///< tags tracked in the previous frame and not found in this one
+  /// TagTrackingMode::kModelBased: what the robot's model-based tracker did in this frame.
+  struct ModelTracking {
+    bool ran = false;        ///< it had a prediction (the tags' pose, or its own for a few frames without tags)
+    bool used = false;       ///< its pose is the robot's measured pose
+    bool from_tags = false;  ///< started from the tags' pose of this frame (else from its own prediction)
+    int edge_features = 0;
+    double rms_px = 0;
+    std::string failure;  ///< why its pose was not used
+  } model;
 };
 
 /// Calls `f(channel, message)` for each message of `out`, in the order the pipeline thread publishes them: detections,
@@ -149,6 +161,9 @@ class VisionPipeline {
  public:
   VisionPipeline(const CameraModel& camera, const Eigen::Isometry3d& wMc, const ObjectModels& models,
                  const PipelineOptions& options);
+  ~VisionPipeline();
+  VisionPipeline(const VisionPipeline&) = delete;
+  VisionPipeline& operator=(const VisionPipeline&) = delete;
   /// Processes one frame that arrived at `arrival_utime` (for the latency fields).
   PipelineOutput Process(const Frame& frame, std::int64_t arrival_utime);
   /// Reports a frame the source could not deliver (or that is unusable). Its number counts as seen: it is reported
@@ -170,6 +185,14 @@ class VisionPipeline {
   std::int64_t gaps_ = 0, restarts_ = 0;
   // The tags predicted visible (PipelineOptions::expect_only_visible), with the predictions for `out`.
   std::vector<int> ExpectedTags(PipelineOutput& out) const;
+  // TagTrackingMode::kModelBased: the robot's pose from its edges, started from the tags' (FeatureEstimator's
+  // RobotPoseRefiner).
+  std::optional<RobotPoseMeasurement> TrackRobotModel(const GrayImageView& image, const ObjectEstimate& from_tags,
+                                                      PipelineOutput& out);
+  void ResetModelTracking();
+  std::unique_ptr<PrismModelTracker> model_tracker_;
+  std::optional<Eigen::Isometry3d> model_last_, model_before_last_;  // the robot's cMo in the last two frames
+  int model_frames_without_tags_ = 0;
   std::vector<std::vector<int>> tag_cells_;  // per object (robot, then obstacles), per tag: cells across the border
   std::vector<std::optional<Eigen::Isometry3d>> last_known_wMo_;  // per object: its last measured pose
   bool robot_lost_reported_ = false;

@@ -12,7 +12,10 @@ void AddPipelineConfigOptions(CLI::App& cmd, PipelineConfig& c) {
   cmd.add_option("--camera-name", c.camera_name, "camera in a multi-camera ViSP XML file");
   cmd.add_option("--extrinsics", c.extrinsics, "camera pose in the world (JSON, wMc)")->required();
   cmd.add_option("--objects", c.objects, "object models: robot, obstacles, tags, event pairs (JSON)")->required();
-  cmd.add_option("--mode", c.mode, "tag tracking between full detections: roi, klt or detect")->capture_default_str();
+  cmd.add_option("--mode", c.mode,
+                 "tag tracking between full detections: roi, klt or detect; mbt: roi, and the robot's pose from ViSP's "
+                 "model-based tracker on its edges")
+      ->capture_default_str();
   cmd.add_option("--full-every", c.full_every, "frames between full detections")->capture_default_str();
   cmd.add_option("--quad-sigma", c.quad_sigma, "AprilTag segmentation blur (0.8 for noisy images)")
       ->capture_default_str();
@@ -34,10 +37,12 @@ LoadedPipeline LoadPipelineConfig(const PipelineConfig& c) {
     po.tracker.mode = TagTrackingMode::kRoiDetection;
   } else if (c.mode == "klt") {
     po.tracker.mode = TagTrackingMode::kKltCorners;
+  } else if (c.mode == "mbt") {
+    po.tracker.mode = TagTrackingMode::kModelBased;
   } else if (c.mode == "detect") {
     po.tracker.mode = TagTrackingMode::kDetectEveryFrame;
   } else {
-    throw InputError("command line", "--mode", "must be roi, klt or detect, not '" + c.mode + "'");
+    throw InputError("command line", "--mode", "must be roi, mbt, klt or detect, not '" + c.mode + "'");
   }
   for (const auto& t : p.models.robot.tags) CheckFamilyName(t.family);
   return p;

@@ -255,7 +255,7 @@ std::vector<TagObservation> TagTracker::Process(const GrayImageView& image, bool
     }
   } else {
     ++since_full_;
-    if (options_.mode == TagTrackingMode::kRoiDetection) {
+    if (options_.mode == TagTrackingMode::kRoiDetection || options_.mode == TagTrackingMode::kModelBased) {
       now = DetectInWindows(image);
     } else {
       impl_->klt->Track(image);

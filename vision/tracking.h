@@ -75,6 +75,9 @@ enum class TagTrackingMode {
   kDetectEveryFrame,  ///< full-image detection in every frame (the baseline)
   kRoiDetection,      ///< detection restricted to a window around each tag's last corners
   kKltCorners,        ///< KLT on each tag's four corners
+  /// Tags as kRoiDetection; the robot's pose from ViSP's model-based tracker on its silhouette edges, started from
+  /// the tags' pose (VisionPipeline; vision/model_tracker.h)
+  kModelBased,
 };
 
 struct TagTrackerOptions {

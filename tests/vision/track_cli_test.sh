@@ -42,7 +42,7 @@ expect2() {  # expect2 PATTERN -- ARGS...
 common=(--camera tests/vision/data/apriltag_pgm_camera.xml --extrinsics "$tmp/ext.json" --objects "$tmp/objects.json" --no-publish)
 expect2 'give exactly one frame source' -- track "${common[@]}"
 expect2 '/nonexistent: image folder does not exist' -- track "${common[@]}" --images /nonexistent
-expect2 '--mode: must be roi, klt or detect' -- track "${common[@]}" --images "$tmp/frames" --mode fast
+expect2 '--mode: must be roi, mbt, klt or detect' -- track "${common[@]}" --images "$tmp/frames" --mode fast
 expect2 ': robot: missing' -- track --camera tests/vision/data/apriltag_pgm_camera.xml \
   --extrinsics "$tmp/ext.json" --objects <(echo '{}') --images "$tmp/frames" --no-publish
 echo '{"wMc": {"t": [0, 0]}}' > "$tmp/bad_ext.json"
