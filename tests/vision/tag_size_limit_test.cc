@@ -102,9 +102,10 @@ TEST(TagSizeLimit, MinCellPxIsWhereTheDetectorBecomesReliable) {
       too_small_detected += s.detected ? 1 : 0;
     }
   }
-  std::printf("every tag detected from %.2f px per cell; min_cell_px %.2f: %d expected (%d missed), %d too small "
-              "(%d of them detected)\n",
-              reliable_from, min_cell_px, expected, expected_missed, too_small, too_small_detected);
+  std::printf(
+      "every tag detected from %.2f px per cell; min_cell_px %.2f: %d expected (%d missed), %d too small "
+      "(%d of them detected)\n",
+      reliable_from, min_cell_px, expected, expected_missed, too_small, too_small_detected);
   // A tag the pipeline expects is detected: the threshold sits above the largest miss.
   EXPECT_EQ(expected_missed, 0);
   EXPECT_GE(min_cell_px, reliable_from);
