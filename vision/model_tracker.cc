@@ -8,6 +8,7 @@
 #include <visp3/mbt/vpMbGenericTracker.h>
 #include <visp3/me/vpMe.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstring>
@@ -70,7 +71,7 @@ std::string PrismCao(const ObjectModel& prism) {
   std::ostringstream s;
   s.precision(17);
   s << "V1\n# 3D Points\n" << 2 * n << "\n";
-  for (const auto& p : poly) s << p.x() << " " << p.y() << " 0\n";              // bottom: 0 .. n-1
+  for (const auto& p : poly) s << p.x() << " " << p.y() << " 0\n";                       // bottom: 0 .. n-1
   for (const auto& p : poly) s << p.x() << " " << p.y() << " " << prism.height << "\n";  // top: n .. 2n-1
   s << "# 3D Lines\n0\n# Faces from 3D lines\n0\n# Faces from 3D points\n" << n + 2 << "\n";
   // ViSP's face normal is (p1 - p0) x (p2 - p1): counter-clockwise seen from outside.
@@ -126,9 +127,9 @@ PrismModelTracker::PrismModelTracker(const CameraModel& camera, const ObjectMode
   m.tracker.setDisplayFeatures(false);
   // The generated model goes through a temporary file: ViSP 3.5 builds its faces and lines only in loadModel.
   static std::atomic<int> counter{0};
-  const std::filesystem::path path = std::filesystem::temp_directory_path() /
-                                     ("visco_prism_" + std::to_string(::getpid()) + "_" +
-                                      std::to_string(counter.fetch_add(1)) + ".cao");
+  const std::filesystem::path path =
+      std::filesystem::temp_directory_path() /
+      ("visco_prism_" + std::to_string(::getpid()) + "_" + std::to_string(counter.fetch_add(1)) + ".cao");
   {
     std::ofstream f(path);
     f << PrismCao(prism);
@@ -182,7 +183,8 @@ ModelTrackResult PrismModelTracker::Track(const GrayImageView& image, const Eige
   if (static_cast<int>(m.image.getWidth()) != src->cols || static_cast<int>(m.image.getHeight()) != src->rows) {
     m.image.resize(static_cast<unsigned>(src->rows), static_cast<unsigned>(src->cols));
   }
-  for (int v = 0; v < src->rows; ++v) std::memcpy(m.image[v], src->ptr<std::uint8_t>(v), static_cast<std::size_t>(src->cols));
+  for (int v = 0; v < src->rows; ++v)
+    std::memcpy(m.image[v], src->ptr<std::uint8_t>(v), static_cast<std::size_t>(src->cols));
   const vpHomogeneousMatrix cMo = ToViSP(prediction);
   try {
     if (!m.started) {

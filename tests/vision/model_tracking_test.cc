@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -16,8 +17,6 @@
 #include <random>
 #include <string>
 #include <vector>
-
-#include <Eigen/Eigenvalues>
 
 #include "tests/vision/demo_world.h"
 #include "tests/vision/sanitized_count.h"
@@ -39,7 +38,7 @@ struct Sequence {
   CameraModel camera = test_world::kDemoCamera;
   Eigen::Isometry3d wMc = Eigen::Isometry3d::Identity();
   ObjectModels models;
-  std::vector<Eigen::Isometry3d> wMo;  // obstacles (they stand still)
+  std::vector<Eigen::Isometry3d> wMo;              // obstacles (they stand still)
   std::function<Eigen::Isometry3d(double)> robot;  // robot pose at (fractional) frame t
   int frames = 0;
   double blur = 0.6, noise = 1.5;
