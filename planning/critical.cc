@@ -352,7 +352,12 @@ class Generator {
            std::vector<std::int8_t> signs = {}) {
     if (!std::isfinite(theta)) return;
     if (r_only_ && kind != CriticalKind::kR) return;
-    out_.push_back({theta, kind, std::move(refs), std::move(sources), std::move(signs)});
+    out_.push_back({theta, kind, std::move(refs), std::move(sources), std::move(signs), {}});
+  }
+
+  void AddSliding(double theta, const std::string& ref, std::vector<Vector2d> feature) {
+    if (!std::isfinite(theta) || r_only_) return;
+    out_.push_back({theta, CriticalKind::kSliding, {ref}, {}, {}, std::move(feature)});
   }
 
   void Collect(const NamedPolygon* start) {
@@ -470,11 +475,11 @@ class Generator {
       for (double normal : {dir + M_PI / 2, dir - M_PI / 2}) {
         // θ ± ε_v = ±n ± φ: an edge of the velocity cone parallel or antiparallel to an edge of the friction cone.
         for (double sf : {-1.0, 1.0})
-          for (double se : {-1.0, 1.0}) Add(normal + sf * phi_ + se * eps_, CriticalKind::kSliding, {s.ref});
+          for (double se : {-1.0, 1.0}) AddSliding(normal + sf * phi_ + se * eps_, s.ref, {s.a, s.b});
         // The cone reaches the edge's direction (pushing into it or not): θ ± ε_v = the edge's direction.
-        for (double se : {-1.0, 1.0}) Add(normal + M_PI / 2 + se * eps_, CriticalKind::kSliding, {s.ref});
+        for (double se : {-1.0, 1.0}) AddSliding(normal + M_PI / 2 + se * eps_, s.ref, {s.a, s.b});
         // The commanded direction along the edge (the sliding direction of its central velocity flips).
-        Add(normal + M_PI / 2, CriticalKind::kSliding, {s.ref});
+        AddSliding(normal + M_PI / 2, s.ref, {s.a, s.b});
       }
     }
     for (size_t i = 0; i < ring_vertices_.size(); ++i) {
@@ -485,7 +490,7 @@ class Generator {
       if (bis.norm() < 1e-12) continue;
       const double b = std::atan2(bis.y(), bis.x());
       for (double base : {b, b + M_PI})
-        for (double se : {-1.0, 1.0}) Add(base + se * eps_, CriticalKind::kSliding, {ring_vertex_refs_[i]});
+        for (double se : {-1.0, 1.0}) AddSliding(base + se * eps_, ring_vertex_refs_[i], {v});
     }
   }
 

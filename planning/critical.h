@@ -47,6 +47,11 @@ struct CriticalOrientation {
   /// For each source, which of its two free edges the event involves: +1 the one of direction θ + π + ε_v, −1 the
   /// one of θ + π − ε_v.
   std::vector<std::int8_t> source_signs;
+  /// For a sliding event: the obstacle edge (its two ends) or vertex (one point) whose sticking or sliding switches
+  /// there. Only motions that touch it behave differently across the event, so it can change the structure only
+  /// where the feature meets the closure of a region (docs/planning_nondirectional.md, "Sliding events that matter").
+  /// Empty for the other kinds.
+  std::vector<Eigen::Vector2d> feature;
 };
 
 /// Counts of the candidates by kind, before any filtering (indexed by CriticalKind).

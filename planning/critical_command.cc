@@ -221,10 +221,17 @@ void Run(const Args& a) {
   const auto& st = nd.stats;
   nlohmann::json by_kind;
   for (int k = 0; k < 7; ++k) by_kind[CriticalKindName(static_cast<CriticalKind>(k))] = st.counts.by_kind[k];
-  doc["stats"] = {
-      {"method", a.method},        {"candidates", st.candidates},           {"candidates_by_kind", by_kind},
-      {"checked", st.checked},     {"backprojections", st.backprojections}, {"changes", st.changes},
-      {"selection", st.selection}, {"r_critical", st.r_critical},           {"unexplained", st.unexplained}};
+  doc["stats"] = {{"method", a.method},
+                  {"candidates", st.candidates},
+                  {"candidates_by_kind", by_kind},
+                  {"events", st.events},
+                  {"checked", st.checked},
+                  {"backprojections", st.backprojections},
+                  {"changes", st.changes},
+                  {"selection", st.selection},
+                  {"r_critical", st.r_critical},
+                  {"unexplained", st.unexplained},
+                  {"found_by_probes", st.found_by_probes}};
   if (scene.start) {
     doc["start_intervals"] = {{"classic", IntervalsJson(IntervalsContaining(nd, pr, start, false))},
                               {"vc", IntervalsJson(IntervalsContaining(nd, pr, start, true))}};

@@ -199,7 +199,9 @@ class Builder {
     // R-critical orientations of the start region where their sources are vertices of the regions there.
     nd.stats.backprojections = backprojections_.load();
     nd.stats.checked = checked_;
+    nd.stats.events = static_cast<std::int64_t>(events_.size());
     nd.stats.unexplained = unexplained_;
+    nd.stats.found_by_probes = found_by_probes_;
     nd.stats.unexplained_at = unexplained_at_;
     for (auto& c : r_candidates) {
       const Slice& s = SliceAt(nd, c.theta);
@@ -289,9 +291,20 @@ class Builder {
     return true;
   }
 
-  bool EventRelevant(size_t k, const std::vector<FreeEnd>& ends) const {
+  // Whether candidate c can change the structure of slice s (whose free-edge ends are `ends`): a sliding event only
+  // where its edge or vertex meets the closure of a region, the others where their sources are free-edge ends.
+  bool CanChange(const CriticalOrientation& c, const std::vector<FreeEnd>& ends, const Slice& s) const {
+    if (c.kind == CriticalKind::kSliding && options_.local_sliding && !c.feature.empty()) {
+      const double tol = 1e-9 * size_;
+      return FeatureMeetsRegion(c.feature, s.vc.classic, tol) || FeatureMeetsRegion(c.feature, s.vc.region, tol);
+    }
+    return Relevant(c, ends);
+  }
+
+  // Whether event k can change the structure of `current` (the last swept slice, whose free-edge ends are `ends`).
+  bool EventRelevant(size_t k, const std::vector<FreeEnd>& ends, const Slice& current) const {
     for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
-      if (Relevant(structural_[i], ends)) return true;
+      if (CanChange(structural_[i], ends, current)) return true;
     }
     return false;
   }
@@ -317,10 +330,10 @@ class Builder {
       return out;
     }
     // Chunks of events walked independently (one per thread), each starting from a swept interval. An event is
-    // swept again when it is relevant, and every kPeriod events anyway; when the structure differs from the last
-    // swept interval's, the skipped events in between are bisected for where it changed (an event whose free edges
-    // are the region's only after it is found that way).
-    constexpr size_t kPeriod = 8;
+    // swept again when it is relevant, and every `resweep_period` events anyway; when the structure differs from the
+    // last swept interval's, the skipped events in between are bisected for where it changed (an event whose free
+    // edges are the region's only after it is found that way).
+    const size_t period = options_.resweep_period > 0 ? static_cast<size_t>(options_.resweep_period) : m;
     const size_t chunks = std::clamp<size_t>(static_cast<size_t>(std::max(1, options_.threads)), 1, m);
     std::vector<std::int64_t> checked(chunks, 0);
     std::vector<char> swept(m, 0);
@@ -343,7 +356,7 @@ class Builder {
       std::vector<FreeEnd> ends = FreeEndsOf(out[begin]);
       size_t last = begin;
       for (size_t k = begin + 1; k < end; ++k) {
-        if (!EventRelevant(k, ends) && k - last < kPeriod && k + 1 < end) continue;
+        if (!EventRelevant(k, ends, out[last]) && k - last < period && k + 1 < end) continue;
         sweep(k);
         if (!(out[k].structure == out[last].structure)) locate(last, k);
         last = k;
@@ -373,7 +386,7 @@ class Builder {
     for (CriticalKind kind : priority) {
       for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
         const auto& c = structural_[i];
-        if (c.kind == kind && (Relevant(c, vb) || Relevant(c, va))) return static_cast<int>(i);
+        if (c.kind == kind && (CanChange(c, vb, before) || CanChange(c, va, after))) return static_cast<int>(i);
       }
     }
     return static_cast<int>(events_[k].begin);
@@ -446,6 +459,7 @@ class Builder {
           } else {
             changes.push_back(c >= 0 ? structural_[c].theta : theta);
             change_candidate.push_back(c >= 0 ? c : (structural_.empty() ? -1 : 0));
+            if (c >= 0) ++found_by_probes_;
             if (c < 0) {
               ++unexplained_;
               unexplained_at_.push_back(theta);
@@ -468,6 +482,7 @@ class Builder {
   std::atomic<std::int64_t> backprojections_{0};
   std::int64_t checked_ = 0;
   std::int64_t unexplained_ = 0;
+  std::int64_t found_by_probes_ = 0;
   std::vector<double> unexplained_at_;
   std::map<double, std::vector<std::string>> selection_refs_;
 };
@@ -506,6 +521,24 @@ const Slice& SliceAt(const NondirectionalBackprojection& nd, double theta) {
     }
   }
   return nd.slices.back();
+}
+
+bool FeatureMeetsRegion(const std::vector<Vector2d>& feature, const Region& region, double tolerance) {
+  if (feature.empty() || region.polygons.empty()) return false;
+  for (const auto& p : feature) {
+    if (region.Contains(p) || region.BoundaryDistance(p) <= tolerance) return true;
+  }
+  if (feature.size() < 2) return false;
+  // A segment with both ends outside meets the closure only by crossing or touching a ring.
+  const Vector2d &a = feature[0], &b = feature[1];
+  bool meets = false;
+  ForEachRing(region, [&](const RegionRing& r) {
+    const size_t n = r.vertices.size();
+    for (size_t i = 0; i < n && !meets; ++i) {
+      meets = SegmentsDistance(a, b, r.vertices[i], r.vertices[(i + 1) % n]) <= tolerance;
+    }
+  });
+  return meets;
 }
 
 bool RegionContainsPolygon(const Region& region, const std::vector<Vector2d>& polygon, double tolerance,

@@ -38,7 +38,8 @@ namespace {
 using Eigen::Vector2d;
 
 struct Tally {
-  int scenes = 0, intervals = 0, broken = 0, orientations = 0, changes = 0, not_changing = 0, unexplained = 0;
+  int scenes = 0, intervals = 0, broken = 0, orientations = 0, changes = 0, not_changing = 0, unexplained = 0,
+      found_by_probes = 0;
   std::int64_t candidates = 0;
   std::set<std::string> kinds_changing;
 };
@@ -58,6 +59,8 @@ void CheckStructure(const std::string& name, const BackprojectionProblem& pr, co
   t.candidates += nd.stats.candidates;
   t.unexplained += static_cast<int>(nd.stats.unexplained);
   EXPECT_EQ(nd.stats.unexplained, 0) << name << ": a change no candidate explains";
+  t.found_by_probes += static_cast<int>(nd.stats.found_by_probes);
+  EXPECT_EQ(nd.stats.found_by_probes, 0) << name << ": a change the kinetic walk skipped";
   const auto& o = nd.orientations;
   const int not_changing_before = t.not_changing;
   t.orientations += static_cast<int>(o.size());
@@ -152,9 +155,9 @@ void StructureOnSeeds(std::uint64_t first, std::uint64_t last, Tally& t) {
   for (const auto& k : t.kinds_changing) kinds += k + " ";
   std::printf(
       "scenes %d, candidates %lld, orientations %d (%d checked across, %d change nothing), intervals %d "
-      "(broken %d), unexplained %d; kinds that change the structure: %s\n",
+      "(broken %d), unexplained %d, skipped by the walk %d; kinds that change the structure: %s\n",
       t.scenes, static_cast<long long>(t.candidates), t.orientations, t.changes, t.not_changing, t.intervals, t.broken,
-      t.unexplained, kinds.c_str());
+      t.unexplained, t.found_by_probes, kinds.c_str());
   EXPECT_GE(accepted * 10, tried * 9) << "the generator rejects too many seeds";
   EXPECT_GE(t.scenes, 1);
   EXPECT_EQ(t.broken, 0);
@@ -328,6 +331,119 @@ TEST(NondirectionalProperty, KineticAgreesWithTheCriticalSliceBaseline) {
     ++compared;
   }
   EXPECT_EQ(compared, to_compare);
+}
+
+// The kinetic walk's local rule for sliding events (docs/planning_nondirectional.md, "Sliding events that matter"):
+// a sliding event whose edge or vertex meets neither region just before it changes nothing. Each sampled sliding
+// candidate with no other candidate within 2·gap is checked on both sides: where its feature is away from the
+// classic and VC regions at θ − gap, the structure at θ + gap is the same (a change of the chosen rays alone is a
+// selection orientation, which no geometric event bounds: counted apart).
+TEST(NondirectionalProperty, ASlidingEventAwayFromTheRegionsChangesNothing) {
+  int away = 0, near = 0, changed_away = 0, selection_only = 0, near_changing = 0;
+  const int per_scene = kSanitizerDivisor > 1 ? 8 : 40;
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(kSanitizerDivisor > 1 ? 3 : 12); ++seed) {
+    const auto random = MakeRandomCase(seed);
+    if (!random) continue;
+    const BackprojectionProblem& pr = random->problem;
+    const auto candidates = CriticalCandidates(pr, nullptr);
+    const double size = (pr.bounds_max - pr.bounds_min).norm();
+    std::vector<size_t> sliding;
+    for (size_t i = 0; i < candidates.size(); ++i) {
+      if (candidates[i].kind != CriticalKind::kSliding) continue;
+      ASSERT_FALSE(candidates[i].feature.empty()) << "seed " << seed << ": a sliding candidate without its feature";
+      sliding.push_back(i);
+    }
+    std::mt19937_64 rng(seed * 131);
+    std::shuffle(sliding.begin(), sliding.end(), rng);
+    int tried = 0;
+    for (size_t i : sliding) {
+      if (tried >= per_scene) break;
+      const double theta = candidates[i].theta;
+      double nearest = M_PI;
+      for (size_t j = 0; j < candidates.size(); ++j) {
+        if (j != i) nearest = std::min(nearest, std::abs(WrapAngle(candidates[j].theta - theta)));
+      }
+      const double gap = std::min(1e-6, 0.4 * nearest);
+      if (gap < 1e-11) continue;  // another candidate at the same θ: its own change would be counted here
+      ++tried;
+      BackprojectionProblem before = pr, after = pr;
+      before.theta = WrapAngle(theta - gap);
+      after.theta = WrapAngle(theta + gap);
+      const VcBackprojection b = VcEnlargedBackprojection(before), a = VcEnlargedBackprojection(after);
+      const bool meets = FeatureMeetsRegion(candidates[i].feature, b.classic, 1e-9 * size) ||
+                         FeatureMeetsRegion(candidates[i].feature, b.region, 1e-9 * size);
+      const SliceStructure sb{RegionStructure(b.classic), RegionStructure(b.region), b.active_rays};
+      const SliceStructure sa{RegionStructure(a.classic), RegionStructure(a.region), a.active_rays};
+      if (meets) {
+        ++near;
+        near_changing += sb == sa ? 0 : 1;
+        continue;
+      }
+      ++away;
+      if (sb.active_rays != sa.active_rays) {
+        ++selection_only;
+        continue;
+      }
+      if (!(sb == sa)) {
+        ++changed_away;
+        ADD_FAILURE() << "seed " << seed << ": the sliding event of " << candidates[i].refs[0] << " at "
+                      << theta * 180 / M_PI << "° changes the structure although its feature meets no region";
+      }
+    }
+  }
+  std::printf(
+      "sliding events sampled: %d away from the regions (%d changed; %d changed the chosen rays only), %d "
+      "meeting them (%d of those change the structure)\n",
+      away, changed_away, selection_only, near, near_changing);
+  EXPECT_GT(away, 20 / kSanitizerDivisor);
+  EXPECT_EQ(changed_away, 0);
+}
+
+// A sliding event alone at its θ changes the structure: a ramp whose lower end touches the goal, the robot pushed
+// down into it. Where some velocity of the cone sticks on the ramp, the ramp is not in B_θ(G); where every velocity
+// slides down it, the ramp and the points above it that fall onto it are. The kinetic walk, with its local rule,
+// reports the change as a sliding orientation of the ramp's edge, and the ramp meets the regions on both sides.
+TEST(NondirectionalExamples, ASlidingEventOnARampChangesTheStructure) {
+  BackprojectionProblem pr;
+  pr.bounds_min = {0, 0};
+  pr.bounds_max = {10, 8};
+  NamedPolygon ramp;
+  ramp.vertices = {{0, 0}, {8, 0}, {0, 4}};  // the hypotenuse from (8, 0) up to (0, 4) is the ramp
+  ramp.edge_refs = {"floor", "ramp", "wall"};
+  pr.obstacles = {ramp};
+  NamedPolygon goal;
+  goal.vertices = {{8, 0}, {9.5, 0}, {9.5, 1}, {8, 1}};
+  pr.goal = {goal};
+  pr.velocity_cone = 10 * M_PI / 180;
+  pr.friction_cone = 20 * M_PI / 180;
+  const auto candidates = CriticalCandidates(pr, nullptr);
+  const double size = (pr.bounds_max - pr.bounds_min).norm();
+  int alone_changing = 0;
+  for (const auto& c : candidates) {
+    if (c.kind != CriticalKind::kSliding || c.refs[0] != "ramp") continue;
+    double nearest = M_PI;
+    for (const auto& other : candidates) {
+      if (&other != &c) nearest = std::min(nearest, std::abs(WrapAngle(other.theta - c.theta)));
+    }
+    if (nearest < 1e-6) continue;
+    BackprojectionProblem before = pr, after = pr;
+    before.theta = WrapAngle(c.theta - 0.4 * nearest);
+    after.theta = WrapAngle(c.theta + 0.4 * nearest);
+    const Region b = ClassicBackprojection(before), a = ClassicBackprojection(after);
+    if (RegionStructure(b) == RegionStructure(a)) continue;
+    ++alone_changing;
+    EXPECT_TRUE(FeatureMeetsRegion(c.feature, b, 1e-9 * size)) << c.theta * 180 / M_PI;
+    EXPECT_TRUE(FeatureMeetsRegion(c.feature, a, 1e-9 * size)) << c.theta * 180 / M_PI;
+    // The kinetic walk reports it, as a sliding orientation of the ramp.
+    const auto nd = ComputeNondirectional(pr, nullptr, Options());
+    bool reported = false;
+    for (const auto& o : nd.orientations) {
+      reported = reported || (std::abs(o.theta - c.theta) <= 1e-12 && o.kind == CriticalKind::kSliding &&
+                              o.refs == std::vector<std::string>{"ramp"});
+    }
+    EXPECT_TRUE(reported) << "the ramp's sliding change at " << c.theta * 180 / M_PI << "° is not reported";
+  }
+  EXPECT_GT(alone_changing, 0);
 }
 
 // Soundness of every slice: points inside each slice's VC region reach the goal in the adversarial simulator with

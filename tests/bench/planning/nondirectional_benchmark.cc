@@ -5,14 +5,18 @@
 //   index (search 0, the default) or by scanning every segment (search 1, the reference). Scaling exponent: compare
 //   two sizes, log(t2 / t1) / log(n2 / n1); the counters give the count by kind next to the time.
 // BM_Nondirectional/method/n: the whole nondirectional backprojection, kinetic (method 0, the default: a sweep only
-//   where an event involves the regions' free edges) against the critical-slice baseline (method 1: a sweep in every
-//   interval between candidates), same problem, same run: the ratio of the two is the kinetic method's gain; the
-//   counters give the sweeps (backprojections) and the orientations found (equal for both).
+//   where an event involves the regions' free edges, or a sliding event's edge or vertex meets a region) against the
+//   critical-slice baseline (method 1: a sweep in every interval between candidates) and the kinetic walk as it was
+//   before (method 2: a sweep at every sliding event and at least every 8 events), same problem, same run: the ratio to
+//   the baseline is the kinetic method's gain; the counters give the candidates swept by the walk (checked), all sweeps
+//   (backprojections) and the orientations found (equal for all three).
 // Every benchmark but BM_Plan reports its peak resident memory (`peak_MiB`).
 // BM_Plan/scene: `visco plan` on the example scenes (one thread), with the nondirectional backprojections it needed.
 
 #include <benchmark/benchmark.h>
 
+#include <chrono>
+#include <cmath>
 #include <fstream>
 #include <random>
 #include <string>
@@ -113,7 +117,11 @@ BENCHMARK(BM_CandidateCounts)->DenseRange(2, 12, 2)->Unit(benchmark::kMillisecon
 void BM_Nondirectional(benchmark::State& state) {
   const BackprojectionProblem pr = bench::PentagonGrid(static_cast<int>(state.range(1)) / 5);
   NondirectionalOptions o;
-  o.method = state.range(0) == 0 ? SliceMethod::kKinetic : SliceMethod::kBaseline;
+  o.method = state.range(0) == 1 ? SliceMethod::kBaseline : SliceMethod::kKinetic;
+  if (state.range(0) == 2) {  // the walk before the local sliding rule: every sliding event, a sweep every 8 events
+    o.local_sliding = false;
+    o.resweep_period = 8;
+  }
   NondirectionalStats stats;
   size_t orientations = 0;
   ResetPeakMemory();
@@ -123,14 +131,34 @@ void BM_Nondirectional(benchmark::State& state) {
     orientations = nd.orientations.size();
     benchmark::DoNotOptimize(nd.slices.data());
   }
-  state.SetLabel(state.range(0) == 0 ? "kinetic" : "baseline");
+  static const char* const kLabels[] = {"kinetic", "baseline", "kinetic before (every sliding event, period 8)"};
+  state.SetLabel(kLabels[state.range(0)]);
   state.counters["peak_MiB"] = PeakMemoryMiB();
   state.counters["vertices"] = bench::Vertices(pr);
   state.counters["candidates"] = static_cast<double>(stats.candidates);
+  state.counters["events"] = static_cast<double>(stats.events);
+  state.counters["checked"] = static_cast<double>(stats.checked);
+  // What the baseline would cost on this problem, for the sizes where it is too slow to run: a sweep per event, plus
+  // the same interval probes and final slices (5 per orientation), at the mean time of 32 sweeps at evenly spaced θ
+  // timed here (the baseline's sweeps are spread over the circle the same way).
+  constexpr int kSamples = 32;
+  const auto s0 = std::chrono::steady_clock::now();
+  for (int i = 0; i < kSamples; ++i) {
+    BackprojectionProblem p = pr;
+    p.theta = -M_PI + (i + 0.5) * 2 * M_PI / kSamples;
+    benchmark::DoNotOptimize(VcEnlargedBackprojection(p, o.selection).region.area);
+  }
+  const double per_sweep_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - s0).count() / kSamples;
+  state.counters["baseline_estimate_s"] =
+      per_sweep_s * static_cast<double>(stats.events + 5 * static_cast<std::int64_t>(orientations));
   state.counters["backprojections"] = static_cast<double>(stats.backprojections);
   state.counters["orientations"] = static_cast<double>(orientations);
 }
-BENCHMARK(BM_Nondirectional)->ArgsProduct({{0, 1}, {10, 20, 40}})->Unit(benchmark::kMillisecond)->Iterations(1);
+BENCHMARK(BM_Nondirectional)
+    ->ArgsProduct({{0, 1, 2}, {10, 20, 40, 80}})
+    ->ArgsProduct({{0}, {160, 320, 640}})
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(1);
 
 void BM_Plan(benchmark::State& state) {
   static const char* const kScenes[] = {"slot", "fig13", "corner"};
