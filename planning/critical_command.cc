@@ -37,6 +37,7 @@ struct Args {
   int threads = MachineThreads();
   int samples = 240;
   std::string method = "kinetic";
+  int resweep_period = NondirectionalOptions{}.resweep_period;
 };
 
 // A progress bar on a terminal, nothing otherwise.
@@ -197,6 +198,7 @@ namespace {
 void Run(const Args& a) {
   if (a.threads < 1) throw InputError("command line", "--threads", "must be at least 1");
   if (a.samples < 2) throw InputError("command line", "--samples", "must be at least 2");
+  if (a.resweep_period < 0) throw InputError("command line", "--resweep-period", "must be 0 or more");
   const Scene scene = LoadScene(a.scene);
   const CSpace cspace(scene);
   const VcRays rays = ComputeVcRays(scene, cspace);
@@ -210,6 +212,7 @@ void Run(const Args& a) {
   NondirectionalOptions options;
   options.threads = a.threads;
   options.method = a.method == "baseline" ? SliceMethod::kBaseline : SliceMethod::kKinetic;
+  options.resweep_period = a.resweep_period;
   NondirectionalBackprojection nd;
   {
     ProgressBar bar("critical orientations");
@@ -289,6 +292,9 @@ void RegisterCriticalCommand(CLI::App& app) {
                   "kinetic (sweep again only at candidates whose free edges are the regions') or baseline (Donald's "
                   "critical-slice method: a sweep at every candidate)")
       ->check(CLI::IsMember({"kinetic", "baseline"}))
+      ->capture_default_str();
+  cmd->add_option("--resweep-period", args->resweep_period,
+                  "kinetic: also sweep every N events where none is relevant (a safety net; 0 = never)")
       ->capture_default_str();
   cmd->add_option("--out", args->out, "write the JSON to FILE instead of stdout");
   cmd->callback([args] { Run(*args); });

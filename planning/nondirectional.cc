@@ -19,17 +19,34 @@ using Eigen::Vector2d;
 constexpr double kSameTheta = 1e-10;  // candidates closer than this are one event
 
 std::vector<std::string> RingSequence(const RegionRing& ring, const char* tag) {
+  const size_t n = ring.edges.size();
   std::vector<std::string> items;
+  items.reserve(n);
   for (const auto& e : ring.edges) items.push_back(std::string(EdgeKindName(e.kind)) + ":" + e.ref);
-  // The lexicographically least rotation names the cyclic sequence.
-  std::vector<std::string> best = items;
-  for (size_t r = 1; r < items.size(); ++r) {
-    std::vector<std::string> rot(items.begin() + r, items.end());
-    rot.insert(rot.end(), items.begin(), items.begin() + r);
-    if (rot < best) best = std::move(rot);
+  // The lexicographically least rotation names the cyclic sequence. Rotations are compared in place on the items'
+  // ranks (the same order as the strings), without building them: a ring of a thousand edges costs about n
+  // comparisons instead of n² string copies.
+  std::vector<size_t> order(n);
+  for (size_t i = 0; i < n; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) { return items[a] < items[b]; });
+  std::vector<size_t> rank(n);
+  for (size_t i = 0, r = 0; i < n; ++i) {
+    if (i > 0 && items[order[i]] != items[order[i - 1]]) ++r;
+    rank[order[i]] = r;
+  }
+  size_t best = 0;
+  for (size_t r = 1; r < n; ++r) {
+    for (size_t i = 0; i < n; ++i) {
+      const size_t x = rank[(r + i) % n], y = rank[(best + i) % n];
+      if (x != y) {
+        if (x < y) best = r;
+        break;
+      }
+    }
   }
   std::vector<std::string> out = {tag};
-  out.insert(out.end(), best.begin(), best.end());
+  out.reserve(n + 1);
+  for (size_t i = 0; i < n; ++i) out.push_back(std::move(items[(best + i) % n]));
   return out;
 }
 
@@ -140,14 +157,18 @@ class Builder {
       events_.push_back({i, j});
       i = j;
     }
-    std::vector<Slice> intervals = IntervalSlices();
+    // Interval k's structure is that of intervals[source[k]] (the last swept interval up to k).
+    std::vector<size_t> source;
+    std::vector<Slice> intervals = IntervalSlices(source);
     // Orientations where the interval structure changes.
     std::vector<double> changes;
     std::vector<int> change_candidate;
     const size_t m = events_.size();
     for (size_t k = 0; k < m && m > 1; ++k) {
-      const Slice& before = intervals[(k + m - 1) % m];
-      const Slice& after = intervals[k];
+      const size_t b = source[(k + m - 1) % m], a = source[k];
+      if (a == b) continue;  // no sweep in between: the same structure
+      const Slice& before = intervals[b];
+      const Slice& after = intervals[a];
       if (before.structure == after.structure) continue;
       changes.push_back(EventTheta(k));
       change_candidate.push_back(PickCandidate(k, before, after));
@@ -177,7 +198,10 @@ class Builder {
         nd.slices[s].lo = nd.slices[s].hi = lo;
         nd.slices[s].critical = true;
       } else {
-        nd.slices[s] = Evaluate(WrapAngle(0.5 * (lo + hi)));
+        // The interval checks swept its midpoint already when it was last probed.
+        const auto cached = midpoints_.find({lo, hi});
+        nd.slices[s] =
+            cached != midpoints_.end() ? std::move(cached->second) : Evaluate(WrapAngle(lo + 0.5 * (hi - lo)));
         nd.slices[s].lo = lo;
         nd.slices[s].hi = hi;
       }
@@ -319,8 +343,10 @@ class Builder {
 
   // One slice per interval between consecutive events: every one swept (baseline) or only after relevant events
   // (kinetic; the others inherit the previous interval's slice).
-  std::vector<Slice> IntervalSlices() {
+  std::vector<Slice> IntervalSlices(std::vector<size_t>& source) {
     const size_t m = events_.size();
+    source.resize(m);
+    for (size_t k = 0; k < m; ++k) source[k] = k;
     if (m <= 1) return m == 0 ? std::vector<Slice>{} : std::vector<Slice>{Evaluate(IntervalTheta(0))};
     std::vector<Slice> out(m);
     if (options_.method == SliceMethod::kBaseline) {
@@ -362,15 +388,12 @@ class Builder {
         last = k;
         ends = FreeEndsOf(out[k]);
       }
-      // Intervals not swept have the structure of the last swept one before them.
-      size_t source = begin;
+      // Intervals not swept have the structure of the last swept one before them (not copied: at thousands of
+      // events the copies of large structures cost more memory and time than the sweeps).
+      size_t from = begin;
       for (size_t k = begin + 1; k < end; ++k) {
-        if (swept[k]) {
-          source = k;
-        } else {
-          out[k].structure = out[source].structure;
-          out[k].theta = out[source].theta;
-        }
+        if (swept[k]) from = k;
+        source[k] = from;
       }
     });
     for (auto c : checked) checked_ += c;
@@ -428,6 +451,9 @@ class Builder {
         probes[k].hi = hi;
         probes[k].s[t % 3] = Evaluate(WrapAngle(lo + fractions[t % 3] * (hi - lo)));
       });
+      // The midpoints, for the final open slices of the intervals that do not change any more.
+      midpoints_.clear();
+      for (auto& p : probes) midpoints_.emplace(std::make_pair(p.lo, p.hi), p.s[1]);
       bool found = false;
       for (auto& p : probes) {
         for (int a = 0; a < 2; ++a) {
@@ -485,6 +511,7 @@ class Builder {
   std::int64_t found_by_probes_ = 0;
   std::vector<double> unexplained_at_;
   std::map<double, std::vector<std::string>> selection_refs_;
+  std::map<std::pair<double, double>, Slice> midpoints_;  // the last interval checks' midpoint slices, by (lo, hi)
 };
 
 }  // namespace
