@@ -273,7 +273,17 @@ TEST(CanRealtimeHil, GoalWithOverrunsUnderTheGuard) {
     const std::string cmd = "(sleep 0.2; kill -STOP " + pid + "; sleep 0.06; kill -CONT " + pid + ") &";
     ASSERT_EQ(std::system(cmd.c_str()), 0);
   };
-  const Outcome o = RunScenario(s);
+  // The pause is 60 ms (~30 periods) when the (emulated) machine keeps up; a busy host can stretch it past the
+  // driver's 300 ms watchdog, which then rightly stops the robot: that run tested the watchdog, not the overrun, so it
+  // is run again (at most three times; the stretched runs are printed).
+  Outcome o;
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    o = RunScenario(s);
+    const double stall_ms = static_cast<double>(o.overruns) * s.config.period_s * 1e3;
+    if (stall_ms < 200) break;
+    std::printf("hil-rt: the 60 ms pause stalled the loop for about %.0f ms (host busy): run %d again\n", stall_ms,
+                attempt + 1);
+  }
   ExpectRealtimeClean(o, "goal");
   EXPECT_EQ(o.mode, Mode::kDone) << o.stop_reason;
   EXPECT_GT(o.overruns, 10);
