@@ -145,7 +145,7 @@ void BM_Nondirectional(benchmark::State& state) {
   state.counters["events"] = static_cast<double>(stats.events);
   state.counters["checked"] = static_cast<double>(stats.checked);
   // What the baseline would cost on this problem, for the sizes where it is too slow to run: a slice per event (the
-  // midpoint of the interval after it), plus the same interval probes and final slices (5 per orientation), at the
+  // midpoint of the interval after it), plus the same interval checks and critical slices (4 per orientation), at the
   // mean time of 128 of the baseline's own slices (every events/128-th interval midpoint) timed here. CPU time of the
   // process, like the benchmark's CPU column (one thread): other work on a shared machine does not inflate it.
   std::vector<double> event_theta;  // the candidates grouped as ComputeNondirectional groups them
@@ -165,7 +165,7 @@ void BM_Nondirectional(benchmark::State& state) {
   }
   const double per_sweep_s = (ProcessCpuSeconds() - s0) / kSamples;
   state.counters["baseline_estimate_s"] =
-      per_sweep_s * static_cast<double>(stats.events + 5 * static_cast<std::int64_t>(orientations));
+      per_sweep_s * static_cast<double>(stats.events + 4 * static_cast<std::int64_t>(orientations));
   state.counters["backprojections"] = static_cast<double>(stats.backprojections);
   state.counters["orientations"] = static_cast<double>(orientations);
 }
