@@ -237,6 +237,41 @@ void BM_PlanSynthesis(benchmark::State& state) {
 }
 BENCHMARK(BM_PlanSynthesis)->Arg(4)->Arg(12)->Arg(30)->Arg(60)->Arg(110)->Unit(benchmark::kSecond)->Iterations(1);
 
+// Candidate counts by kind against the papers' bounds up to n = 2 000 on a scene with a camera: the cluttered slot
+// above (its camera gives the CVC rays; the m random pentagons behind it add C-obstacle vertices, not rays), through
+// the real pipeline scene -> C-space -> CVC rays. The counts where the rays grow with n are BM_CandidateCounts'.
+void BM_CandidateCountsCluttered(benchmark::State& state) {
+  const Scene scene = ClutteredSlot(static_cast<int>(state.range(0)));
+  const CSpace cspace(scene);
+  const VcRays rays = ComputeVcRays(scene, cspace);
+  const BackprojectionProblem pr = ProblemFromScene(scene, cspace, &rays, 0.0, /*kernel=*/false);
+  CriticalCounts counts;
+  ResetPeakMemory();
+  for (auto _ : state) {
+    const auto c = CriticalCandidates(pr, nullptr, &counts);
+    benchmark::DoNotOptimize(c.data());
+  }
+  double n = 0, segments = 0;
+  for (const auto& o : pr.obstacles) n += static_cast<double>(o.vertices.size());
+  for (const auto& r : pr.rays) segments += static_cast<double>(r.segments.size());
+  state.counters["peak_MiB"] = PeakMemoryMiB();
+  state.counters["n"] = n;
+  state.counters["rays"] = segments;
+  state.counters["points"] = static_cast<double>(counts.points);
+  for (int kind = 0; kind < 6; ++kind) {
+    state.counters[CriticalKindName(static_cast<CriticalKind>(kind))] = static_cast<double>(counts.by_kind[kind]);
+  }
+}
+BENCHMARK(BM_CandidateCountsCluttered)
+    ->Arg(2)
+    ->Arg(8)
+    ->Arg(24)
+    ->Arg(55)
+    ->Arg(110)
+    ->Arg(220)
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
+
 }  // namespace
 }  // namespace visco::planning
 
