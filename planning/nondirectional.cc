@@ -371,12 +371,20 @@ class Builder {
         ++checked[c];
       };
       // Finds every change between swept intervals lo < hi whose structures differ.
-      std::function<void(size_t, size_t)> locate = [&](size_t lo, size_t hi) {
+      std::function<void(size_t, size_t)> bisect = [&](size_t lo, size_t hi) {
         if (hi - lo <= 1) return;
         const size_t mid = lo + (hi - lo) / 2;
         sweep(mid);
-        if (!(out[mid].structure == out[lo].structure)) locate(lo, mid);
-        if (!(out[mid].structure == out[hi].structure)) locate(mid, hi);
+        if (!(out[mid].structure == out[lo].structure)) bisect(lo, mid);
+        if (!(out[mid].structure == out[hi].structure)) bisect(mid, hi);
+      };
+      // Most changes are at the event just swept (it was swept because it is relevant): the interval before it
+      // tells at once, instead of a bisection of the whole gap.
+      auto locate = [&](size_t lo, size_t hi) {
+        if (hi - lo <= 2) return bisect(lo, hi);
+        sweep(hi - 1);
+        if (out[hi - 1].structure == out[lo].structure) return;  // the change is at event hi alone
+        bisect(lo, hi - 1);
       };
       sweep(begin);
       std::vector<FreeEnd> ends = FreeEndsOf(out[begin]);

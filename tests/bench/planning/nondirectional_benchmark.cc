@@ -145,7 +145,7 @@ void BM_Nondirectional(benchmark::State& state) {
   state.counters["events"] = static_cast<double>(stats.events);
   state.counters["checked"] = static_cast<double>(stats.checked);
   // What the baseline would cost on this problem, for the sizes where it is too slow to run: a slice per event (the
-  // midpoint of the interval after it), plus the same interval probes and final slices (5 per orientation), at the
+  // midpoint of the interval after it), plus the same interval checks and critical slices (4 per orientation), at the
   // mean time of 128 of the baseline's own slices (every events/128-th interval midpoint) timed here. CPU time of the
   // process, like the benchmark's CPU column (one thread): other work on a shared machine does not inflate it.
   std::vector<double> event_theta;  // the candidates grouped as ComputeNondirectional groups them
@@ -165,7 +165,7 @@ void BM_Nondirectional(benchmark::State& state) {
   }
   const double per_sweep_s = (ProcessCpuSeconds() - s0) / kSamples;
   state.counters["baseline_estimate_s"] =
-      per_sweep_s * static_cast<double>(stats.events + 5 * static_cast<std::int64_t>(orientations));
+      per_sweep_s * static_cast<double>(stats.events + 4 * static_cast<std::int64_t>(orientations));
   state.counters["backprojections"] = static_cast<double>(stats.backprojections);
   state.counters["orientations"] = static_cast<double>(orientations);
 }
@@ -236,6 +236,41 @@ void BM_PlanSynthesis(benchmark::State& state) {
   state.counters["peak_MiB"] = PeakMemoryMiB();
 }
 BENCHMARK(BM_PlanSynthesis)->Arg(4)->Arg(12)->Arg(30)->Arg(60)->Arg(110)->Unit(benchmark::kSecond)->Iterations(1);
+
+// Candidate counts by kind against the papers' bounds up to n = 2 000 on a scene with a camera: the cluttered slot
+// above (its camera gives the CVC rays; the m random pentagons behind it add C-obstacle vertices, not rays), through
+// the real pipeline scene -> C-space -> CVC rays. The counts where the rays grow with n are BM_CandidateCounts'.
+void BM_CandidateCountsCluttered(benchmark::State& state) {
+  const Scene scene = ClutteredSlot(static_cast<int>(state.range(0)));
+  const CSpace cspace(scene);
+  const VcRays rays = ComputeVcRays(scene, cspace);
+  const BackprojectionProblem pr = ProblemFromScene(scene, cspace, &rays, 0.0, /*kernel=*/false);
+  CriticalCounts counts;
+  ResetPeakMemory();
+  for (auto _ : state) {
+    const auto c = CriticalCandidates(pr, nullptr, &counts);
+    benchmark::DoNotOptimize(c.data());
+  }
+  double n = 0, segments = 0;
+  for (const auto& o : pr.obstacles) n += static_cast<double>(o.vertices.size());
+  for (const auto& r : pr.rays) segments += static_cast<double>(r.segments.size());
+  state.counters["peak_MiB"] = PeakMemoryMiB();
+  state.counters["n"] = n;
+  state.counters["rays"] = segments;
+  state.counters["points"] = static_cast<double>(counts.points);
+  for (int kind = 0; kind < 6; ++kind) {
+    state.counters[CriticalKindName(static_cast<CriticalKind>(kind))] = static_cast<double>(counts.by_kind[kind]);
+  }
+}
+BENCHMARK(BM_CandidateCountsCluttered)
+    ->Arg(2)
+    ->Arg(8)
+    ->Arg(24)
+    ->Arg(55)
+    ->Arg(110)
+    ->Arg(220)
+    ->Unit(benchmark::kSecond)
+    ->Iterations(1);
 
 }  // namespace
 }  // namespace visco::planning
