@@ -14,7 +14,36 @@ Eigen::Matrix3d RotationFromRpy(double roll, double pitch, double yaw) {
       .toRotationMatrix();
 }
 
-Eigen::Isometry3d LoadExtrinsics(const std::string& path) {
+namespace {
+
+// `stddev.<key>`: a number or [x, y, z], each >= 0 and finite, scaled by `unit`; absent: 0.
+Eigen::Vector3d StddevTriple(const std::string& path, const nlohmann::json& sd, const std::string& key, double unit) {
+  const std::string field = "wMc.stddev." + key;
+  const std::string what = "must be a number >= 0 or an array of 3 numbers >= 0 (per world axis)";
+  Eigen::Vector3d out = Eigen::Vector3d::Zero();
+  if (!sd.contains(key)) return out;
+  const auto& v = sd[key];
+  if (v.is_number()) {
+    out.setConstant(v.get<double>());
+  } else if (v.is_array() && v.size() == 3) {
+    for (int i = 0; i < 3; ++i) {
+      if (!v[i].is_number()) throw InputError(path, field, what);
+      out[i] = v[i].get<double>();
+    }
+  } else {
+    throw InputError(path, field, what);
+  }
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(out[i]) || out[i] < 0) throw InputError(path, field, what + ", not " + v.dump());
+  }
+  return out * unit;
+}
+
+}  // namespace
+
+Eigen::Isometry3d LoadExtrinsics(const std::string& path) { return LoadExtrinsicsWithUncertainty(path).wMc; }
+
+Extrinsics LoadExtrinsicsWithUncertainty(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw InputError(path, "", "extrinsics file does not exist or cannot be read");
   nlohmann::json j;
@@ -28,7 +57,7 @@ Eigen::Isometry3d LoadExtrinsics(const std::string& path) {
   }
   const auto& m = j["wMc"];
   for (auto it = m.begin(); it != m.end(); ++it) {
-    if (it.key() != "t" && it.key() != "R" && it.key() != "rpy_deg") {
+    if (it.key() != "t" && it.key() != "R" && it.key() != "rpy_deg" && it.key() != "stddev") {
       throw InputError(path, "wMc." + it.key(), "unknown field");
     }
   }
@@ -72,7 +101,23 @@ Eigen::Isometry3d LoadExtrinsics(const std::string& path) {
     if (!std::isfinite(wMc.translation()[i])) throw InputError(path, "wMc.t", "is not finite");
   }
   wMc.linear() = r;
-  return wMc;
+  Extrinsics out;
+  out.wMc = wMc;
+  if (m.contains("stddev")) {
+    const auto& sd = m["stddev"];
+    if (!sd.is_object()) {
+      throw InputError(path, "wMc.stddev", "must be an object {\"position_m\": ..., \"rotation_deg\": ...}");
+    }
+    for (auto it = sd.begin(); it != sd.end(); ++it) {
+      if (it.key() != "position_m" && it.key() != "rotation_deg") {
+        throw InputError(path, "wMc.stddev." + it.key(), "unknown field");
+      }
+    }
+    const Eigen::Vector3d rot = StddevTriple(path, sd, "rotation_deg", M_PI / 180);
+    const Eigen::Vector3d pos = StddevTriple(path, sd, "position_m", 1);
+    out.covariance.diagonal() << rot.cwiseAbs2(), pos.cwiseAbs2();
+  }
+  return out;
 }
 
 }  // namespace visco

@@ -67,7 +67,9 @@ void SaveCameraViSP(const CameraModel& camera, const std::string& path);
 void SaveCameraOpenCV(const CameraModel& camera, const std::string& path);
 
 /// Camera extrinsics (common/extrinsics.h: the file format, one reader for vision and control).
+using visco::Extrinsics;
 using visco::LoadExtrinsics;
+using visco::LoadExtrinsicsWithUncertainty;
 using visco::RotationFromRpy;
 
 /// Writes extrinsics in the format LoadExtrinsics reads. @throws JobFailed if the file cannot be written.

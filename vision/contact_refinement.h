@@ -22,16 +22,22 @@ namespace visco::vision {
 /// and the normals' angle propagated through the pair's geometry from the covariances, thresholded so that a true
 /// contact is missed with probability at most `false_miss_probability`: planning's ContactThresholds), never below
 /// the floors `min_distance_m` and `min_angle_deg` (model tolerance). docs/vision.md, "Face contacts".
+/// 6 x 6 pose covariance.
+using PoseCovariance = Eigen::Matrix<double, 6, 6>;
+
 struct ContactOptions {
   bool enabled = true;
   double false_miss_probability = 1e-3;  ///< as the hysteresis' false alarm (alpha = 1e-3; docs/vision.md)
   double min_distance_m = 0.0005;
   double min_angle_deg = 0.5;
   double table_thickness_m = 0.05;  ///< the table, a stable box whose top face is the plane z = 0
+  /// Uncertainty of the table plane relative to the measured objects, as a rigid motion of the table about the world
+  /// origin (p' = Exp(w) p + v; covariance of [w, v], radians and metres). Only the contact thresholds use it (the
+  /// table's contacts are then missed no more often than promised when the table is not where the world says); the
+  /// poses are still made flush with z = 0. FeatureEstimator adds the extrinsics' uncertainty
+  /// (NoiseModel::extrinsics_covariance) to it. Zero: the table is exact.
+  PoseCovariance table_covariance = PoseCovariance::Zero();
 };
-
-/// 6 x 6 pose covariance.
-using PoseCovariance = Eigen::Matrix<double, 6, 6>;
 
 /// The pose perturbation every visco pose covariance is expressed in: rotation vector w on the left, then translation
 /// (R' = Exp(w) R, t' = t + v; d = [w, v]). In the frame `m` is expressed in (camera frame for cMo, world for wMo).

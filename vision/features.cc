@@ -111,6 +111,15 @@ FeatureEstimator::FeatureEstimator(const CameraModel& camera, const Eigen::Isome
       k_(HysteresisThresholds(noise)),
       sigma2_(noise.corner_sigma_px * noise.corner_sigma_px) {
   if (models_.robot.tags.empty()) throw InputError("object models", "robot.tags", "the robot carries no tag");
+  if (noise_.extrinsics_covariance.trace() > 0) {
+    // The extrinsics' error moves every measured object rigidly (the camera turned by w about its centre t_c and
+    // shifted by v: p' = Exp(w) (p - t_c) + t_c + v ~ p + w x p + v + t_c x w); relative to them the table moves by
+    // the inverse, [w, v + [t_c]x w] up to sign, about the world origin (ContactOptions::table_covariance).
+    Mat6 h = Mat6::Identity();
+    const Eigen::Vector3d t = wMc_.translation();
+    h.block<3, 3>(3, 0) << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;  // [t_c]x
+    contact_options_.table_covariance += h * noise_.extrinsics_covariance * h.transpose();
+  }
   Reset();
 }
 
@@ -269,10 +278,21 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
   // together.
   const int n_est = 1 + static_cast<int>(f.obstacle_poses.size());
   Eigen::MatrixXd joint = Eigen::MatrixXd::Zero(6 * n_est, 6 * n_est);
+  std::vector<ContactObject> objs;
+  std::vector<ObjectEstimate*> ests;
+  std::vector<int> est_index;  // objs -> 0 robot, 1 + k obstacle k
+  // The objects as measured, in the world of the extrinsics wMc (the measured cMo and their covariance, rotated).
+  auto contact_objects = [&](const Eigen::Isometry3d& wMc) {
+    Mat6 tw = Mat6::Zero();
+    tw.topLeftCorner<3, 3>() = tw.bottomRightCorner<3, 3>() = wMc.linear();
+    std::vector<ContactObject> out = objs;
+    for (std::size_t i = 0; i < out.size(); ++i) {
+      out[i].wMo = wMc * ests[i]->cMo_measured;
+      out[i].covariance = tw * ests[i]->cov_cMo_measured * tw.transpose();
+    }
+    return out;
+  };
   {
-    std::vector<ContactObject> objs;
-    std::vector<ObjectEstimate*> ests;
-    std::vector<int> est_index;  // objs -> 0 robot, 1 + k obstacle k
     auto add = [&](ObjectEstimate& o, const ObjectModel& m) {
       if (!o.valid) return;
       est_index.push_back(&o == &f.robot_pose ? 0 : 1 + static_cast<int>(&o - f.obstacle_poses.data()));
@@ -282,7 +302,7 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
     add(f.robot_pose, models_.robot);
     for (std::size_t k = 0; k < models_.obstacles.size(); ++k) add(f.obstacle_poses[k], models_.obstacles[k]);
     if (contact_options_.enabled && !objs.empty()) {
-      f.contact = RefineContacts(objs, contact_options_);
+      f.contact = RefineContacts(contact_objects(wMc_), contact_options_);
       if (f.contact.ok) {
         for (std::size_t i = 0; i < ests.size(); ++i) {
           if (!f.contact.in_contact[i]) continue;
@@ -323,8 +343,50 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
     }
   }
 
-  // Pairs: signed distance, its uncertainty (first order in both tag poses), hysteresis.
-  f.pairs.resize(models_.events.size());
+  // The extrinsics' uncertainty (NoiseModel::extrinsics_covariance): d depends on wMc through the contact refinement
+  // (the poses are made flush with the table plane z = 0 of wMc's world, then mapped back to the camera) and in
+  // SignedImageDistance. First order over the 6 extrinsic parameters through that whole chain: wMc perturbed, the
+  // measured poses (camera frame, independent of wMc) refined again and every pair's d recomputed; central
+  // differences, once per frame for all pairs, only when an uncertainty is given. Independent of the corner noise,
+  // so its variance adds.
+  const std::size_t n_events = models_.events.size();
+  Eigen::MatrixXd g_ext = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n_events), 6);
+  const bool extrinsics_uncertain = noise_.extrinsics_covariance.trace() > 0;
+  if (extrinsics_uncertain && contact_options_.enabled && f.contact.ok) {
+    auto distances_at = [&](const Vec6& x) {
+      const Eigen::Isometry3d wMc = PerturbPose(wMc_, x);
+      std::vector<Eigen::Isometry3d> cMo(static_cast<std::size_t>(n_est));
+      for (std::size_t i = 0; i < ests.size(); ++i) cMo[static_cast<std::size_t>(est_index[i])] = ests[i]->cMo_measured;
+      const ContactRefinement c = RefineContacts(contact_objects(wMc), contact_options_);
+      if (c.ok) {
+        const Eigen::Isometry3d cMw = wMc.inverse();
+        for (std::size_t i = 0; i < ests.size(); ++i) {
+          if (c.in_contact[i]) cMo[static_cast<std::size_t>(est_index[i])] = cMw * c.wMo[i];
+        }
+      }
+      Eigen::VectorXd d = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(n_events));
+      for (std::size_t e = 0; e < n_events; ++e) {
+        const EventPair& ev = models_.events[e];
+        if (!f.robot_pose.valid || !f.obstacle_poses[ev.obstacle].valid) continue;
+        d[static_cast<Eigen::Index>(e)] =
+            SignedImageDistance(camera_, wMc, models_.robot, cMo[0], ev.cm_vertex, models_.obstacles[ev.obstacle],
+                                cMo[1 + static_cast<std::size_t>(ev.obstacle)], ev.vertex);
+      }
+      return d;
+    };
+    for (int k = 0; k < 6; ++k) {
+      // Steps well above the projection's convergence (~1e-14) and far inside its nonlinearity (~1 rad, ~0.1 m).
+      const double h = k < 3 ? 1e-5 : 1e-6;
+      Vec6 x = Vec6::Zero();
+      x[k] = h;
+      const Eigen::VectorXd plus = distances_at(x);
+      x[k] = -h;
+      g_ext.col(k) = (plus - distances_at(x)) / (2 * h);
+    }
+  }
+
+  // Pairs: signed distance, its uncertainty (first order in both tag poses and the extrinsics), hysteresis.
+  f.pairs.resize(n_events);
   for (std::size_t e = 0; e < models_.events.size(); ++e) {
     const EventPair& ev = models_.events[e];
     PairMeasurement& pm = f.pairs[e];
@@ -354,7 +416,11 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
     Eigen::Matrix<double, 12, 12> pair_cov;
     pair_cov << joint.block<6, 6>(0, 0), joint.block<6, 6>(0, ko), joint.block<6, 6>(ko, 0), joint.block<6, 6>(ko, ko);
     const double var = (g * pair_cov * g.transpose())(0, 0);
-    pm.stddev_px = std::sqrt(std::max(var, 1e-12));
+    if (extrinsics_uncertain) {
+      const Eigen::Matrix<double, 1, 6> ge = g_ext.row(static_cast<Eigen::Index>(e));
+      pm.extrinsics_stddev_px = std::sqrt(std::max(0.0, (ge * noise_.extrinsics_covariance * ge.transpose())(0, 0)));
+    }
+    pm.stddev_px = std::sqrt(std::max(var + pm.extrinsics_stddev_px * pm.extrinsics_stddev_px, 1e-12));
     const SideState prev = states_[e];
     pm.state = NextSideState(prev, pm.signed_distance_px, pm.stddev_px, k_);
     pm.crossed = prev != SideState::kUnknown && pm.state != prev;

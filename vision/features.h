@@ -40,6 +40,10 @@ struct NoiseModel {
   double online_weight = 0.02;  ///< weight of one tag's estimate in the running mean of sigma^2
   double false_alarm = 1e-3;    ///< alpha: per-frame probability of declaring an on-line vertex off the line
   double fall_back = 1e-3;      ///< beta: per-frame probability of falling back right after entering a side
+  /// Uncertainty of the extrinsics wMc (Extrinsics::covariance, common/extrinsics.h: world frame, rotation vector on
+  /// the left, then translation). Zero: the camera pose, hence the table plane, is exact. Otherwise each pair's
+  /// sigma_d gets the variance this error causes through the contact refinement (docs/vision.md).
+  PoseCovariance extrinsics_covariance = PoseCovariance::Zero();
 };
 
 /// Event state of a pair after hysteresis (values of visual_event_t::STATE_*).
@@ -109,7 +113,10 @@ struct PairMeasurement {
   Eigen::Vector3d vc_line = Eigen::Vector3d::Zero();   ///< a u + b v + c = 0, a^2 + b^2 = 1, positive side = left
                                                        ///< normal of the VC ray (from the vertex to the camera foot)
   double signed_distance_px = 0;
-  double stddev_px = 0;
+  double stddev_px = 0;  ///< 1 sigma of signed_distance_px, all sources (corner noise, extrinsics)
+  /// The part of stddev_px due to the extrinsics' uncertainty (NoiseModel::extrinsics_covariance; 0 without it):
+  /// stddev_px^2 = (corner noise part)^2 + extrinsics_stddev_px^2.
+  double extrinsics_stddev_px = 0;
   SideState state = SideState::kUnknown;
   bool crossed = false;  ///< the state changed from a known state in this frame
 };

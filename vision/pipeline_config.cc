@@ -26,12 +26,14 @@ void AddPipelineConfigOptions(CLI::App& cmd, PipelineConfig& c) {
 LoadedPipeline LoadPipelineConfig(const PipelineConfig& c) {
   LoadedPipeline p;
   p.camera = LoadCamera(c.camera, c.camera_name);
-  p.wMc = LoadExtrinsics(c.extrinsics);
+  const Extrinsics extrinsics = LoadExtrinsicsWithUncertainty(c.extrinsics);
+  p.wMc = extrinsics.wMc;
   p.models = LoadObjectModels(c.objects);
   PipelineOptions& po = p.options;
   po.camera_name = p.camera.name.empty() ? "camera" : p.camera.name;
   po.detector.quad_sigma = c.quad_sigma;
   po.noise.corner_sigma_px = c.corner_sigma;
+  po.noise.extrinsics_covariance = extrinsics.covariance;  // zero without `wMc.stddev`: exact
   po.tracker.full_detection_every = c.full_every;
   if (c.mode == "roi") {
     po.tracker.mode = TagTrackingMode::kRoiDetection;

@@ -31,7 +31,7 @@ struct LoadedPipeline {
   CameraModel camera;
   Eigen::Isometry3d wMc = Eigen::Isometry3d::Identity();
   ObjectModels models;
-  PipelineOptions options;
+  PipelineOptions options;  ///< options.noise.extrinsics_covariance: the extrinsics file's `wMc.stddev`
 };
 
 /// Loads the files and builds the pipeline options. @throws InputError naming the file and what is wrong.

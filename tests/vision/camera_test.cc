@@ -8,10 +8,12 @@
 #include <visp3/core/vpMeterPixelConversion.h>
 #include <visp3/core/vpPixelMeterConversion.h>
 
+#include <array>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/calib3d.hpp>
 #include <random>
+#include <vector>
 
 #include "common/error.h"
 
@@ -178,6 +180,47 @@ TEST(Extrinsics, LoadsRotationOrRpyAndRejectsBadInput) {
   EXPECT_NE(InputErrorOf([] { LoadExtrinsics(TempPath("typo.json")); }).find("camra: unknown field"),
             std::string::npos);
   EXPECT_NE(InputErrorOf([] { LoadExtrinsics("/nonexistent.json"); }).find("cannot be read"), std::string::npos);
+}
+
+TEST(Extrinsics, OptionalStddev) {
+  // Absent: exact (zero covariance), the same pose.
+  WriteText(TempPath("exact.json"), R"({"wMc": {"t": [1, 2, 3], "rpy_deg": [180, 0, 90]}})");
+  const Extrinsics exact = LoadExtrinsicsWithUncertainty(TempPath("exact.json"));
+  EXPECT_TRUE(exact.exact());
+  EXPECT_TRUE(exact.wMc.isApprox(LoadExtrinsics(TempPath("exact.json")), 1e-15));
+  // Isotropic numbers, or per world axis; rotation first, radians.
+  WriteText(
+      TempPath("sd.json"),
+      R"({"wMc": {"t": [1, 2, 3], "rpy_deg": [180, 0, 90], "stddev": {"position_m": 0.002, "rotation_deg": 0.5}}})");
+  const Extrinsics sd = LoadExtrinsicsWithUncertainty(TempPath("sd.json"));
+  EXPECT_FALSE(sd.exact());
+  EXPECT_TRUE(sd.wMc.isApprox(exact.wMc, 1e-15));
+  Eigen::Matrix<double, 6, 1> diag;
+  const double r = 0.5 * M_PI / 180;
+  diag << r * r, r * r, r * r, 4e-6, 4e-6, 4e-6;
+  EXPECT_TRUE(sd.covariance.isApprox(Eigen::Matrix<double, 6, 6>(diag.asDiagonal()), 1e-12));
+  EXPECT_TRUE(LoadExtrinsics(TempPath("sd.json")).isApprox(exact.wMc, 1e-15));  // the pose for existing callers
+  WriteText(TempPath("axes.json"),
+            R"({"wMc": {"t": [1, 2, 3], "rpy_deg": [0, 0, 0], "stddev": {"position_m": [0.001, 0, 0.003]}}})");
+  const Extrinsics axes = LoadExtrinsicsWithUncertainty(TempPath("axes.json"));
+  diag << 0, 0, 0, 1e-6, 0, 9e-6;
+  EXPECT_TRUE(axes.covariance.isApprox(Eigen::Matrix<double, 6, 6>(diag.asDiagonal()), 1e-12));
+  // Bad values: the file and the field named.
+  const auto error_of = [](const std::string& name, const std::string& stddev) {
+    WriteText(TempPath(name), R"({"wMc": {"t": [1, 2, 3], "rpy_deg": [0, 0, 0], "stddev": )" + stddev + "}}");
+    return InputErrorOf([&] { LoadExtrinsicsWithUncertainty(TempPath(name)); });
+  };
+  for (const auto& [name, stddev, field] : std::vector<std::array<std::string, 3>>{
+           {"neg.json", R"({"position_m": -0.001})", "wMc.stddev.position_m"},
+           {"neg_axis.json", R"({"rotation_deg": [0.1, -0.1, 0]})", "wMc.stddev.rotation_deg"},
+           {"str.json", R"({"rotation_deg": "1"})", "wMc.stddev.rotation_deg"},
+           {"two.json", R"({"position_m": [0.1, 0.1]})", "wMc.stddev.position_m"},
+           {"typo.json", R"({"position": 0.1})", "wMc.stddev.position: unknown field"},
+           {"num.json", "0.1", "wMc.stddev"}}) {
+    const std::string e = error_of(name, stddev);
+    EXPECT_NE(e.find(name), std::string::npos) << e;
+    EXPECT_NE(e.find(field), std::string::npos) << e;
+  }
 }
 
 TEST(Extrinsics, FromTableTag) {

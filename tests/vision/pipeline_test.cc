@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -24,6 +25,7 @@
 #include "tests/vision/sanitized_count.h"
 #include "vision/camera.h"
 #include "vision/object_model.h"
+#include "vision/pipeline_config.h"
 #include "vision/tag_renderer.h"
 
 namespace visco::vision {
@@ -65,6 +67,28 @@ PipelineOptions Options() {
   PipelineOptions o;
   o.detector.quad_sigma = 0.8f;
   return o;
+}
+
+// `visco track` / `replay`: the extrinsics file's optional `wMc.stddev` reaches the feature estimator's noise model;
+// without it the extrinsics are exact (zero covariance), as before.
+TEST(PipelineConfig, ExtrinsicsStddevReachesTheNoiseModel) {
+  PipelineConfig c;
+  c.camera = "data/vision/synthetic_camera.xml";
+  c.objects = "data/vision/demo_objects.json";
+  c.extrinsics = "data/vision/demo_extrinsics.json";
+  const LoadedPipeline exact = LoadPipelineConfig(c);
+  EXPECT_EQ(exact.options.noise.extrinsics_covariance, PoseCovariance::Zero());
+  const std::string path = (std::filesystem::temp_directory_path() / "visco_pipeline_extrinsics_sd.json").string();
+  std::ofstream(path) << R"({"wMc": {"t": [0.0, -0.45, 0.5], "rpy_deg": [-132, 0, 0],
+                                     "stddev": {"position_m": 0.001, "rotation_deg": [0.1, 0.2, 0.3]}}})";
+  c.extrinsics = path;
+  const LoadedPipeline loaded = LoadPipelineConfig(c);
+  EXPECT_TRUE(loaded.wMc.isApprox(exact.wMc, 1e-12));
+  const double k = M_PI / 180;
+  Eigen::Matrix<double, 6, 1> diag;
+  diag << std::pow(0.1 * k, 2), std::pow(0.2 * k, 2), std::pow(0.3 * k, 2), 1e-6, 1e-6, 1e-6;
+  EXPECT_TRUE(loaded.options.noise.extrinsics_covariance.isApprox(PoseCovariance(diag.asDiagonal()), 1e-12));
+  std::filesystem::remove(path);
 }
 
 TEST(Pipeline, FolderWithBadFilesToLcmAndLatestValue) {
