@@ -88,15 +88,9 @@ BENCHMARK(BM_Candidates)
     ->ArgsProduct({{1}, {20, 40, 80, 160, 320}})
     ->Unit(benchmark::kMillisecond);
 
-// Candidate counts by kind on growing whole random scenes with a camera (k x k cells of 4 m, star-shaped obstacles,
-// some overlapping, the camera on the bounds; the real pipeline scene -> C-space -> CVC rays): the table against the
-// papers' bounds in docs/planning_nondirectional.md. n = C-obstacle vertices, rays = CVC ray segments.
-void BM_CandidateCounts(benchmark::State& state) {
-  const int k = static_cast<int>(state.range(0));
-  Scene scene;
-  double theta = 0;
-  std::uint64_t seed = 2;  // the camera on the bounds (seed % 3 != 0)
-  while (!testing::RandomWholeScene(seed, scene, theta, k, k)) seed += 3;
+// The candidates of a whole scene through the real pipeline (scene -> C-space -> CVC rays), counted by kind: n =
+// C-obstacle vertices, rays = CVC ray segments, points = points of the static arrangement.
+void CountCandidates(benchmark::State& state, const Scene& scene, double theta) {
   const CSpace cspace(scene);
   const VcRays rays = ComputeVcRays(scene, cspace);
   const BackprojectionProblem pr = ProblemFromScene(scene, cspace, &rays, theta, /*kernel=*/false);
@@ -117,6 +111,18 @@ void BM_CandidateCounts(benchmark::State& state) {
   for (int kind = 0; kind < 6; ++kind) {
     state.counters[CriticalKindName(static_cast<CriticalKind>(kind))] = static_cast<double>(counts.by_kind[kind]);
   }
+}
+
+// Candidate counts by kind on growing whole random scenes with a camera (k x k cells of 4 m, star-shaped obstacles,
+// some overlapping, the camera on the bounds; the real pipeline scene -> C-space -> CVC rays): the table against the
+// papers' bounds in docs/planning_nondirectional.md. n = C-obstacle vertices, rays = CVC ray segments.
+void BM_CandidateCounts(benchmark::State& state) {
+  const int k = static_cast<int>(state.range(0));
+  Scene scene;
+  double theta = 0;
+  std::uint64_t seed = 2;  // the camera on the bounds (seed % 3 != 0)
+  while (!testing::RandomWholeScene(seed, scene, theta, k, k)) seed += 3;
+  CountCandidates(state, scene, theta);
 }
 BENCHMARK(BM_CandidateCounts)->DenseRange(2, 12, 2)->Unit(benchmark::kMillisecond)->Iterations(1);
 
@@ -171,7 +177,7 @@ void BM_Nondirectional(benchmark::State& state) {
 }
 BENCHMARK(BM_Nondirectional)
     ->ArgsProduct({{0, 1, 2}, {10, 20, 40, 80}})
-    ->ArgsProduct({{0}, {160, 320, 640}})
+    ->ArgsProduct({{0}, {160, 320, 640, 1280, 2000}})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1);
 
@@ -241,26 +247,7 @@ BENCHMARK(BM_PlanSynthesis)->Arg(4)->Arg(12)->Arg(30)->Arg(60)->Arg(110)->Unit(b
 // above (its camera gives the CVC rays; the m random pentagons behind it add C-obstacle vertices, not rays), through
 // the real pipeline scene -> C-space -> CVC rays. The counts where the rays grow with n are BM_CandidateCounts'.
 void BM_CandidateCountsCluttered(benchmark::State& state) {
-  const Scene scene = ClutteredSlot(static_cast<int>(state.range(0)));
-  const CSpace cspace(scene);
-  const VcRays rays = ComputeVcRays(scene, cspace);
-  const BackprojectionProblem pr = ProblemFromScene(scene, cspace, &rays, 0.0, /*kernel=*/false);
-  CriticalCounts counts;
-  ResetPeakMemory();
-  for (auto _ : state) {
-    const auto c = CriticalCandidates(pr, nullptr, &counts);
-    benchmark::DoNotOptimize(c.data());
-  }
-  double n = 0, segments = 0;
-  for (const auto& o : pr.obstacles) n += static_cast<double>(o.vertices.size());
-  for (const auto& r : pr.rays) segments += static_cast<double>(r.segments.size());
-  state.counters["peak_MiB"] = PeakMemoryMiB();
-  state.counters["n"] = n;
-  state.counters["rays"] = segments;
-  state.counters["points"] = static_cast<double>(counts.points);
-  for (int kind = 0; kind < 6; ++kind) {
-    state.counters[CriticalKindName(static_cast<CriticalKind>(kind))] = static_cast<double>(counts.by_kind[kind]);
-  }
+  CountCandidates(state, ClutteredSlot(static_cast<int>(state.range(0))), 0.0);
 }
 BENCHMARK(BM_CandidateCountsCluttered)
     ->Arg(2)
@@ -269,6 +256,7 @@ BENCHMARK(BM_CandidateCountsCluttered)
     ->Arg(55)
     ->Arg(110)
     ->Arg(220)
+    ->Arg(250)
     ->Unit(benchmark::kSecond)
     ->Iterations(1);
 
