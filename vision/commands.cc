@@ -142,6 +142,15 @@ void RunTrack(const TrackArgs& a) {
                                  {"state", StateName(e.state)},
                                  {"crossed", e.crossed}});
         }
+        if (po.tracker.mode == TagTrackingMode::kModelBased) {
+          // Whether the robot's pose in this line is the model-based tracker's, and why not.
+          j["model_tracker"] = {{"ran", o.model.ran},
+                                {"used", o.model.used},
+                                {"from_tags", o.model.from_tags},
+                                {"edge_features", o.model.edge_features},
+                                {"rms_px", o.model.rms_px},
+                                {"failure", o.model.failure}};
+        }
         j["latency_ms"] = o.events.latency_s * 1e3;
         std::fprintf(out, "%s\n", j.dump().c_str());
         std::fflush(out);

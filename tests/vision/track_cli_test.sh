@@ -32,6 +32,19 @@ assert frames[0]["full_detection"] and not frames[1]["full_detection"], frames
 assert len(frames[0]["events"]) == 16, len(frames[0]["events"])  # 4 robot vertices x 4 obstacle vertices
 assert all(8 in f["tags"] and 9 in f["tags"] for f in frames)
 PY
+# --mode mbt: every line says what the robot's model-based tracker did (this real image has no robot prism to track,
+# so it runs from the tags' pose and its pose is not used, with the reason).
+out=$("$visco" track --camera tests/vision/data/apriltag_pgm_camera.xml --extrinsics "$tmp/ext.json" \
+  --objects "$tmp/objects.json" --images "$tmp/frames" --no-publish --mode mbt) || fail "track --mode mbt exited $?"
+python3 - "$out" <<'PY' || fail "track --mode mbt output is not as expected"
+import json, sys
+frames = [json.loads(l) for l in sys.argv[1].splitlines() if '"seq"' in l]
+assert len(frames) == 4, len(frames)
+for f in frames:
+    m = f["model_tracker"]
+    assert m["ran"] and m["from_tags"], m
+    assert m["used"] == (m["failure"] == ""), m  # used, or a reason why not
+PY
 expect2() {  # expect2 PATTERN -- ARGS...
   local pattern="$1"; shift 2
   local msg status
