@@ -459,9 +459,6 @@ class Builder {
         probes[k].hi = hi;
         probes[k].s[t % 3] = Evaluate(WrapAngle(lo + fractions[t % 3] * (hi - lo)));
       });
-      // The midpoints, for the final open slices of the intervals that do not change any more.
-      midpoints_.clear();
-      for (auto& p : probes) midpoints_.emplace(std::make_pair(p.lo, p.hi), p.s[1]);
       bool found = false;
       for (auto& p : probes) {
         for (int a = 0; a < 2; ++a) {
@@ -503,6 +500,9 @@ class Builder {
           break;  // the rest of this interval is probed again next round
         }
       }
+      // The midpoints, for the final open slices of the intervals that do not change any more.
+      midpoints_.clear();
+      for (auto& p : probes) midpoints_.emplace(std::make_pair(p.lo, p.hi), std::move(p.s[1]));
       if (!found) return;
     }
   }
@@ -561,11 +561,10 @@ const Slice& SliceAt(const NondirectionalBackprojection& nd, double theta) {
 bool FeatureMeetsRegion(const std::vector<Vector2d>& feature, const Region& region, double tolerance) {
   if (feature.empty() || region.polygons.empty()) return false;
   for (const auto& p : feature) {
-    if (region.Contains(p) || region.BoundaryDistance(p) <= tolerance) return true;
+    if (region.Contains(p)) return true;
   }
-  if (feature.size() < 2) return false;
-  // A segment with both ends outside meets the closure only by crossing or touching a ring.
-  const Vector2d &a = feature[0], &b = feature[1];
+  // Otherwise the feature meets the closure only by touching or crossing a ring (a point as a segment of length 0).
+  const Vector2d &a = feature.front(), &b = feature.back();
   bool meets = false;
   ForEachRing(region, [&](const RegionRing& r) {
     const size_t n = r.vertices.size();

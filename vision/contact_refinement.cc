@@ -131,8 +131,7 @@ ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, cons
   if (options.table_covariance.trace() > 0) {
     // About the world origin -> PerturbPose at the table's pose (t' = t + w x t + v), then planning's convention.
     Eigen::Matrix<double, 6, 6> a = Eigen::Matrix<double, 6, 6>::Identity();
-    const Eigen::Vector3d t = table.pose.translation();
-    a.block<3, 3>(3, 0) << 0, t.z(), -t.y(), -t.z(), 0, t.x(), t.y(), -t.x(), 0;  // -[t]x
+    a.block<3, 3>(3, 0) = -Skew(table.pose.translation());
     ContactObject as_object;
     as_object.wMo = table.pose;
     as_object.covariance = a * options.table_covariance * a.transpose();

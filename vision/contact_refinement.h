@@ -39,6 +39,13 @@ struct ContactOptions {
   PoseCovariance table_covariance = PoseCovariance::Zero();
 };
 
+/// The cross-product matrix: Skew(a) b = a x b.
+inline Eigen::Matrix3d Skew(const Eigen::Vector3d& a) {
+  Eigen::Matrix3d m;
+  m << 0, -a.z(), a.y(), a.z(), 0, -a.x(), -a.y(), a.x(), 0;
+  return m;
+}
+
 /// The pose perturbation every visco pose covariance is expressed in: rotation vector w on the left, then translation
 /// (R' = Exp(w) R, t' = t + v; d = [w, v]). In the frame `m` is expressed in (camera frame for cMo, world for wMo).
 Eigen::Isometry3d PerturbPose(const Eigen::Isometry3d& m, const Eigen::Matrix<double, 6, 1>& d);

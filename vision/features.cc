@@ -23,17 +23,19 @@ double NormalQuantile(double p) {
   return 0.5 * (lo + hi);
 }
 
-// Numeric gradient (central differences) of a scalar or vector function of a 6-vector perturbation.
+// Numeric Jacobian (central differences) of a function of a 6-vector perturbation (rotation, then translation; the
+// steps in radians and metres); N rows, or Eigen::Dynamic for as many as f returns.
 template <int N, typename F>
-Eigen::Matrix<double, N, 6> NumericJacobian(F f) {
+Eigen::Matrix<double, N, 6> NumericJacobian(F f, double rotation_step = 1e-6, double translation_step = 1e-7) {
   Eigen::Matrix<double, N, 6> j;
   for (int k = 0; k < 6; ++k) {
-    const double h = k < 3 ? 1e-6 : 1e-7;
+    const double h = k < 3 ? rotation_step : translation_step;
     Vec6 d = Vec6::Zero();
     d[k] = h;
     const Eigen::Matrix<double, N, 1> plus = f(d);
     d[k] = -h;
     const Eigen::Matrix<double, N, 1> minus = f(d);
+    if (k == 0) j.resize(plus.rows(), 6);
     j.col(k) = (plus - minus) / (2 * h);
   }
   return j;
@@ -116,8 +118,7 @@ FeatureEstimator::FeatureEstimator(const CameraModel& camera, const Eigen::Isome
     // shifted by v: p' = Exp(w) (p - t_c) + t_c + v ~ p + w x p + v + t_c x w); relative to them the table moves by
     // the inverse, [w, v + [t_c]x w] up to sign, about the world origin (ContactOptions::table_covariance).
     Mat6 h = Mat6::Identity();
-    const Eigen::Vector3d t = wMc_.translation();
-    h.block<3, 3>(3, 0) << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;  // [t_c]x
+    h.block<3, 3>(3, 0) = Skew(wMc_.translation());
     contact_options_.table_covariance += h * noise_.extrinsics_covariance * h.transpose();
   }
   Reset();
@@ -296,7 +297,11 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
     auto add = [&](ObjectEstimate& o, const ObjectModel& m) {
       if (!o.valid) return;
       est_index.push_back(&o == &f.robot_pose ? 0 : 1 + static_cast<int>(&o - f.obstacle_poses.data()));
-      objs.push_back({&m, o.wMo, o.position_stddev, o.orientation_stddev, to_world * o.cov_cMo * to_world.transpose()});
+      ContactObject c;  // its pose and covariance: contact_objects
+      c.model = &m;
+      c.position_stddev = o.position_stddev;
+      c.orientation_stddev = o.orientation_stddev;
+      objs.push_back(c);
       ests.push_back(&o);
     };
     add(f.robot_pose, models_.robot);
@@ -353,7 +358,7 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
   Eigen::MatrixXd g_ext = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n_events), 6);
   const bool extrinsics_uncertain = noise_.extrinsics_covariance.trace() > 0;
   if (extrinsics_uncertain && contact_options_.enabled && f.contact.ok) {
-    auto distances_at = [&](const Vec6& x) {
+    auto distances_at = [&](const Vec6& x) -> Eigen::VectorXd {
       const Eigen::Isometry3d wMc = PerturbPose(wMc_, x);
       std::vector<Eigen::Isometry3d> cMo(static_cast<std::size_t>(n_est));
       for (std::size_t i = 0; i < ests.size(); ++i) cMo[static_cast<std::size_t>(est_index[i])] = ests[i]->cMo_measured;
@@ -374,15 +379,8 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
       }
       return d;
     };
-    for (int k = 0; k < 6; ++k) {
-      // Steps well above the projection's convergence (~1e-14) and far inside its nonlinearity (~1 rad, ~0.1 m).
-      const double h = k < 3 ? 1e-5 : 1e-6;
-      Vec6 x = Vec6::Zero();
-      x[k] = h;
-      const Eigen::VectorXd plus = distances_at(x);
-      x[k] = -h;
-      g_ext.col(k) = (plus - distances_at(x)) / (2 * h);
-    }
+    // Steps well above the projection's convergence (~1e-14) and far inside its nonlinearity (~1 rad, ~0.1 m).
+    g_ext = NumericJacobian<Eigen::Dynamic>(distances_at, 1e-5, 1e-6);
   }
 
   // Pairs: signed distance, its uncertainty (first order in both tag poses and the extrinsics), hysteresis.

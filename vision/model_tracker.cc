@@ -20,6 +20,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "vision/contact_refinement.h"
 
 namespace visco::vision {
 namespace {
@@ -44,12 +45,6 @@ Eigen::Isometry3d FromViSP(const vpHomogeneousMatrix& m) {
   out.linear() = q.normalized().toRotationMatrix();
   out.translation() = a.topRightCorner<3, 1>();
   return out;
-}
-
-Eigen::Matrix3d Skew(const Eigen::Vector3d& t) {
-  Eigen::Matrix3d s;
-  s << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
-  return s;
 }
 
 double SignedArea(const std::vector<Eigen::Vector2d>& p) {

@@ -15,6 +15,7 @@
 #include <opencv2/core.hpp>
 
 #include "common/error.h"
+#include "vision/contact_refinement.h"
 #include "vision/tag_renderer.h"
 
 namespace visco::vision {
@@ -39,12 +40,6 @@ const FamilyEntry* FindFamily(const std::string& name) {
     if (name == f.name) return &f;
   }
   return nullptr;
-}
-
-Eigen::Matrix3d Skew(const Eigen::Vector3d& v) {
-  Eigen::Matrix3d m;
-  m << 0, -v.z(), v.y(), v.z(), 0, -v.x(), -v.y(), v.x(), 0;
-  return m;
 }
 
 Eigen::Matrix3d ExpSo3(const Eigen::Vector3d& w) {

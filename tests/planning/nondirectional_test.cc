@@ -44,11 +44,23 @@ struct Tally {
   std::set<std::string> kinds_changing;
 };
 
+SliceStructure StructureOf(const VcBackprojection& vc) {
+  return {RegionStructure(vc.classic), RegionStructure(vc.region), vc.active_rays};
+}
+
 SliceStructure StructureAt(const BackprojectionProblem& pr, double theta) {
   BackprojectionProblem p = pr;
   p.theta = theta;
-  const VcBackprojection vc = VcEnlargedBackprojection(p);
-  return {RegionStructure(vc.classic), RegionStructure(vc.region), vc.active_rays};
+  return StructureOf(VcEnlargedBackprojection(p));
+}
+
+// How far (radians) the nearest other candidate is from candidates[i].
+double NearestOtherCandidate(const std::vector<CriticalOrientation>& candidates, size_t i) {
+  double nearest = M_PI;
+  for (size_t j = 0; j < candidates.size(); ++j) {
+    if (j != i) nearest = std::min(nearest, std::abs(WrapAngle(candidates[j].theta - candidates[i].theta)));
+  }
+  return nearest;
 }
 
 // The property of docs/formats.md `visco critical`: sampled at ¼, ½, ¾ of every interval between consecutive
@@ -359,11 +371,7 @@ TEST(NondirectionalProperty, ASlidingEventAwayFromTheRegionsChangesNothing) {
     for (size_t i : sliding) {
       if (tried >= per_scene) break;
       const double theta = candidates[i].theta;
-      double nearest = M_PI;
-      for (size_t j = 0; j < candidates.size(); ++j) {
-        if (j != i) nearest = std::min(nearest, std::abs(WrapAngle(candidates[j].theta - theta)));
-      }
-      const double gap = std::min(1e-6, 0.4 * nearest);
+      const double gap = std::min(1e-6, 0.4 * NearestOtherCandidate(candidates, i));
       if (gap < 1e-11) continue;  // another candidate at the same θ: its own change would be counted here
       ++tried;
       BackprojectionProblem before = pr, after = pr;
@@ -372,8 +380,7 @@ TEST(NondirectionalProperty, ASlidingEventAwayFromTheRegionsChangesNothing) {
       const VcBackprojection b = VcEnlargedBackprojection(before), a = VcEnlargedBackprojection(after);
       const bool meets = FeatureMeetsRegion(candidates[i].feature, b.classic, 1e-9 * size) ||
                          FeatureMeetsRegion(candidates[i].feature, b.region, 1e-9 * size);
-      const SliceStructure sb{RegionStructure(b.classic), RegionStructure(b.region), b.active_rays};
-      const SliceStructure sa{RegionStructure(a.classic), RegionStructure(a.region), a.active_rays};
+      const SliceStructure sb = StructureOf(b), sa = StructureOf(a);
       if (meets) {
         ++near;
         near_changing += sb == sa ? 0 : 1;
@@ -417,14 +424,13 @@ TEST(NondirectionalExamples, ASlidingEventOnARampChangesTheStructure) {
   pr.velocity_cone = 10 * M_PI / 180;
   pr.friction_cone = 20 * M_PI / 180;
   const auto candidates = CriticalCandidates(pr, nullptr);
+  const auto nd = ComputeNondirectional(pr, nullptr, Options());
   const double size = (pr.bounds_max - pr.bounds_min).norm();
   int alone_changing = 0;
-  for (const auto& c : candidates) {
+  for (size_t i = 0; i < candidates.size(); ++i) {
+    const CriticalOrientation& c = candidates[i];
     if (c.kind != CriticalKind::kSliding || c.refs[0] != "ramp") continue;
-    double nearest = M_PI;
-    for (const auto& other : candidates) {
-      if (&other != &c) nearest = std::min(nearest, std::abs(WrapAngle(other.theta - c.theta)));
-    }
+    const double nearest = NearestOtherCandidate(candidates, i);
     if (nearest < 1e-6) continue;
     BackprojectionProblem before = pr, after = pr;
     before.theta = WrapAngle(c.theta - 0.4 * nearest);
@@ -435,7 +441,6 @@ TEST(NondirectionalExamples, ASlidingEventOnARampChangesTheStructure) {
     EXPECT_TRUE(FeatureMeetsRegion(c.feature, b, 1e-9 * size)) << c.theta * 180 / M_PI;
     EXPECT_TRUE(FeatureMeetsRegion(c.feature, a, 1e-9 * size)) << c.theta * 180 / M_PI;
     // The kinetic walk reports it, as a sliding orientation of the ramp.
-    const auto nd = ComputeNondirectional(pr, nullptr, Options());
     bool reported = false;
     for (const auto& o : nd.orientations) {
       reported = reported || (std::abs(o.theta - c.theta) <= 1e-12 && o.kind == CriticalKind::kSliding &&

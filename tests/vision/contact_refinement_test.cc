@@ -9,6 +9,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -41,6 +42,44 @@ ObjectModels Models() {
                            "test models");
 }
 
+// Every robot vertex paired with every vertex of the first obstacle (16 pairs), the first obstacle alone kept.
+void PairEveryVertex(ObjectModels& m) {
+  m.obstacles.resize(1);
+  m.events.clear();
+  for (int c = 0; c < 4; ++c) {
+    for (int v = 0; v < 4; ++v) m.events.push_back({"pair", 0, v, c});
+  }
+}
+
+// The true wMo of the robot (0) flush against the block's (1) -x side, both on the table.
+std::array<Eigen::Isometry3d, 2> FlushTruth() {
+  const Eigen::Isometry3d wMb = Planar(-0.03, 0.0, -0.2);
+  return {wMb * Planar(-0.04, 0.04, 0), wMb};
+}
+
+// The first tags of the robot and the first obstacle seen by the camera at cMw with the objects at `truth`: their
+// corners projected (AprilTag's convention: pixel centres at +0.5) plus offset(object, corner).
+template <typename Offset>
+std::vector<TagObservation> SeenTags(const ObjectModels& m, const Eigen::Isometry3d& cMw,
+                                     const std::array<Eigen::Isometry3d, 2>& truth, Offset offset) {
+  const ObjectModel* models[2] = {&m.robot, &m.obstacles[0]};
+  std::vector<TagObservation> tags;
+  for (int k = 0; k < 2; ++k) {
+    const TagMount& mount = models[k]->tags[0];
+    TagObservation t;
+    t.family = mount.family;
+    t.id = mount.id;
+    const auto local = TagCornersInTagFrame(mount.size);
+    for (int c = 0; c < 4; ++c) {
+      const Eigen::Vector2d off = offset(k, c);
+      t.corners[c] =
+          kCam.Project(cMw * truth[k] * mount.oMt * local[c]) + Eigen::Vector2d(0.5 + off.x(), 0.5 + off.y());
+    }
+    tags.push_back(t);
+  }
+  return tags;
+}
+
 TEST(ObjectPrism, IsAClosedOutwardPrism) {
   const ObjectModels m = Models();
   const PrismMesh p = ObjectPrism(m.obstacles[0]);
@@ -62,9 +101,7 @@ TEST(ObjectPrism, IsAClosedOutwardPrism) {
 
 TEST(ContactRefinement, RenderedSceneRefinedPosesCloserToTruthAndFlush) {
   const ObjectModels m = Models();
-  Eigen::Isometry3d wMc = Eigen::Isometry3d::Identity();
-  wMc.linear() = RotationFromRpy(-2.2, 0, 0.1);
-  wMc.translation() = Eigen::Vector3d(0.02, -0.42, 0.42);
+  const Eigen::Isometry3d wMc = test_world::TiltedCameraPose();
   const Eigen::Isometry3d cMw = wMc.inverse();
   DetectorOptions dopt;
   dopt.quad_sigma = 0.8f;
@@ -176,25 +213,10 @@ TEST(ContactRefinement, PropagatedCovarianceMatchesMonteCarlo) {
   ObjectModels m = Models();
   m.obstacles.resize(1);  // robot and block
   std::erase_if(m.events, [](const EventPair& e) { return e.obstacle != 0; });
-  Eigen::Isometry3d wMc = Eigen::Isometry3d::Identity();
-  wMc.linear() = RotationFromRpy(-2.2, 0, 0.1);
-  wMc.translation() = Eigen::Vector3d(0.02, -0.42, 0.42);
+  const Eigen::Isometry3d wMc = test_world::TiltedCameraPose();
   const Eigen::Isometry3d cMw = wMc.inverse();
-  const Eigen::Isometry3d wMb = Planar(-0.03, 0.0, -0.2);
-  const Eigen::Isometry3d truth[2] = {wMb * Planar(-0.04, 0.04, 0), wMb};
-  const ObjectModel* models[2] = {&m.robot, &m.obstacles[0]};
-  std::vector<TagObservation> tags;
-  for (int k = 0; k < 2; ++k) {
-    const TagMount& mount = models[k]->tags[0];
-    TagObservation t;
-    t.family = mount.family;
-    t.id = mount.id;
-    const auto local = TagCornersInTagFrame(mount.size);
-    for (int c = 0; c < 4; ++c) {
-      t.corners[c] = kCam.Project(cMw * truth[k] * mount.oMt * local[c]) + Eigen::Vector2d(0.5, 0.5);
-    }
-    tags.push_back(t);
-  }
+  const std::array<Eigen::Isometry3d, 2> truth = FlushTruth();
+  const std::vector<TagObservation> tags = SeenTags(m, cMw, truth, [](int, int) { return Eigen::Vector2d(0, 0); });
   ContactOptions off;
   off.enabled = false;
   FeatureEstimator raw(kCam, wMc, m, NoiseModel{}, PoseOptions{}, off);
@@ -203,7 +225,8 @@ TEST(ContactRefinement, PropagatedCovarianceMatchesMonteCarlo) {
   Cov6 b = Cov6::Zero();
   b.topLeftCorner<3, 3>() = b.bottomRightCorner<3, 3>() = wMc.linear();
   const Cov6 sigma[2] = {b * f.robot_pose.cov_cMo * b.transpose(), b * f.obstacle_poses[0].cov_cMo * b.transpose()};
-  auto objects = [&](const Eigen::Isometry3d(&wMo)[2]) {
+  const ObjectModel* models[2] = {&m.robot, &m.obstacles[0]};
+  auto objects = [&](const std::array<Eigen::Isometry3d, 2>& wMo) {
     std::vector<ContactObject> o(2);
     for (int k = 0; k < 2; ++k) {
       o[k].model = models[k];
@@ -231,7 +254,7 @@ TEST(ContactRefinement, PropagatedCovarianceMatchesMonteCarlo) {
   Eigen::Matrix<double, 12, 1> sum = Eigen::Matrix<double, 12, 1>::Zero();
   Eigen::Matrix<double, 12, 12> outer = Eigen::Matrix<double, 12, 12>::Zero();
   for (int s = 0; s < n; ++s) {
-    Eigen::Isometry3d measured[2];
+    std::array<Eigen::Isometry3d, 2> measured;
     for (int k = 0; k < 2; ++k) {
       Eigen::Matrix<double, 6, 1> z;
       for (int i = 0; i < 6; ++i) z[i] = normal(rng);
@@ -291,18 +314,10 @@ TEST(ContactRefinement, PropagatedCovarianceMatchesMonteCarlo) {
 // poses) is printed beside it.
 TEST(ContactRefinement, SignedDistanceStddevMatchesMonteCarlo) {
   ObjectModels m = Models();
-  m.obstacles.resize(1);
-  m.events.clear();
-  for (int c = 0; c < 4; ++c) {
-    for (int v = 0; v < 4; ++v) m.events.push_back({"pair", 0, v, c});
-  }
-  Eigen::Isometry3d wMc = Eigen::Isometry3d::Identity();
-  wMc.linear() = RotationFromRpy(-2.2, 0, 0.1);
-  wMc.translation() = Eigen::Vector3d(0.02, -0.42, 0.42);
+  PairEveryVertex(m);
+  const Eigen::Isometry3d wMc = test_world::TiltedCameraPose();
   const Eigen::Isometry3d cMw = wMc.inverse();
-  const Eigen::Isometry3d wMb = Planar(-0.03, 0.0, -0.2);
-  const Eigen::Isometry3d truth[2] = {wMb * Planar(-0.04, 0.04, 0), wMb};
-  const ObjectModel* models[2] = {&m.robot, &m.obstacles[0]};
+  const std::array<Eigen::Isometry3d, 2> truth = FlushTruth();
   NoiseModel noise;
   noise.estimate_online = false;  // the stated noise is the true one
   const double sigma_c = noise.corner_sigma_px;
@@ -317,19 +332,9 @@ TEST(ContactRefinement, SignedDistanceStddevMatchesMonteCarlo) {
   std::normal_distribution<double> normal;
   int off_line = 0, draws = 0, refined = 0;
   for (int s = 0; s < n; ++s) {
-    std::vector<TagObservation> tags;
-    for (int k = 0; k < 2; ++k) {
-      const TagMount& mount = models[k]->tags[0];
-      TagObservation t;
-      t.family = mount.family;
-      t.id = mount.id;
-      const auto local = TagCornersInTagFrame(mount.size);
-      for (int c = 0; c < 4; ++c) {
-        t.corners[c] = kCam.Project(cMw * truth[k] * mount.oMt * local[c]) + Eigen::Vector2d(0.5, 0.5) +
-                       sigma_c * Eigen::Vector2d(normal(rng), normal(rng));
-      }
-      tags.push_back(t);
-    }
+    const std::vector<TagObservation> tags = SeenTags(m, cMw, truth, [&](int, int) -> Eigen::Vector2d {
+      return sigma_c * Eigen::Vector2d(normal(rng), normal(rng));
+    });
     FeatureEstimator estimator(kCam, wMc, m, noise);
     const FrameFeatures& f = estimator.Update(tags);
     ASSERT_TRUE(f.robot_pose.valid && f.obstacle_poses[0].valid) << s;
@@ -399,19 +404,10 @@ TEST(ContactRefinement, SignedDistanceStddevMatchesMonteCarlo) {
 // 3 alpha of the pair-frames.
 TEST(ContactRefinement, ExtrinsicsStddevMatchesMonteCarlo) {
   ObjectModels m = Models();
-  m.obstacles.resize(1);
-  m.events.clear();
-  for (int c = 0; c < 4; ++c) {
-    for (int v = 0; v < 4; ++v) m.events.push_back({"pair", 0, v, c});
-  }
-  Eigen::Isometry3d wMc = Eigen::Isometry3d::Identity();
-  wMc.linear() = RotationFromRpy(-2.2, 0, 0.1);
-  wMc.translation() = Eigen::Vector3d(0.02, -0.42, 0.42);
-  const Eigen::Isometry3d wMb = Planar(-0.03, 0.0, -0.2);
-  const Eigen::Isometry3d truth[2] = {wMb * Planar(-0.04, 0.04, 0), wMb};
-  const ObjectModel* models[2] = {&m.robot, &m.obstacles[0]};
-  const double sd_position = 0.002,
-               sd_rotation_deg = 0.3;  // a hand-measured camera pose  // a hand-measured camera pose
+  PairEveryVertex(m);
+  const Eigen::Isometry3d wMc = test_world::TiltedCameraPose();
+  const std::array<Eigen::Isometry3d, 2> truth = FlushTruth();
+  const double sd_position = 0.002, sd_rotation_deg = 0.3;  // a hand-measured camera pose
   NoiseModel noise;
   noise.estimate_online = false;  // the stated corner noise is the true one
   noise.extrinsics_covariance.diagonal() << Eigen::Vector3d::Constant(std::pow(sd_rotation_deg * M_PI / 180, 2)),
@@ -432,19 +428,9 @@ TEST(ContactRefinement, ExtrinsicsStddevMatchesMonteCarlo) {
     for (int i = 0; i < 6; ++i) z[i] = normal(rng);
     const Eigen::Isometry3d wMc_true = PerturbPose(wMc, sd_extrinsics.cwiseProduct(z));
     const Eigen::Isometry3d cMw_true = wMc_true.inverse();
-    std::vector<TagObservation> tags;
-    for (int k = 0; k < 2; ++k) {
-      const TagMount& mount = models[k]->tags[0];
-      TagObservation t;
-      t.family = mount.family;
-      t.id = mount.id;
-      const auto local = TagCornersInTagFrame(mount.size);
-      for (int c = 0; c < 4; ++c) {
-        t.corners[c] = kCam.Project(cMw_true * truth[k] * mount.oMt * local[c]) + Eigen::Vector2d(0.5, 0.5) +
-                       sigma_c * Eigen::Vector2d(normal(rng), normal(rng));
-      }
-      tags.push_back(t);
-    }
+    const std::vector<TagObservation> tags = SeenTags(m, cMw_true, truth, [&](int, int) -> Eigen::Vector2d {
+      return sigma_c * Eigen::Vector2d(normal(rng), normal(rng));
+    });
     FeatureEstimator estimator(kCam, wMc, m, noise);
     const FrameFeatures& f = estimator.Update(tags);
     ASSERT_TRUE(f.robot_pose.valid && f.obstacle_poses[0].valid) << s;
@@ -499,25 +485,11 @@ TEST(ContactRefinement, ExactExtrinsicsAddNothing) {
   ObjectModels m = Models();
   m.obstacles.resize(1);
   std::erase_if(m.events, [](const EventPair& e) { return e.obstacle != 0; });
-  Eigen::Isometry3d wMc = Eigen::Isometry3d::Identity();
-  wMc.linear() = RotationFromRpy(-2.2, 0, 0.1);
-  wMc.translation() = Eigen::Vector3d(0.02, -0.42, 0.42);
+  const Eigen::Isometry3d wMc = test_world::TiltedCameraPose();
   const Eigen::Isometry3d cMw = wMc.inverse();
-  const Eigen::Isometry3d wMb = Planar(-0.03, 0.0, -0.2);
-  const Eigen::Isometry3d truth[2] = {wMb * Planar(-0.04, 0.04, 0), wMb};
-  const ObjectModel* models[2] = {&m.robot, &m.obstacles[0]};
-  std::vector<TagObservation> tags;
-  for (int k = 0; k < 2; ++k) {
-    const TagMount& mount = models[k]->tags[0];
-    TagObservation t;
-    t.family = mount.family;
-    t.id = mount.id;
-    const auto local = TagCornersInTagFrame(mount.size);
-    for (int c = 0; c < 4; ++c) {
-      t.corners[c] = kCam.Project(cMw * truth[k] * mount.oMt * local[c]) + Eigen::Vector2d(0.5 + 0.1 * c, 0.5);
-    }
-    tags.push_back(t);
-  }
+  const std::array<Eigen::Isometry3d, 2> truth = FlushTruth();
+  const std::vector<TagObservation> tags =
+      SeenTags(m, cMw, truth, [](int, int c) { return Eigen::Vector2d(0.1 * c, 0); });
   NoiseModel exact;
   NoiseModel uncertain;
   uncertain.extrinsics_covariance.diagonal() << 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6;

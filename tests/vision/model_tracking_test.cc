@@ -48,14 +48,11 @@ struct Sequence {
 };
 
 GrayImage RenderAt(const Sequence& s, const Eigen::Isometry3d& wMr, int supersample) {
-  RenderScene scene;
-  scene.polygons.push_back({{{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}}, 120});
-  auto add = [&](const ObjectModel& m, const Eigen::Isometry3d& pose, std::uint8_t top, std::uint8_t side) {
-    AddPrism(scene, m.polygon, m.height, pose, top, side);
-    for (const auto& t : m.tags) scene.tags.push_back({t.family, t.id, t.size, pose * t.oMt});
-  };
-  add(s.models.robot, wMr, 70, 60);
-  for (std::size_t k = 0; k < s.models.obstacles.size(); ++k) add(s.models.obstacles[k], s.wMo[k], 160, 140);
+  RenderScene scene = test_world::TableScene();
+  test_world::AddObject(scene, s.models.robot, wMr, 70, 60);
+  for (std::size_t k = 0; k < s.models.obstacles.size(); ++k) {
+    test_world::AddObject(scene, s.models.obstacles[k], s.wMo[k], 160, 140);
+  }
   RenderOptions ro;
   ro.blur_sigma = s.blur;
   ro.noise_stddev = 0;  // added below, after the motion blur and the lighting

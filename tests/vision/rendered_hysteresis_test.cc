@@ -58,9 +58,7 @@ ObjectModels Models() {
 // rendered frames").
 TEST(RenderedHysteresis, StatedSigmaAndRatesHoldThroughThePipeline) {
   const ObjectModels m = Models();
-  Eigen::Isometry3d wMc = Eigen::Isometry3d::Identity();
-  wMc.linear() = RotationFromRpy(-2.2, 0, 0.1);
-  wMc.translation() = Eigen::Vector3d(0.02, -0.42, 0.42);
+  const Eigen::Isometry3d wMc = test_world::TiltedCameraPose();
   const Eigen::Isometry3d cMw = wMc.inverse();
   DetectorOptions dopt;
   dopt.quad_sigma = 0.8f;
@@ -81,12 +79,9 @@ TEST(RenderedHysteresis, StatedSigmaAndRatesHoldThroughThePipeline) {
   for (int i = 0; i < warm_up + frames; ++i) {
     const Eigen::Isometry3d wMb = Planar(-0.03 + 0.005 * jitter(rng), 0.005 * jitter(rng), -0.2 + 0.05 * jitter(rng));
     const Eigen::Isometry3d wMr = wMb * Planar(-0.04, 0.04 + 0.005 * jitter(rng), 0);
-    RenderScene scene;
-    scene.polygons.push_back({{{-1, -1, 0}, {1, -1, 0}, {1, 1, 0}, {-1, 1, 0}}, 120});
-    AddPrism(scene, m.robot.polygon, m.robot.height, wMr, 70, 60);
-    AddPrism(scene, m.obstacles[0].polygon, m.obstacles[0].height, wMb, 160, 140);
-    scene.tags.push_back({"tag36h11", 0, m.robot.tags[0].size, wMr * m.robot.tags[0].oMt});
-    scene.tags.push_back({"tag36h11", 1, m.obstacles[0].tags[0].size, wMb * m.obstacles[0].tags[0].oMt});
+    RenderScene scene = test_world::TableScene();
+    test_world::AddObject(scene, m.robot, wMr, 70, 60);
+    test_world::AddObject(scene, m.obstacles[0], wMb, 160, 140);
     RenderOptions ro;
     ro.noise_stddev = 2;
     ro.blur_sigma = 0.6;
