@@ -301,6 +301,7 @@ class Sweep {
   FT top_;
   std::vector<Source> sources_;
   std::vector<std::string> names_;
+  std::map<int, P2> free_sources_;  // a free edge's name -> the point it is erected at (RegionEdge::source)
   std::map<P2, int, LessYX> vertex_names_;
   P2 bounds_sweep_[4];                    // the bounds' corners in the sweep frame, counter-clockwise
   std::set<P2, LessYX> open_lower_ends_;  // lower ends of active ray segments that fail when complied to
@@ -1091,6 +1092,7 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
       if (name < 0) {
         if (point_name < 0) point_name = VertexName(p, through);
         name = AddName(names_[point_name] + (nc.right_free ? "/-eps" : "/+eps"));
+        free_sources_.emplace(name, p);
       }
       c->name = name;
     }
@@ -1203,7 +1205,11 @@ Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
     RegionRing out;
     for (size_t i = 0; i < r.vertices.size(); ++i) {
       out.vertices.push_back(rot_.InvertExact(r.vertices[i]) + Vector2d::Zero());  // + 0: no negative zeros
-      out.edges.push_back({r.edges[i].first, names_[r.edges[i].second]});
+      RegionEdge edge{r.edges[i].first, names_[r.edges[i].second], Vector2d::Zero()};
+      if (const auto it = free_sources_.find(r.edges[i].second); it != free_sources_.end()) {
+        edge.source = rot_.InvertExact(it->second) + Vector2d::Zero();
+      }
+      out.edges.push_back(std::move(edge));
     }
     return out;
   };

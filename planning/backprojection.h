@@ -68,6 +68,10 @@ const char* EdgeKindName(EdgeKind kind);
 struct RegionEdge {
   EdgeKind kind = EdgeKind::kFree;
   std::string ref;
+  /// A free edge's source: the static point it is erected at (world frame, exact up to one rounding). The edge lies
+  /// on the line through it of direction θ + π ± ε_v for every θ of its slice's interval, which is how a slice's
+  /// region is carried to another θ without a sweep (nondirectional.h, RegionAtTheta). Zero for the other kinds.
+  Eigen::Vector2d source{0.0, 0.0};
 };
 
 /// A closed ring: edge i runs from vertices[i] to vertices[i + 1] (wrapping). Outer rings are counter-clockwise,

@@ -102,17 +102,23 @@ const char* KindColour(CriticalKind kind) {
 
 }  // namespace
 
-std::vector<AreaSample> SampleAreas(const NondirectionalBackprojection& nd, const BackprojectionProblem& problem,
-                                    int samples) {
+std::vector<AreaSample> SampleAreas(const NondirectionalBackprojection& nd, int samples) {
   std::vector<AreaSample> out;
-  for (int i = 0; i < samples; ++i) {
-    const double theta = -M_PI + (i + 0.5) * 2 * M_PI / samples;
-    const Slice& s = SliceAt(nd, theta);
-    BackprojectionProblem p = problem;
-    p.theta = theta;
-    out.push_back({theta, ClassicBackprojection(p).area, BackprojectionWithActiveRays(p, s.vc.active_rays).area});
+  auto add = [&](double theta) {
+    out.push_back({WrapAngle(theta), RegionAt(nd, theta, false).area, RegionAt(nd, theta, true).area});
+  };
+  for (int i = 0; i < samples; ++i) add(-M_PI + (i + 0.5) * 2 * M_PI / samples);
+  // Each critical slice's own areas, and each open interval's just inside its ends, so that the curves jump where
+  // the structure changes rather than between two samples.
+  for (const Slice& s : nd.slices) {
+    if (s.critical) {
+      out.push_back({s.theta, s.vc.classic.area, s.vc.region.area});
+    } else if (nd.slices.size() > 1) {
+      const double inside = 1e-6 * (s.hi - s.lo);
+      add(s.lo + inside);
+      add(s.hi - inside);
+    }
   }
-  for (const Slice& s : nd.slices) out.push_back({s.theta, s.vc.classic.area, s.vc.region.area});
   std::sort(out.begin(), out.end(), [](const AreaSample& a, const AreaSample& b) { return a.theta < b.theta; });
   return out;
 }
@@ -256,7 +262,7 @@ void Run(const Args& a) {
   }
   WriteTextOutput(doc.dump(), a.out);
   if (!a.svg.empty()) {
-    const auto samples = SampleAreas(nd, pr, a.samples);
+    const auto samples = SampleAreas(nd, a.samples);
     WriteTextOutput(AreaProfileSvg(fmt::format("{}: backprojection area against the commanded direction ({} critical "
                                                "orientations)",
                                                scene.name.empty() ? a.scene : scene.name, nd.orientations.size()),

@@ -23,10 +23,10 @@ struct AreaSample {
   double vc = 0.0;
 };
 
-/// Areas of B_θ(G) and B_vcθ(G) (with the active rays of the slice standing for θ) at `samples` evenly spaced θ and
-/// at every slice's own θ, sorted by θ.
-std::vector<AreaSample> SampleAreas(const NondirectionalBackprojection& nd, const BackprojectionProblem& problem,
-                                    int samples);
+/// Areas of B_θ(G) and B_vcθ(G) (with the active rays of the slice standing for θ) at `samples` evenly spaced θ, at
+/// every critical slice and just inside both ends of every open interval, sorted by θ. No sweep: the open slices'
+/// regions are carried to each θ (RegionAt).
+std::vector<AreaSample> SampleAreas(const NondirectionalBackprojection& nd, int samples);
 
 /// The area-against-θ picture: both curves, a vertical line per orientation coloured by kind, a legend.
 std::string AreaProfileSvg(const std::string& title, const std::vector<AreaSample>& samples,

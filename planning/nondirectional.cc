@@ -140,6 +140,7 @@ class Builder {
 
   NondirectionalBackprojection Run() {
     NondirectionalBackprojection nd;
+    nd.velocity_cone = pr_.velocity_cone;
     auto candidates = CriticalCandidates(pr_, start_, &nd.stats.counts);
     nd.stats.candidates = static_cast<std::int64_t>(candidates.size());
     std::vector<CriticalOrientation> r_candidates;
@@ -558,6 +559,78 @@ const Slice& SliceAt(const NondirectionalBackprojection& nd, double theta) {
   return nd.slices.back();
 }
 
+namespace {
+
+// The line an edge of a ring lies on at θ: a free edge's through its source, direction θ + π ± ε_v by its ref's
+// suffix; any other edge's through its two vertices (it does not move).
+struct EdgeLine {
+  Vector2d point, dir;
+  bool free = false;
+};
+
+EdgeLine LineOf(const RegionRing& ring, size_t i, double theta, double eps) {
+  const RegionEdge& e = ring.edges[i];
+  if (e.kind == EdgeKind::kFree) {
+    const bool plus = e.ref.size() >= 5 && e.ref.compare(e.ref.size() - 5, 5, "/+eps") == 0;
+    const double angle = theta + M_PI + (plus ? eps : -eps);
+    return {e.source, Vector2d(std::cos(angle), std::sin(angle)), true};
+  }
+  const Vector2d& a = ring.vertices[i];
+  const Vector2d& b = ring.vertices[(i + 1) % ring.vertices.size()];
+  return {a, b - a, false};
+}
+
+double RingArea2(const std::vector<Vector2d>& v) {
+  double a = 0;
+  for (size_t i = 0; i < v.size(); ++i) a += Cross(v[i], v[(i + 1) % v.size()]);
+  return a;
+}
+
+RegionRing CarryRing(const RegionRing& ring, double theta, double eps) {
+  RegionRing out = ring;
+  const size_t n = ring.vertices.size();
+  if (n == 0 || ring.edges.size() != n) return out;
+  std::vector<EdgeLine> lines(n);
+  for (size_t i = 0; i < n; ++i) lines[i] = LineOf(ring, i, theta, eps);
+  for (size_t i = 0; i < n; ++i) {
+    const EdgeLine& u = lines[(i + n - 1) % n];  // the edge into vertex i
+    const EdgeLine& w = lines[i];                // the edge out of it
+    if (!u.free && !w.free) continue;            // two edges that do not move meet where they did
+    const double den = Cross(u.dir, w.dir);
+    // Parallel lines meet nowhere: only at a critical orientation (a vgraph or vc event), where nothing is carried.
+    if (std::abs(den) <= 1e-15 * u.dir.norm() * w.dir.norm()) continue;
+    out.vertices[i] = u.point + (Cross(w.point - u.point, w.dir) / den) * u.dir;
+  }
+  return out;
+}
+
+}  // namespace
+
+Region CarryRegion(const Region& region, double theta, double velocity_cone) {
+  // θ₀ is not needed: the free edges' lines depend on θ only, and the other edges and the sources do not move.
+  const double eps = std::max(velocity_cone, 1e-9);  // as the sweep plans a cone of zero width
+  Region out;
+  double area2 = 0;
+  for (const auto& poly : region.polygons) {
+    RegionPolygon q{CarryRing(poly.outer, theta, eps), {}};
+    area2 += RingArea2(q.outer.vertices);
+    for (const auto& h : poly.holes) {
+      q.holes.push_back(CarryRing(h, theta, eps));
+      area2 += RingArea2(q.holes.back().vertices);
+    }
+    out.polygons.push_back(std::move(q));
+  }
+  out.area = 0.5 * area2;
+  return out;
+}
+
+Region RegionAt(const NondirectionalBackprojection& nd, double theta, bool vc) {
+  const Slice& s = SliceAt(nd, theta);
+  const Region& r = vc ? s.vc.region : s.vc.classic;
+  if (s.critical) return r;
+  return CarryRegion(r, theta, nd.velocity_cone);
+}
+
 bool FeatureMeetsRegion(const std::vector<Vector2d>& feature, const Region& region, double tolerance) {
   if (feature.empty() || region.polygons.empty()) return false;
   for (const auto& p : feature) {
@@ -612,9 +685,30 @@ bool RegionContainsPolygon(const Region& region, const std::vector<Vector2d>& po
   return true;
 }
 
+namespace {
+
+// How far (relative to the scene's size) R must be from a carried region's moving edges for the carried region to
+// decide containment: the carrying's error is about 1e-12 on the test scenes (NondirectionalProperty).
+constexpr double kCarryMargin = 1e-6;
+
+// Whether a point of the polygon's boundary (a vertex, or one of 16 points along each edge) lies outside the region
+// farther than `margin` from its boundary.
+bool ClearlyOutside(const Region& region, const std::vector<Vector2d>& polygon, double margin) {
+  const size_t n = polygon.size();
+  for (size_t i = 0; i < n; ++i) {
+    for (int k = 0; k < 16; ++k) {
+      const Vector2d p = polygon[i] + (k / 16.0) * (polygon[(i + 1) % n] - polygon[i]);
+      if (!region.Contains(p) && region.BoundaryDistance(p) > margin) return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
 std::vector<ThetaInterval> IntervalsContaining(const NondirectionalBackprojection& nd,
                                                const BackprojectionProblem& problem, const NamedPolygon& region,
-                                               bool vc) {
+                                               bool vc, IntervalQueryStats* stats) {
   const double size = (problem.bounds_max - problem.bounds_min).norm();
   // Breakpoints: the slices' orientations and R's own R-critical orientations where their sources are vertices of
   // the region there.
@@ -639,18 +733,32 @@ std::vector<ThetaInterval> IntervalsContaining(const NondirectionalBackprojectio
   const size_t n = cuts.size();
   std::vector<bool> in(n, false);
   std::vector<double> margin(n, 0.0), mids(n, 0.0);
+  int carried_decisions = 0;
   for (size_t k = 0; k < n; ++k) {
     const double lo = cuts[k], hi = k + 1 < n ? cuts[k + 1] : cuts[0] + 2 * M_PI;
     const double mid = WrapAngle(0.5 * (lo + hi));
     mids[k] = mid;
+    // The slice's region carried to the midpoint decides without a sweep where R is clearly in (its clearance from
+    // every edge that moves exceeds the carrying's error many times) or clearly out (a point of R's boundary that
+    // far outside); a sweep decides the rest.
+    double clear = 0;
+    const Region carried = RegionAt(nd, mid, vc);
+    const bool carried_in = RegionContainsPolygon(carried, region.vertices, 1e-9 * size, &clear);
+    if (carried_in ? clear > kCarryMargin * size : ClearlyOutside(carried, region.vertices, kCarryMargin * size)) {
+      in[k] = carried_in;
+      margin[k] = carried_in ? clear : 0.0;
+      ++carried_decisions;
+      continue;
+    }
     BackprojectionProblem p = problem;
     p.theta = mid;
     const Slice& s = SliceAt(nd, mid);
     const Region reg = vc ? BackprojectionWithActiveRays(p, s.vc.active_rays) : ClassicBackprojection(p);
-    double clear = 0;
+    clear = 0;
     in[k] = RegionContainsPolygon(reg, region.vertices, 1e-9 * size, &clear);
     margin[k] = clear;
   }
+  if (stats) *stats = {static_cast<int>(n), carried_decisions};
   // Merge runs of containing intervals (wrapping).
   size_t first = 0;
   while (first < n && in[first]) ++first;

@@ -71,6 +71,7 @@ struct NondirectionalBackprojection {
   /// one open slice for the whole circle when there is no orientation.
   std::vector<Slice> slices;
   NondirectionalStats stats;
+  double velocity_cone = 0.0;  ///< the problem's ε_v (RegionAt turns the free edges with it)
 };
 
 enum class SliceMethod : std::uint8_t { kKinetic, kBaseline };
@@ -103,6 +104,19 @@ NondirectionalBackprojection ComputeNondirectional(const BackprojectionProblem& 
 /// The slice that stands for θ (a critical slice when θ is within 1e-12 of its orientation).
 const Slice& SliceAt(const NondirectionalBackprojection& nd, double theta);
 
+/// `region`, a backprojection computed at some θ₀, carried to θ = `theta` without a sweep (Briggs's
+/// rotating free vertices): every free edge turns about its source (RegionEdge::source) to direction θ + π ± ε_v, the
+/// other edges stay on their lines, and each vertex is recomputed as the meeting point of its two edges' lines (a
+/// vertex between two non-free edges stays). Between two consecutive critical orientations the structure does not
+/// change, so for θ₀ and θ inside one open slice's interval this is the region a sweep at `theta` gives, up to
+/// rounding (`NondirectionalProperty.ACarriedRegionIsTheSweptOne` checks it); across a critical orientation it is
+/// not. The area is recomputed from the new vertices (in double precision).
+Region CarryRegion(const Region& region, double theta, double velocity_cone);
+
+/// B_θ(G) (`vc` false) or B_vcθ(G) with the slice's active rays at any θ: the critical slice's region at a critical
+/// orientation, else the open slice's region carried to θ (no sweep).
+Region RegionAt(const NondirectionalBackprojection& nd, double theta, bool vc);
+
 /// A θ-interval [lo, hi] (radians; hi may exceed π when it wraps) on which R lies inside the region.
 struct ThetaInterval {
   double lo = 0.0, hi = 0.0;
@@ -112,10 +126,17 @@ struct ThetaInterval {
 
 /// Every θ-interval for which the closed polygon R lies inside B_vcθ(G) (`vc`) or B_θ(G): the slices' boundaries and
 /// R's own R-critical orientations cut the circle into intervals on which containment does not change; each is
-/// decided at its midpoint with the slice's active rays. Endpoints are exact up to the orientations' rounding.
+/// decided at its midpoint with the slice's active rays: by the slice's region carried there (RegionAt) where R is
+/// clearly inside or outside (1e-6 of the scene's size from every edge that moves), else by a sweep. Endpoints are
+/// exact up to the orientations' rounding.
+struct IntervalQueryStats {
+  int pieces = 0;   ///< intervals decided (each at its midpoint)
+  int carried = 0;  ///< of which by the slice's region carried there (RegionAt), without a sweep
+};
+
 std::vector<ThetaInterval> IntervalsContaining(const NondirectionalBackprojection& nd,
                                                const BackprojectionProblem& problem, const NamedPolygon& region,
-                                               bool vc);
+                                               bool vc, IntervalQueryStats* stats = nullptr);
 
 /// Whether the feature (one point, or the segment between two) meets the closure of the region: a point inside or
 /// within `tolerance` of its boundary, or a segment crossing or within `tolerance` of a ring.

@@ -10,6 +10,8 @@
 //   before (method 2: a sweep at every sliding event and at least every 8 events), same problem, same run: the ratio to
 //   the baseline is the kinetic method's gain; the counters give the candidates swept by the walk (checked), all sweeps
 //   (backprojections) and the orientations found (equal for all three).
+// BM_RegionAt/method/n: the region at a θ inside an open interval, carried from the slice (method 0) or swept
+//   (method 1), in the same run: the ratio is what the carried regions save the queries and the --svg curves.
 // Every benchmark but BM_Plan reports its peak resident memory (`peak_MiB`).
 // BM_Plan/scene: `visco plan` on the example scenes (one thread), with the nondirectional backprojections it needed.
 
@@ -18,6 +20,7 @@
 #include <cmath>
 #include <ctime>
 #include <fstream>
+#include <map>
 #include <random>
 #include <string>
 #include <vector>
@@ -180,6 +183,53 @@ BENCHMARK(BM_Nondirectional)
     ->ArgsProduct({{0}, {160, 320, 640, 1280, 2000}})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1);
+
+// The region at a θ inside an open slice's interval: the slice's region carried there (method 0, RegionAt: free edges
+// turned about their sources, O(region size)) against a sweep at θ with the slice's active rays (method 1, what the
+// queries did before), both regions (classic and VC), at the midpoints of up to 64 open slices. The nondirectional
+// backprojection is computed once per size, outside the timing.
+void BM_RegionAt(benchmark::State& state) {
+  static std::map<int, std::pair<BackprojectionProblem, NondirectionalBackprojection>> cache;
+  const int n = static_cast<int>(state.range(1));
+  if (!cache.count(n)) {
+    BackprojectionProblem pr = bench::PentagonGrid(n / 5);
+    NondirectionalOptions o;
+    o.threads = MachineThreads();
+    auto nd = ComputeNondirectional(pr, nullptr, o);
+    cache.emplace(n, std::make_pair(std::move(pr), std::move(nd)));
+  }
+  const auto& [pr, nd] = cache.at(n);
+  std::vector<double> thetas;
+  for (size_t s = 1; s < nd.slices.size(); s += 2) thetas.push_back(nd.slices[s].theta);
+  if (thetas.size() > 64) {
+    std::vector<double> every;
+    for (size_t i = 0; i < 64; ++i) every.push_back(thetas[i * thetas.size() / 64]);
+    thetas.swap(every);
+  }
+  double area = 0;
+  for (auto _ : state) {
+    for (double theta : thetas) {
+      // A point of the interval other than the slice's own θ (a quarter of the way from its midpoint to its end).
+      const Slice& sl = SliceAt(nd, theta);
+      const double t = WrapAngle(theta + 0.25 * (sl.hi - sl.lo) / 2);
+      if (state.range(0) == 0) {
+        area += RegionAt(nd, t, false).area + RegionAt(nd, t, true).area;
+      } else {
+        BackprojectionProblem p = pr;
+        p.theta = t;
+        area += ClassicBackprojection(p).area + BackprojectionWithActiveRays(p, sl.vc.active_rays).area;
+      }
+    }
+  }
+  benchmark::DoNotOptimize(area);
+  state.SetLabel(state.range(0) == 0 ? "carried" : "swept");
+  state.counters["vertices"] = bench::Vertices(pr);
+  state.counters["thetas"] = static_cast<double>(thetas.size());
+  // Seconds per θ (both regions).
+  state.counters["per_theta"] = benchmark::Counter(
+      static_cast<double>(thetas.size()), benchmark::Counter::kIsIterationInvariantRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_RegionAt)->ArgsProduct({{0, 1}, {20, 80, 320}})->Unit(benchmark::kMillisecond);
 
 void BM_Plan(benchmark::State& state) {
   static const char* const kScenes[] = {"slot", "fig13", "corner"};
