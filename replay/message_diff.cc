@@ -83,6 +83,7 @@ void Compare(Differ& d, const std::string& p, const object_pose_t& a, const obje
   d.Field(p + "ambiguous", a.ambiguous, b.ambiguous);
   d.Field(p + "tags_used", a.tags_used, b.tags_used);
   d.Field(p + "rms_error_px", a.rms_error_px, b.rms_error_px);
+  d.Field(p + "model_tracked", a.model_tracked, b.model_tracked);
 }
 
 void Compare(Differ& d, const object_poses_t& a, const object_poses_t& b) {

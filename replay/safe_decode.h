@@ -76,8 +76,8 @@ inline bool CountsFit(std::span<const std::uint8_t> b, const tag_detections_t*) 
 }
 inline bool CountsFit(std::span<const std::uint8_t> b, const object_poses_t*) {
   Cursor c(b);
-  c.Skip(16);                                            // utime, frame_utime
-  c.Count(8 + 5 + 24 + 32 + 8 + 8 + 1 + 1 + 1 + 4 + 8);  // object_pose_t
+  c.Skip(16);                                                // utime, frame_utime
+  c.Count(8 + 5 + 24 + 32 + 8 + 8 + 1 + 1 + 1 + 4 + 8 + 1);  // object_pose_t
   return c.ok();
 }
 inline bool CountsFit(std::span<const std::uint8_t> b, const visual_events_t*) {

@@ -41,6 +41,11 @@ struct ModelTrackerOptions {
   bool planar = true;
   /// Compute the pose covariance from the edge residuals (ViSP's VVS covariance).
   bool covariance = true;
+  /// How well the tracked pose is stated to place the robot's vertices (1 sigma per image axis, ideal pixels) in a
+  /// frame with tags; without tags it grows by this much per frame (constant-velocity drift). The pipeline adds the
+  /// pose covariance this means (through the vertices' projection Jacobian) to ViSP's, which states the sites as
+  /// independent and unbiased and was 10^4-10^6 times too small in NEES on the rendered sequences (docs/vision.md).
+  double vertex_stddev_px = 3.0;
 };
 
 /// One frame of the model-based tracker.

@@ -417,7 +417,31 @@ std::optional<RobotPoseMeasurement> VisionPipeline::TrackRobotModel(const GrayIm
   out.model.used = true;
   model_before_last_ = model_last_;
   model_last_ = r.cMo;
-  return RobotPoseMeasurement{r.cMo, r.cov_cMo};
+  return RobotPoseMeasurement{r.cMo,
+                              r.cov_cMo + ModelPoseFloor(r.cMo, o.vertex_stddev_px * (1 + model_frames_without_tags_))};
+}
+
+Eigen::Matrix<double, 6, 6> VisionPipeline::ModelPoseFloor(const Eigen::Isometry3d& cMo,
+                                                           double vertex_stddev_px) const {
+  // The pose covariance under which the robot's vertices (top and base) scatter by vertex_stddev_px per image axis:
+  // s^2 (J^T J)^-1, J the vertices' ideal-pixel Jacobian in cov_cMo's perturbation (central differences).
+  const ObjectModel& robot = features_.models().robot;
+  std::vector<Eigen::Vector3d> vertices;
+  for (const auto& v : robot.polygon) {
+    for (double z : {0.0, robot.height}) vertices.emplace_back(v.x(), v.y(), z);
+  }
+  Eigen::MatrixXd j(2 * static_cast<Eigen::Index>(vertices.size()), 6);
+  for (int k = 0; k < 6; ++k) {
+    Eigen::Matrix<double, 6, 1> d = Eigen::Matrix<double, 6, 1>::Zero();
+    d[k] = k < 3 ? 1e-6 : 1e-7;  // radians, metres
+    const Eigen::Isometry3d plus = PerturbPose(cMo, d), minus = PerturbPose(cMo, -d);
+    for (std::size_t i = 0; i < vertices.size(); ++i) {
+      j.block<2, 1>(2 * static_cast<Eigen::Index>(i), k) =
+          (camera_.ProjectIdeal(plus * vertices[i]) - camera_.ProjectIdeal(minus * vertices[i])) / (2 * d[k]);
+    }
+  }
+  const Eigen::Matrix<double, 6, 6> jtj = j.transpose() * j;
+  return vertex_stddev_px * vertex_stddev_px * jtj.ldlt().solve(Eigen::Matrix<double, 6, 6>::Identity());
 }
 
 std::vector<int> VisionPipeline::ExpectedTags(PipelineOutput& out) const {
@@ -582,6 +606,7 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
     op.ambiguous = o.ambiguous;
     op.tags_used = o.tags_used;
     op.rms_error_px = o.rms_error_px;
+    op.model_tracked = o.model_tracked;
     p.poses.push_back(op);
   };
   add_pose(f.robot_pose, models.robot.id);

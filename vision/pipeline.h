@@ -189,6 +189,9 @@ class VisionPipeline {
   // RobotPoseRefiner).
   std::optional<RobotPoseMeasurement> TrackRobotModel(const GrayImageView& image, const ObjectEstimate& from_tags,
                                                       PipelineOutput& out);
+  /// The covariance of cMo (cov_cMo's convention) under which the robot's vertices scatter by `vertex_stddev_px` per
+  /// image axis: how good the model-based tracker's pose is stated to be (ModelTrackerOptions::vertex_stddev_px).
+  Eigen::Matrix<double, 6, 6> ModelPoseFloor(const Eigen::Isometry3d& cMo, double vertex_stddev_px) const;
   void ResetModelTracking();
   std::unique_ptr<PrismModelTracker> model_tracker_;
   std::optional<Eigen::Isometry3d> model_last_, model_before_last_;  // the robot's cMo in the last two frames

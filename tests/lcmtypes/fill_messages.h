@@ -64,6 +64,7 @@ inline void Fill(object_pose_t& m) {
   m.ambiguous = true;
   m.tags_used = 3;
   m.rms_error_px = 0.27;
+  m.model_tracked = true;
 }
 inline void Fill(object_poses_t& m) {
   m.utime = 1700000000000005;

@@ -577,6 +577,7 @@ void ExpectMessageMatches(const visco::object_pose_t& m, const ObjectEstimate& e
   EXPECT_EQ(m.ambiguous != 0, e.ambiguous) << what;
   EXPECT_EQ(m.tags_used, e.tags_used) << what;
   EXPECT_DOUBLE_EQ(m.rms_error_px, e.rms_error_px) << what;
+  EXPECT_EQ(m.model_tracked != 0, e.model_tracked) << what;
 }
 
 TEST(MultiTagPose, PoseDecisionReachesTheObjectPoseMessage) {
