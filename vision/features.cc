@@ -249,9 +249,23 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
   // covariances are to_world * cov_cMo * to_world^T (the translation's Jacobian is exactly [0, wRc]).
   Eigen::Matrix<double, 6, 6> to_world = Eigen::Matrix<double, 6, 6>::Zero();
   to_world.topLeftCorner<3, 3>() = to_world.bottomRightCorner<3, 3>() = wMc_.linear();
-  auto set_stddevs = [](ObjectEstimate& o, const Eigen::Matrix<double, 6, 6>& cov_w) {
-    o.position_stddev = LargestStddev(cov_w.bottomRightCorner<3, 3>());
-    o.orientation_stddev = LargestStddev(cov_w.topLeftCorner<3, 3>());
+  // The extrinsics' error moves a measured pose rigidly with the camera (turned by w about its centre t_c, shifted by
+  // v): R' = Exp(w) R, p' = p + w x (p - t_c) + v. Its world covariance, added to every world-frame uncertainty the
+  // estimates report (the stddevs, the robot's planar covariance); zero when the extrinsics are exact.
+  const bool extrinsics_uncertain = noise_.extrinsics_covariance.trace() > 0;
+  auto extrinsics_jacobian = [&](const Eigen::Vector3d& p) {
+    Mat6 j = Mat6::Identity();
+    j.block<3, 3>(3, 0) = -Skew(p - wMc_.translation());
+    return j;
+  };
+  auto extrinsics_world = [&](const Eigen::Vector3d& p) {
+    const Mat6 j = extrinsics_jacobian(p);
+    return Mat6(j * noise_.extrinsics_covariance * j.transpose());
+  };
+  auto set_stddevs = [&](ObjectEstimate& o, const Eigen::Matrix<double, 6, 6>& cov_w) {
+    const Mat6 c = extrinsics_uncertain ? Mat6(cov_w + extrinsics_world(o.wMo.translation())) : Mat6(cov_w);
+    o.position_stddev = LargestStddev(c.bottomRightCorner<3, 3>());
+    o.orientation_stddev = LargestStddev(c.topLeftCorner<3, 3>());
   };
   auto finish_object = [&](ObjectEstimate& o) {
     if (!o.valid) return;
@@ -355,8 +369,8 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
   // differences, once per frame for all pairs, only when an uncertainty is given. Independent of the corner noise,
   // so its variance adds.
   const std::size_t n_events = models_.events.size();
-  Eigen::MatrixXd g_ext = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n_events), 6);
-  const bool extrinsics_uncertain = noise_.extrinsics_covariance.trace() > 0;
+  // Rows: every pair's d, then the robot's world x and y (its planar position, below).
+  Eigen::MatrixXd g_ext = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(n_events) + 2, 6);
   if (extrinsics_uncertain && contact_options_.enabled && f.contact.ok) {
     auto distances_at = [&](const Vec6& x) -> Eigen::VectorXd {
       const Eigen::Isometry3d wMc = PerturbPose(wMc_, x);
@@ -369,7 +383,8 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
           if (c.in_contact[i]) cMo[static_cast<std::size_t>(est_index[i])] = cMw * c.wMo[i];
         }
       }
-      Eigen::VectorXd d = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(n_events));
+      Eigen::VectorXd d = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(n_events) + 2);
+      if (f.robot_pose.valid) d.tail<2>() = (wMc * cMo[0]).translation().head<2>();
       for (std::size_t e = 0; e < n_events; ++e) {
         const EventPair& ev = models_.events[e];
         if (!f.robot_pose.valid || !f.obstacle_poses[ev.obstacle].valid) continue;
@@ -381,6 +396,17 @@ const FrameFeatures& FeatureEstimator::Update(const std::vector<TagObservation>&
     };
     // Steps well above the projection's convergence (~1e-14) and far inside its nonlinearity (~1 rad, ~0.1 m).
     g_ext = NumericJacobian<Eigen::Dynamic>(distances_at, 1e-5, 1e-6);
+  }
+  if (f.robot.valid && extrinsics_uncertain) {
+    // The robot's world position moves with wMc too: through the contact refinement where it ran (it turns the
+    // table's tilt into a shift along the table), else rigidly with the camera.
+    const Eigen::Matrix<double, 2, 6> gp =
+        contact_options_.enabled && f.contact.ok
+            ? Eigen::Matrix<double, 2, 6>(g_ext.bottomRows<2>())
+            : Eigen::Matrix<double, 2, 6>(extrinsics_jacobian(f.robot_pose.wMo.translation()).block<2, 6>(3, 0));
+    f.robot.covariance += gp * noise_.extrinsics_covariance * gp.transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(f.robot.covariance);
+    f.robot.position_stddev = std::sqrt(std::max(0.0, es.eigenvalues().maxCoeff()));
   }
 
   // Pairs: signed distance, its uncertainty (first order in both tag poses and the extrinsics), hysteresis.
