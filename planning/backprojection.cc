@@ -1201,13 +1201,18 @@ Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
     (CGAL::sign(r.area2) == CGAL::POSITIVE ? outers : holes).push_back(&r);
   }
   region.area = CGAL::to_double(total / (2 * rot_.Scale2()));
+  std::map<int, const Source*> static_lines;  // a static edge's name -> the segment it comes from (RegionEdge::line)
+  for (const Source& src : sources_) static_lines.emplace(src.name, &src);
   auto convert = [&](const ExactRing& r) {
     RegionRing out;
     for (size_t i = 0; i < r.vertices.size(); ++i) {
       out.vertices.push_back(rot_.InvertExact(r.vertices[i]) + Vector2d::Zero());  // + 0: no negative zeros
-      RegionEdge edge{r.edges[i].first, names_[r.edges[i].second], Vector2d::Zero()};
+      RegionEdge edge{r.edges[i].first, names_[r.edges[i].second], Vector2d::Zero(), {}};
       if (const auto it = free_sources_.find(r.edges[i].second); it != free_sources_.end()) {
         edge.source = rot_.InvertExact(it->second) + Vector2d::Zero();
+      } else if (const auto st = static_lines.find(r.edges[i].second); st != static_lines.end()) {
+        edge.line = {rot_.InvertExact(st->second->a) + Vector2d::Zero(),
+                     rot_.InvertExact(st->second->b) + Vector2d::Zero()};
       }
       out.edges.push_back(std::move(edge));
     }

@@ -72,6 +72,9 @@ struct RegionEdge {
   /// on the line through it of direction θ + π ± ε_v for every θ of its slice's interval, which is how a slice's
   /// region is carried to another θ without a sweep (nondirectional.h, RegionAtTheta). Zero for the other kinds.
   Eigen::Vector2d source{0.0, 0.0};
+  /// Any other edge: the static segment it lies on (a C-obstacle, goal or bounds edge, a CVC ray's free segment; world
+  /// frame), whose line does not move with θ. Both zero for a free edge.
+  std::array<Eigen::Vector2d, 2> line{Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
 };
 
 /// A closed ring: edge i runs from vertices[i] to vertices[i + 1] (wrapping). Outer rings are counter-clockwise,

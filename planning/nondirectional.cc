@@ -562,7 +562,7 @@ const Slice& SliceAt(const NondirectionalBackprojection& nd, double theta) {
 namespace {
 
 // The line an edge of a ring lies on at θ: a free edge's through its source, direction θ + π ± ε_v by its ref's
-// suffix; any other edge's through its two vertices (it does not move).
+// suffix; any other edge's is the line of the static segment it lies on (it does not move).
 struct EdgeLine {
   Vector2d point, dir;
   bool free = false;
@@ -575,6 +575,9 @@ EdgeLine LineOf(const RegionRing& ring, size_t i, double theta, double eps) {
     const double angle = theta + M_PI + (plus ? eps : -eps);
     return {e.source, Vector2d(std::cos(angle), std::sin(angle)), true};
   }
+  // The static segment it lies on as the sweep recorded it (exact up to one rounding), else its own two ends (less
+  // precise when the edge is short).
+  if (e.line[0] != e.line[1]) return {e.line[0], e.line[1] - e.line[0], false};
   const Vector2d& a = ring.vertices[i];
   const Vector2d& b = ring.vertices[(i + 1) % ring.vertices.size()];
   return {a, b - a, false};
