@@ -70,7 +70,7 @@ struct RegionEdge {
   std::string ref;
   /// A free edge's source: the static point it is erected at (world frame, exact up to one rounding). The edge lies
   /// on the line through it of direction θ + π ± ε_v for every θ of its slice's interval, which is how a slice's
-  /// region is carried to another θ without a sweep (nondirectional.h, RegionAtTheta). Zero for the other kinds.
+  /// region is carried to another θ without a sweep (nondirectional.h, CarryRegion). Zero for the other kinds.
   Eigen::Vector2d source{0.0, 0.0};
   /// Any other edge: the static segment it lies on (a C-obstacle, goal or bounds edge, a CVC ray's free segment; world
   /// frame), whose line does not move with θ. Both zero for a free edge.

@@ -109,8 +109,8 @@ const Slice& SliceAt(const NondirectionalBackprojection& nd, double theta);
 /// other edges stay on their lines, and each vertex is recomputed as the meeting point of its two edges' lines (a
 /// vertex between two non-free edges stays). Between two consecutive critical orientations the structure does not
 /// change, so for θ₀ and θ inside one open slice's interval this is the region a sweep at `theta` gives, up to
-/// rounding (`NondirectionalProperty.ACarriedRegionIsTheSweptOne` checks it); across a critical orientation it is
-/// not. The area is recomputed from the new vertices (in double precision).
+/// rounding (`NondirectionalProperty.StructureIsConstantBetweenOrientations*` check it); across a critical orientation
+/// it is not. The area is recomputed from the new vertices (in double precision).
 Region CarryRegion(const Region& region, double theta, double velocity_cone);
 
 /// B_θ(G) (`vc` false) or B_vcθ(G) with the slice's active rays at any θ: the critical slice's region at a critical
@@ -124,16 +124,16 @@ struct ThetaInterval {
   double best_theta = 0.0;  ///< where that margin was found
 };
 
-/// Every θ-interval for which the closed polygon R lies inside B_vcθ(G) (`vc`) or B_θ(G): the slices' boundaries and
-/// R's own R-critical orientations cut the circle into intervals on which containment does not change; each is
-/// decided at its midpoint with the slice's active rays: by the slice's region carried there (RegionAt) where R is
-/// clearly inside or outside (1e-6 of the scene's size from every edge that moves), else by a sweep. Endpoints are
-/// exact up to the orientations' rounding.
 struct IntervalQueryStats {
   int pieces = 0;   ///< intervals decided (each at its midpoint)
   int carried = 0;  ///< of which by the slice's region carried there (RegionAt), without a sweep
 };
 
+/// Every θ-interval for which the closed polygon R lies inside B_vcθ(G) (`vc`) or B_θ(G): the slices' boundaries and
+/// R's own R-critical orientations cut the circle into intervals on which containment does not change; each is
+/// decided at its midpoint with the slice's active rays: by the slice's region carried there (RegionAt) where R is
+/// clearly inside or outside (1e-6 of the scene's size from every edge that moves), else by a sweep. Endpoints are
+/// exact up to the orientations' rounding.
 std::vector<ThetaInterval> IntervalsContaining(const NondirectionalBackprojection& nd,
                                                const BackprojectionProblem& problem, const NamedPolygon& region,
                                                bool vc, IntervalQueryStats* stats = nullptr);
