@@ -15,6 +15,7 @@
 #include "common/motion_model.h"
 #include "planning/backprojection.h"
 #include "planning/cspace.h"
+#include "tests/planning/seed_offset.h"
 
 namespace visco::planning {
 
@@ -128,7 +129,7 @@ inline CvcRayInput RandomRay(const BackprojectionProblem& pr, SceneRng& r, std::
 }
 
 inline BackprojectionProblem RandomScene(std::uint64_t seed, bool with_rays = false) {
-  SceneRng r(seed * 0x9E3779B97F4A7C15ULL + 17);
+  SceneRng r((seed + testing::SeedOffset()) * 0x9E3779B97F4A7C15ULL + 17);
   BackprojectionProblem pr;
   pr.bounds_min = {0, 0};
   pr.bounds_max = {10, 10};

@@ -5,12 +5,14 @@
 // happen often.
 
 #include <cmath>
+#include <cstdint>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "planning/cspace.h"
 #include "planning/scene.h"
+#include "tests/planning/seed_offset.h"
 
 namespace visco::planning::testing {
 
@@ -47,6 +49,7 @@ inline Polygon StarPolygon(std::mt19937_64& rng, const Point& c, double r, int m
 }
 
 inline Scene RandomScene(std::uint64_t seed, const RandomSceneOptions& o = {}) {
+  seed += SeedOffset();
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> unit(0, 1);
   Scene s;
@@ -125,9 +128,11 @@ inline bool RandomWholeScene(std::uint64_t seed, Scene& s, double& theta, int ce
   o.cells_x = cells_x;
   o.cells_y = cells_y;
   o.fill = 0.45;
+  const std::uint64_t raw_seed = seed;
+  seed += SeedOffset();  // testing::RandomScene shifts its own
   o.lattice = seed % 3 == 0 ? 0.0 : 0.5;
   o.overlap = seed % 4 == 0 ? 0.4 : 0.0;
-  s = testing::RandomScene(seed, o);
+  s = testing::RandomScene(raw_seed, o);
   std::mt19937_64 rng(seed * 7919 + 1);
   std::uniform_real_distribution<double> unit(0, 1);
   const CSpace probe(s);
