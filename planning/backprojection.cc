@@ -183,6 +183,13 @@ bool ClockwiseBefore(const V2& r, const V2& d1, const V2& d2) {
 
 Vector2d ToD(const V2& v) { return {CGAL::to_double(v.x()), CGAL::to_double(v.y())}; }
 
+double PointSegmentDistance(const Vector2d& p, const Vector2d& a, const Vector2d& b) {
+  const Vector2d d = b - a;
+  const double len2 = d.squaredNorm();
+  const double t = len2 > 0 ? std::clamp((p - a).dot(d) / len2, 0.0, 1.0) : 0.0;
+  return (a + t * d - p).norm();
+}
+
 double SignedAreaD(const std::vector<Vector2d>& poly) {
   double a = 0.0;
   for (size_t i = 0; i < poly.size(); ++i) {
@@ -437,6 +444,34 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
   // Active rays, clipped to the bounds exactly in the sweep frame (their rounded ends may lie a hair outside). An
   // end that is open (clipped here or by the C-space cut, or the camera end) fails when complied to: docs/semantics.md,
   // "the bounds are no end of a ray". Compliance runs down a reliable ray, so only lower ends matter.
+  // A closed end lies on CB, but as a rounded point it can lie a few ulps beside the C-obstacle edge it ends on:
+  // outside, a motion sliding down that edge would pass it by, where the real ray stops it. It is moved exactly onto
+  // the edge (onto the edge's vertex when that close to one, else where the ray's line meets the edge's line).
+  const double snap = 1e-9 * (pr.bounds_max - pr.bounds_min).norm();
+  auto onto_cb = [&](const Vector2d& end, const P2& exact_end, const P2& other) -> P2 {
+    double best = snap;
+    const Vector2d* a = nullptr;
+    const Vector2d* b = nullptr;
+    for (const auto& poly : pr.obstacles) {
+      const size_t n = poly.vertices.size();
+      for (size_t k = 0; k < n; ++k) {
+        const Vector2d& wa = poly.vertices[k];
+        const Vector2d& wb = poly.vertices[(k + 1) % n];
+        const double d = PointSegmentDistance(end, wa, wb);
+        if (d <= best && wa != wb) best = d, a = &wa, b = &wb;
+      }
+    }
+    if (a == nullptr) return exact_end;
+    if ((end - *a).norm() <= snap) return to_exact(*a);
+    if ((end - *b).norm() <= snap) return to_exact(*b);
+    const P2& ea = to_exact(*a);
+    const V2 edge = to_exact(*b) - ea, ray = exact_end - other;
+    const FT denom = ray.x() * edge.y() - ray.y() * edge.x();
+    if (CGAL::is_zero(denom)) return exact_end;  // along the edge: nothing to meet
+    const V2 w = ea - other;
+    const P2 meet = other + ray * ((w.x() * edge.y() - w.y() * edge.x()) / denom);
+    return ToD(meet - exact_end).norm() <= snap ? meet : exact_end;
+  };
   for (int r : active_rays) {
     const CvcRayInput& ray = pr.rays.at(r);
     for (size_t k = 0; k < ray.segments.size(); ++k) {
@@ -445,6 +480,10 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       P2 ends[2] = {to_exact(seg[0]), to_exact(seg[1])};
       bool open[2] = {false, false};
       if (k < ray.open_ends.size()) open[0] = ray.open_ends[k][0], open[1] = ray.open_ends[k][1];
+      const P2 unsnapped[2] = {ends[0], ends[1]};
+      for (int e = 0; e < 2; ++e) {
+        if (!open[e]) ends[e] = onto_cb(seg[e], unsnapped[e], unsnapped[1 - e]);
+      }
       if (!ClipToBounds(ends, open)) continue;
       if (ends[0] == ends[1]) continue;
       Source s;
@@ -954,12 +993,21 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
   std::vector<std::vector<NewCurve>> per_sector(k + 1);
   std::vector<Label> sector_low(k + 1), sector_high(k + 1);
   // Where complying down the upper ray `u` from p leads: p's status, unless u ends here on CB and the servo's tracking
-  // error can make the motion meet CB beside p somewhere bad.
+  // error can make the motion meet CB beside p somewhere bad. u ends on CB at its registered lower end, or where the
+  // overlay stops it at a C-obstacle edge: a rounded end a few ulps inside CB leaves the piece beyond the edge in CB,
+  // and the overlay drops it, so the ray really ends where it enters CB.
   auto ray_status = [&](const StaticCurve& u) -> Label {
     const Label at_p = point_status();
-    if (!IsGood(at_p) || closed_end == closed_lower_ends_.end()) return at_p;
-    const auto& srcs = closed_end->second;
-    if (std::find(srcs.begin(), srcs.end(), u.src) == srcs.end()) return at_p;
+    if (!IsGood(at_p) || !(problem_.ray_tracking_error > 0.0)) return at_p;
+    const bool registered =
+        closed_end != closed_lower_ends_.end() &&
+        std::find(closed_end->second.begin(), closed_end->second.end(), u.src) != closed_end->second.end();
+    const bool continues = std::any_of(rays.begin(), rays.end(), [&](const LRay& r) {
+      return !r.upper && r.kind == EdgeKind::kVc && r.curve->src == u.src;
+    });
+    const bool on_cb =
+        std::any_of(rays.begin(), rays.end(), [](const LRay& r) { return r.kind == EdgeKind::kObstacle; });
+    if (!registered && (continues || !on_cb)) return at_p;
     return LandingIsGood(u, rays, uppers) ? at_p : Label::kBad;
   };
   auto side_status = [&](int upper_index, Label lower) -> bool {
