@@ -4,7 +4,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <set>
 #include <tuple>
+#include <utility>
 
 namespace visco::planning {
 namespace {
@@ -26,6 +28,13 @@ struct Pt {
 };
 
 double Cross(const Vector2d& u, const Vector2d& v) { return u.x() * v.y() - u.y() * v.x(); }
+
+double SegmentDistance(const Vector2d& p, const Vector2d& a, const Vector2d& b) {
+  const Vector2d d = b - a;
+  const double len2 = d.squaredNorm();
+  const double t = len2 > 0 ? std::clamp((p - a).dot(d) / len2, 0.0, 1.0) : 0.0;
+  return (a + t * d - p).norm();
+}
 
 // A ring's refs, filled in where the polygon has none.
 std::string VertexRef(const NamedPolygon& poly, size_t k, const std::string& prefix) {
@@ -329,12 +338,22 @@ class Generator {
     VisibilityEvents();
     FreeVertexEvents();
     for (auto& c : out_) c.theta = WrapAngle(c.theta);
-    std::sort(out_.begin(), out_.end(), [](const CriticalOrientation& x, const CriticalOrientation& y) {
-      return std::tie(x.theta, x.kind, x.refs) < std::tie(y.theta, y.kind, y.refs);
+    // Sources break ties (an edge's two ends are both candidates at one orientation), so both searches give one order.
+    auto coordinates = [](const CriticalOrientation& c) {
+      std::vector<std::pair<double, double>> v;
+      for (const auto& p : c.sources) v.emplace_back(p.x(), p.y());
+      return v;
+    };
+    std::sort(out_.begin(), out_.end(), [&](const CriticalOrientation& x, const CriticalOrientation& y) {
+      if (std::tie(x.theta, x.kind, x.refs) != std::tie(y.theta, y.kind, y.refs)) {
+        return std::tie(x.theta, x.kind, x.refs) < std::tie(y.theta, y.kind, y.refs);
+      }
+      return coordinates(x) < coordinates(y);
     });
     out_.erase(std::unique(out_.begin(), out_.end(),
                            [](const CriticalOrientation& x, const CriticalOrientation& y) {
-                             return x.theta == y.theta && x.kind == y.kind && x.refs == y.refs;
+                             return x.theta == y.theta && x.kind == y.kind && x.refs == y.refs &&
+                                    x.sources == y.sources;
                            }),
                out_.end());
     if (counts) {
@@ -508,9 +527,32 @@ class Generator {
     }
   }
 
+  // Pairs of points (i < j) that lie on one static segment (a C-obstacle, goal or bounds edge): where a free edge runs
+  // along the segment, the free edges of that sign of *both* points are parallel to it, and either can change the
+  // structure (the one of the point the other's free edge passes through swings across the segment's line there).
+  std::set<std::pair<size_t, size_t>> PairsAlongStaticSegments() const {
+    std::set<std::pair<size_t, size_t>> pairs;
+    const double tol = 1e-9 * (pr_.bounds_max - pr_.bounds_min).norm();
+    // points_ is sorted by x (Collect).
+    auto by_x = [](const Pt& p, double x) { return p.p.x() < x; };
+    for (const auto& sg : segs_) {
+      if (sg.kind == SegKind::kRay || sg.kind == SegKind::kStart) continue;  // vc and R events cover those
+      const double x0 = std::min(sg.a.x(), sg.b.x()) - tol, x1 = std::max(sg.a.x(), sg.b.x()) + tol;
+      std::vector<size_t> on;
+      for (auto it = std::lower_bound(points_.begin(), points_.end(), x0, by_x); it != points_.end() && it->p.x() <= x1;
+           ++it) {
+        if (SegmentDistance(it->p, sg.a, sg.b) <= tol) on.push_back(static_cast<size_t>(it - points_.begin()));
+      }
+      for (size_t u = 0; u < on.size(); ++u)
+        for (size_t v = u + 1; v < on.size(); ++v) pairs.insert({std::min(on[u], on[v]), std::max(on[u], on[v])});
+    }
+    return pairs;
+  }
+
   // A free edge from one point through another point it sees.
   void VisibilityEvents() {
     const size_t n = points_.size();
+    const auto along_static = PairsAlongStaticSegments();
     for (size_t i = 0; i < n; ++i) {
       for (size_t j = i + 1; j < n; ++j) {
         const Vector2d d = points_[j].p - points_[i].p;
@@ -522,10 +564,15 @@ class Generator {
         if (r_only_ && kind != CriticalKind::kR) continue;
         // Along β the free edge runs from b (its direction θ + π ± ε_v is β + π); along β + π from a. At
         // θ = β + se·ε_v (+π) that is the free edge of sign −se.
+        const bool along = along_static.count({i, j}) != 0;
         for (double se : {-1.0, 1.0}) {
           const std::int8_t sign = se > 0 ? -1 : 1;
           Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p}, {sign});
           Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p}, {sign});
+          if (along) {  // the other end's free edge of the same sign, parallel to the segment beyond that end
+            Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p}, {sign});
+            Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p}, {sign});
+          }
         }
       }
     }

@@ -242,7 +242,9 @@ TEST(VcRaysProperty, CvcPartsAreExactlyTheFreeParts) {
       double t_prev = 0;
       for (const Segment& seg : c.segments) {
         const Point mid = 0.5 * (seg.source + seg.target);
-        EXPECT_NE(cspace.Locate(mid), Location::kInside) << c.id << " seed " << seed;
+        EXPECT_NE(cspace.Locate(mid), Location::kInside)
+            << c.id << " seed " << seed << ": part (" << seg.source.x() << ", " << seg.source.y() << ")-("
+            << seg.target.x() << ", " << seg.target.y() << "), length " << (seg.target - seg.source).norm();
         EXPECT_TRUE(s.bounds.Contains(mid));
         const double t0 = (seg.source - a).dot(d) / len2, t1 = (seg.target - a).dot(d) / len2;
         EXPECT_LT(t0, t1);
