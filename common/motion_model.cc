@@ -494,7 +494,8 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
 
 // A motion complying down an active ray to its end q on CB, run `ray_landing_offset` beside the line: it meets CB
 // where the parallel line first enters a C-obstacle near q (searched from up to 100 offsets back along the ray, from a
-// free start), and goes on from there under the contact rules.
+// free start; an edge that q does not lie on counts only beside the part of the ray this step ran along, not before
+// the robot reached the ray), and goes on from there under the contact rules.
 StepResult MotionModel::LandBesideRayEnd(MotionState& state, MotionState ns, const Vector2d& v, const Vector2d& q,
                                          const Vector2d& m, const Vector2d& other_end, double time) const {
   StepResult result;
@@ -519,12 +520,15 @@ StepResult MotionModel::LandBesideRayEnd(MotionState& state, MotionState ns, con
   }
   double best = std::numeric_limits<double>::infinity();
   EdgeId hit_edge;
+  const double began = (q - ns.position).dot(m);  // how far before q this step of compliance began
   for (size_t k = 0; k < world_.obstacles.size(); ++k) {
     const auto& poly = world_.obstacles[k];
     for (size_t j = 0; j < poly.size(); ++j) {
       const EdgeId e{static_cast<int>(k), static_cast<int>(j)};
       if (!(m.dot(OutwardNormal(e)) < 0.0)) continue;
       const double t = PathSegment(s0, m, poly[j], poly[(j + 1) % poly.size()], tol_);
+      // Beside the ray before the robot reached it, and not one of the edges q lies on (where it lands): never met.
+      if (t < back - began - tol_ && DistanceToSegment(q, poly[j], poly[(j + 1) % poly.size()]) > tol_) continue;
       if (t >= 0.0 && t < best) best = t, hit_edge = e;
     }
   }

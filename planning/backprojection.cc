@@ -486,6 +486,46 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       }
       if (!ClipToBounds(ends, open)) continue;
       if (ends[0] == ends[1]) continue;
+      int lower = CGAL::compare_yx(ends[0], ends[1]) == CGAL::SMALLER ? 0 : 1;
+      // The servo runs up to δ beside the line all along, so a C-obstacle corner within δ of the line can stop a motion
+      // complying past it: the part of the ray before the last such corner counts as ending there, open (complying
+      // into it fails). The corners of the edges the ray's ends lie on are the start's and the landing's (above).
+      if (pr.ray_tracking_error > 0.0) {
+        const Vector2d up = rot_.InvertExact(ends[1 - lower]), down = rot_.InvertExact(ends[lower]);
+        const Vector2d d = down - up;
+        const Vector2d n = Vector2d(-d.y(), d.x()).normalized();
+        double cut = 0.0;
+        for (const auto& poly : pr.obstacles) {
+          const size_t nv = poly.vertices.size();
+          for (size_t i = 0; i < nv; ++i) {
+            const Vector2d& v = poly.vertices[i];
+            const double t = (v - up).dot(d) / d.squaredNorm();
+            if (!(t > cut && t < 1.0) || std::abs((v - up).dot(n)) > pr.ray_tracking_error) continue;
+            const Vector2d& prev = poly.vertices[(i + nv - 1) % nv];
+            const Vector2d& next = poly.vertices[(i + 1) % nv];
+            bool at_an_end = false;
+            for (const Vector2d& end : {up, down}) {
+              at_an_end =
+                  at_an_end || PointSegmentDistance(end, prev, v) <= snap || PointSegmentDistance(end, v, next) <= snap;
+            }
+            if (!at_an_end) cut = t;
+          }
+        }
+        if (cut > 0.0) {
+          const P2 corner = ends[1 - lower] + (ends[lower] - ends[1 - lower]) * FT(cut);
+          Source part;
+          part.a = ends[1 - lower];
+          part.b = corner;
+          part.kind = EdgeKind::kVc;
+          part.name = AddName(ray.id);
+          part.ray = r;
+          sources_.push_back(part);
+          open_lower_ends_.insert(corner);
+          ends[1 - lower] = corner;
+          open[1 - lower] = false;
+          lower = CGAL::compare_yx(ends[0], ends[1]) == CGAL::SMALLER ? 0 : 1;
+        }
+      }
       Source s;
       s.a = ends[0];
       s.b = ends[1];
@@ -493,7 +533,6 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       s.name = AddName(ray.id);
       s.ray = r;
       sources_.push_back(s);
-      const int lower = CGAL::compare_yx(ends[0], ends[1]) == CGAL::SMALLER ? 0 : 1;
       if (open[lower]) {
         open_lower_ends_.insert(ends[lower]);
       } else if (pr.ray_tracking_error > 0.0) {
