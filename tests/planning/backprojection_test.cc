@@ -242,6 +242,25 @@ TEST(VcBackprojection, RayThatFansOutEnlargesTheRegion) {
   }
 }
 
+// Every point of a half-metre grid inside `region` reaches the goal in the motion model with `active` as walls, the
+// servo running each of `offsets` beside the line where compliance ends on CB.
+void ExpectSoundOnAGrid(const BackprojectionProblem& pr, const std::vector<std::string>& active, const Region& region,
+                        const std::vector<double>& offsets) {
+  for (const double offset : offsets) {
+    MotionWorld w = ToMotionWorld(pr, active);
+    w.ray_landing_offset = offset;
+    const MotionModel m(std::move(w));
+    for (double x = 0.25; x < 10; x += 0.5) {
+      for (double y = 1.25; y < 10; y += 0.5) {
+        const Vector2d p(x, y);
+        if (!region.Contains(p) || region.BoundaryDistance(p) < 1e-6 || m.InObstacleInterior(p)) continue;
+        EXPECT_EQ(SimulateAdversarially(m, p, pr.theta, pr.velocity_cone).outcome, Outcome::kReachedGoal)
+            << "offset " << offset << ": (" << x << ", " << y << ")";
+      }
+    }
+  }
+}
+
 // A CVC ray's end is a rounded point: it can lie a few ulps inside the C-obstacle it ends on. The sweep's overlay then
 // stops the ray where it really enters CB (the piece beyond lies in CB and is dropped), and that point, not the
 // rounded end, is where a motion complying down the ray lands: with a tracking error δ the landing check must run
@@ -276,19 +295,8 @@ TEST(VcBackprojection, ARayEndRoundedIntoCBLandsWhereTheRayEntersCB) {
     EXPECT_NEAR(region.area, reference.area, 1e-9) << "end (" << end.x() << ", " << end.y() << ")";
     EXPECT_FALSE(region.Contains({5.5, 6}));
     // Whatever the region holds survives the motion model, the servo running δ to either side of the line.
-    for (const double offset : {-0.1, 0.1}) {
-      MotionWorld w = ToMotionWorld(pr, active);
-      w.ray_landing_offset = offset;
-      const MotionModel m(std::move(w));
-      for (double x = 0.25; x < 10; x += 0.5) {
-        for (double y = 1.25; y < 10; y += 0.5) {
-          const Vector2d p(x, y);
-          if (!region.Contains(p) || region.BoundaryDistance(p) < 1e-6 || m.InObstacleInterior(p)) continue;
-          EXPECT_EQ(SimulateAdversarially(m, p, pr.theta, pr.velocity_cone).outcome, Outcome::kReachedGoal)
-              << "end y " << end.y() << ", offset " << offset << ": (" << x << ", " << y << ")";
-        }
-      }
-    }
+    SCOPED_TRACE("end y " + std::to_string(end.y()));
+    ExpectSoundOnAGrid(pr, active, region, {-0.1, 0.1});
   }
 }
 
@@ -348,19 +356,7 @@ TEST(VcBackprojection, ACornerWithinTheTrackingErrorOfARayCutsIt) {
   const Region region = BackprojectionWithActiveRays(pr, active);
   EXPECT_FALSE(region.Contains(above));
   EXPECT_TRUE(region.Contains(below));
-  for (const double offset : {-0.1, 0.0, 0.1}) {
-    MotionWorld w = ToMotionWorld(pr, active);
-    w.ray_landing_offset = offset;
-    const MotionModel m(std::move(w));
-    for (double x = 0.25; x < 10; x += 0.5) {
-      for (double y = 1.25; y < 10; y += 0.5) {
-        const Vector2d p(x, y);
-        if (!region.Contains(p) || region.BoundaryDistance(p) < 1e-6 || m.InObstacleInterior(p)) continue;
-        EXPECT_EQ(SimulateAdversarially(m, p, pr.theta, pr.velocity_cone).outcome, Outcome::kReachedGoal)
-            << "offset " << offset << ": (" << x << ", " << y << ")";
-      }
-    }
-  }
+  ExpectSoundOnAGrid(pr, active, region, {-0.1, 0.0, 0.1});
 }
 
 TEST(VcBackprojection, HarmfulAndUselessRaysAreNotActivated) {
