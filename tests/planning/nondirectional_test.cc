@@ -203,6 +203,10 @@ void CheckStructure(const std::string& name, const BackprojectionProblem& pr, co
     ++t.changes;
     if (mid[prev] == mid[k]) {
       ++t.not_changing;
+      std::string refs;
+      for (const auto& r : o[k].refs) refs += " " + r;
+      ADD_FAILURE() << name << ": nothing changes across the " << CriticalKindName(o[k].kind) << " orientation "
+                    << o[k].theta * 180 / M_PI << "°" << refs;
     } else {
       t.kinds_changing.insert(CriticalKindName(o[k].kind));
       const int size = EditSize(mid[prev], mid[k]);
