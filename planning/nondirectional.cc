@@ -171,6 +171,37 @@ class Builder {
       const Slice& before = intervals[b];
       const Slice& after = intervals[a];
       if (before.structure == after.structure) continue;
+      // The chosen rays can switch between two events (the choice compares areas; no event bounds it): the walk's
+      // slices on the two sides of event k then differ although nothing happens at k. Where the rays differ, look just
+      // beside k; if nothing changes there, bisect the gap for the switch and report it as a `selection` orientation.
+      if (before.structure.active_rays != after.structure.active_rays) {
+        const double at = EventTheta(k);
+        const double gap = std::min(at - EventTheta((k + m - 1) % m) + (k == 0 ? 2 * M_PI : 0.0),
+                                    EventTheta((k + 1) % m) - at + (k + 1 == m ? 2 * M_PI : 0.0));
+        const double dt = std::min(1e-9, 0.25 * gap);
+        const SliceStructure left = Evaluate(WrapAngle(at - dt)).structure;
+        const SliceStructure right = Evaluate(WrapAngle(at + dt)).structure;
+        if (dt > 0 && left == right) {
+          // The switch is after k (towards the gap's midpoint, where `after` was swept) or before it.
+          double x = at + dt, y = Unwrap(after.theta, at);
+          SliceStructure sx = right;
+          if (right == after.structure) x = Unwrap(before.theta, at - 2 * M_PI), y = at - dt, sx = before.structure;
+          const double theta = BisectSwitch(x, y, sx);
+          const SliceStructure sy = Evaluate(WrapAngle(theta + 1e-12)).structure;
+          if (sy.active_rays == sx.active_rays) {  // not the rays after all: report it at event k as before
+            changes.push_back(EventTheta(k));
+            change_candidate.push_back(PickCandidate(k, before, after));
+            continue;
+          }
+          changes.push_back(theta);
+          change_candidate.push_back(-1);
+          std::vector<std::string> refs;
+          std::set_symmetric_difference(sx.active_rays.begin(), sx.active_rays.end(), sy.active_rays.begin(),
+                                        sy.active_rays.end(), std::back_inserter(refs));
+          selection_refs_[theta] = refs;
+          continue;
+        }
+      }
       changes.push_back(EventTheta(k));
       change_candidate.push_back(PickCandidate(k, before, after));
     }
@@ -422,6 +453,26 @@ class Builder {
       }
     }
     return static_cast<int>(events_[k].begin);
+  }
+
+  // θ (radians) moved by whole turns to the first value not below `from`.
+  static double Unwrap(double theta, double from) {
+    while (theta < from) theta += 2 * M_PI;
+    while (theta - 2 * M_PI >= from) theta -= 2 * M_PI;
+    return theta;
+  }
+
+  // Where between x (structure sx) and y > x the structure first differs from sx, to 1e-12 rad (wrapped).
+  double BisectSwitch(double x, double y, const SliceStructure& sx) {
+    for (int it = 0; it < 60 && y - x > 1e-12; ++it) {
+      const double mid = 0.5 * (x + y);
+      if (Evaluate(WrapAngle(mid)).structure == sx) {
+        x = mid;
+      } else {
+        y = mid;
+      }
+    }
+    return WrapAngle(0.5 * (x + y));
   }
 
   // The candidate within `tolerance` of θ, or −1.
