@@ -183,13 +183,6 @@ bool ClockwiseBefore(const V2& r, const V2& d1, const V2& d2) {
 
 Vector2d ToD(const V2& v) { return {CGAL::to_double(v.x()), CGAL::to_double(v.y())}; }
 
-double PointSegmentDistance(const Vector2d& p, const Vector2d& a, const Vector2d& b) {
-  const Vector2d d = b - a;
-  const double len2 = d.squaredNorm();
-  const double t = len2 > 0 ? std::clamp((p - a).dot(d) / len2, 0.0, 1.0) : 0.0;
-  return (a + t * d - p).norm();
-}
-
 double SignedAreaD(const std::vector<Vector2d>& poly) {
   double a = 0.0;
   for (size_t i = 0; i < poly.size(); ++i) {
@@ -486,7 +479,7 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       }
       if (!ClipToBounds(ends, open)) continue;
       if (ends[0] == ends[1]) continue;
-      int lower = CGAL::compare_yx(ends[0], ends[1]) == CGAL::SMALLER ? 0 : 1;
+      const int lower = CGAL::compare_yx(ends[0], ends[1]) == CGAL::SMALLER ? 0 : 1;
       // The servo runs up to δ beside the line all along, so a C-obstacle corner within δ of the line can stop a motion
       // complying past it: the part of the ray before the last such corner counts as ending there, open (complying
       // into it fails). The corners of the edges the ray's ends lie on are the start's and the landing's (above).
@@ -521,9 +514,7 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
           part.ray = r;
           sources_.push_back(part);
           open_lower_ends_.insert(corner);
-          ends[1 - lower] = corner;
-          open[1 - lower] = false;
-          lower = CGAL::compare_yx(ends[0], ends[1]) == CGAL::SMALLER ? 0 : 1;
+          ends[1 - lower] = corner;  // strictly between the ends: the lower end stays the lower one
         }
       }
       Source s;

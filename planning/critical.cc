@@ -8,6 +8,8 @@
 #include <tuple>
 #include <utility>
 
+#include "planning/geometry.h"
+
 namespace visco::planning {
 namespace {
 
@@ -28,13 +30,6 @@ struct Pt {
 };
 
 double Cross(const Vector2d& u, const Vector2d& v) { return u.x() * v.y() - u.y() * v.x(); }
-
-double SegmentDistance(const Vector2d& p, const Vector2d& a, const Vector2d& b) {
-  const Vector2d d = b - a;
-  const double len2 = d.squaredNorm();
-  const double t = len2 > 0 ? std::clamp((p - a).dot(d) / len2, 0.0, 1.0) : 0.0;
-  return (a + t * d - p).norm();
-}
 
 // A ring's refs, filled in where the polygon has none.
 std::string VertexRef(const NamedPolygon& poly, size_t k, const std::string& prefix) {
@@ -339,16 +334,12 @@ class Generator {
     FreeVertexEvents();
     for (auto& c : out_) c.theta = WrapAngle(c.theta);
     // Sources break ties (an edge's two ends are both candidates at one orientation), so both searches give one order.
-    auto coordinates = [](const CriticalOrientation& c) {
-      std::vector<std::pair<double, double>> v;
-      for (const auto& p : c.sources) v.emplace_back(p.x(), p.y());
-      return v;
-    };
-    std::sort(out_.begin(), out_.end(), [&](const CriticalOrientation& x, const CriticalOrientation& y) {
-      if (std::tie(x.theta, x.kind, x.refs) != std::tie(y.theta, y.kind, y.refs)) {
-        return std::tie(x.theta, x.kind, x.refs) < std::tie(y.theta, y.kind, y.refs);
-      }
-      return coordinates(x) < coordinates(y);
+    std::sort(out_.begin(), out_.end(), [](const CriticalOrientation& x, const CriticalOrientation& y) {
+      const auto kx = std::tie(x.theta, x.kind, x.refs), ky = std::tie(y.theta, y.kind, y.refs);
+      if (kx != ky) return kx < ky;
+      return std::lexicographical_compare(
+          x.sources.begin(), x.sources.end(), y.sources.begin(), y.sources.end(),
+          [](const Vector2d& a, const Vector2d& b) { return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y()); });
     });
     out_.erase(std::unique(out_.begin(), out_.end(),
                            [](const CriticalOrientation& x, const CriticalOrientation& y) {
@@ -541,10 +532,10 @@ class Generator {
       std::vector<size_t> on;
       for (auto it = std::lower_bound(points_.begin(), points_.end(), x0, by_x); it != points_.end() && it->p.x() <= x1;
            ++it) {
-        if (SegmentDistance(it->p, sg.a, sg.b) <= tol) on.push_back(static_cast<size_t>(it - points_.begin()));
+        if (PointSegmentDistance(it->p, sg.a, sg.b) <= tol) on.push_back(static_cast<size_t>(it - points_.begin()));
       }
-      for (size_t u = 0; u < on.size(); ++u)
-        for (size_t v = u + 1; v < on.size(); ++v) pairs.insert({std::min(on[u], on[v]), std::max(on[u], on[v])});
+      for (size_t u = 0; u < on.size(); ++u)  // `on` is ascending (points_ is walked in order)
+        for (size_t v = u + 1; v < on.size(); ++v) pairs.insert({on[u], on[v]});
     }
     return pairs;
   }

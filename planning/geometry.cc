@@ -84,6 +84,13 @@ bool SegmentsCrossProperly(const Segment& s, const Segment& t) {
   return o1 * o2 < 0 && o3 * o4 < 0;
 }
 
+double PointSegmentDistance(const Point& p, const Point& a, const Point& b) {
+  const Vector d = b - a;
+  const double len2 = d.squaredNorm();
+  const double t = len2 > 0 ? std::clamp((p - a).dot(d) / len2, 0.0, 1.0) : 0.0;
+  return (a + t * d - p).norm();
+}
+
 double SignedArea(const Polygon& polygon) {
   double area = 0;
   for (std::size_t i = 0; i < polygon.size(); ++i) {

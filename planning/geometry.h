@@ -63,6 +63,9 @@ int DotSign(const Point& a, const Point& b, const Point& c, const Point& d);
 /// Compares the distances |p - q| and |p - r|: -1 if q is closer to p, 0 if equal, +1 if r is closer. Exact.
 int CompareDistance(const Point& p, const Point& q, const Point& r);
 
+/// Euclidean distance from p to the closed segment ab (a point if a == b). Rounded, not a predicate: for tolerances.
+double PointSegmentDistance(const Point& p, const Point& a, const Point& b);
+
 /// Whether p lies on the closed segment s. Exact.
 bool OnSegment(const Segment& s, const Point& p);
 

@@ -7,7 +7,10 @@
 #include <limits>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <thread>
+
+#include "planning/geometry.h"
 
 namespace visco::planning {
 
@@ -61,21 +64,14 @@ std::string Join(const std::vector<std::string>& v) {
 
 double Cross(const Vector2d& u, const Vector2d& v) { return u.x() * v.y() - u.y() * v.x(); }
 
-double SegmentDistance(const Vector2d& p, const Vector2d& a, const Vector2d& b) {
-  const Vector2d d = b - a;
-  const double len2 = d.squaredNorm();
-  const double t = len2 > 0 ? std::clamp((p - a).dot(d) / len2, 0.0, 1.0) : 0.0;
-  return (a + t * d - p).norm();
-}
-
 double SegmentsDistance(const Vector2d& a, const Vector2d& b, const Vector2d& c, const Vector2d& d) {
   const double den = Cross(b - a, d - c);
   if (std::abs(den) > 0) {
     const double t = Cross(c - a, d - c) / den, u = Cross(c - a, b - a) / den;
     if (t >= 0 && t <= 1 && u >= 0 && u <= 1) return 0.0;
   }
-  return std::min(
-      {SegmentDistance(a, c, d), SegmentDistance(b, c, d), SegmentDistance(c, a, b), SegmentDistance(d, a, b)});
+  return std::min({PointSegmentDistance(a, c, d), PointSegmentDistance(b, c, d), PointSegmentDistance(c, a, b),
+                   PointSegmentDistance(d, a, b)});
 }
 
 template <typename F>
@@ -171,36 +167,9 @@ class Builder {
       const Slice& before = intervals[b];
       const Slice& after = intervals[a];
       if (before.structure == after.structure) continue;
-      // The chosen rays can switch between two events (the choice compares areas; no event bounds it): the walk's
-      // slices on the two sides of event k then differ although nothing happens at k. Where the rays differ, look just
-      // beside k; if nothing changes there, bisect the gap for the switch and report it as a `selection` orientation.
-      if (before.structure.active_rays != after.structure.active_rays) {
-        const double at = EventTheta(k);
-        const double gap = std::min(at - EventTheta((k + m - 1) % m) + (k == 0 ? 2 * M_PI : 0.0),
-                                    EventTheta((k + 1) % m) - at + (k + 1 == m ? 2 * M_PI : 0.0));
-        const double dt = std::min(1e-9, 0.25 * gap);
-        const SliceStructure left = Evaluate(WrapAngle(at - dt)).structure;
-        const SliceStructure right = Evaluate(WrapAngle(at + dt)).structure;
-        if (dt > 0 && left == right) {
-          // The switch is after k (towards the gap's midpoint, where `after` was swept) or before it.
-          double x = at + dt, y = Unwrap(after.theta, at);
-          SliceStructure sx = right;
-          if (right == after.structure) x = Unwrap(before.theta, at - 2 * M_PI), y = at - dt, sx = before.structure;
-          const double theta = BisectSwitch(x, y, sx);
-          const SliceStructure sy = Evaluate(WrapAngle(theta + 1e-12)).structure;
-          if (sy.active_rays == sx.active_rays) {  // not the rays after all: report it at event k as before
-            changes.push_back(EventTheta(k));
-            change_candidate.push_back(PickCandidate(k, before, after));
-            continue;
-          }
-          changes.push_back(theta);
-          change_candidate.push_back(-1);
-          std::vector<std::string> refs;
-          std::set_symmetric_difference(sx.active_rays.begin(), sx.active_rays.end(), sy.active_rays.begin(),
-                                        sy.active_rays.end(), std::back_inserter(refs));
-          selection_refs_[theta] = refs;
-          continue;
-        }
+      if (const auto rays = RaySwitchInGap(k, before, after)) {
+        AddSelection(*rays, changes, change_candidate);
+        continue;
       }
       changes.push_back(EventTheta(k));
       change_candidate.push_back(PickCandidate(k, before, after));
@@ -462,8 +431,14 @@ class Builder {
     return theta;
   }
 
-  // Where between x (structure sx) and y > x the structure first differs from sx, to 1e-12 rad (wrapped).
-  double BisectSwitch(double x, double y, const SliceStructure& sx) {
+  // A change located between two sweeps: where (θ, wrapped) and the structures on its two sides.
+  struct Switch {
+    double theta = 0.0;
+    SliceStructure before, after;
+  };
+
+  // Bisects x < y (radians, unwrapped; the structure is `sx` at x and differs at y) to 1e-12 rad for where it changes.
+  Switch Bisect(double x, double y, const SliceStructure& sx) {
     for (int it = 0; it < 60 && y - x > 1e-12; ++it) {
       const double mid = 0.5 * (x + y);
       if (Evaluate(WrapAngle(mid)).structure == sx) {
@@ -472,7 +447,37 @@ class Builder {
         y = mid;
       }
     }
-    return WrapAngle(0.5 * (x + y));
+    return {WrapAngle(0.5 * (x + y)), sx, Evaluate(WrapAngle(y)).structure};
+  }
+
+  // The chosen rays can switch between two events (the choice compares areas; no event bounds it): the walk's slices
+  // on the two sides of event k then differ although nothing happens at k. Where the rays differ and nothing changes
+  // just beside k, the gap is bisected for the switch (after k, towards the gap's midpoint where `after` was swept, or
+  // before it); a change there that is not the rays' stays with event k.
+  std::optional<Switch> RaySwitchInGap(size_t k, const Slice& before, const Slice& after) {
+    if (before.structure.active_rays == after.structure.active_rays) return std::nullopt;
+    const size_t m = events_.size();
+    const double at = EventTheta(k);
+    const double gap = std::min(at - EventTheta((k + m - 1) % m) + (k == 0 ? 2 * M_PI : 0.0),
+                                EventTheta((k + 1) % m) - at + (k + 1 == m ? 2 * M_PI : 0.0));
+    const double dt = std::min(1e-9, 0.25 * gap);
+    if (!(dt > 0)) return std::nullopt;
+    const SliceStructure right = Evaluate(WrapAngle(at + dt)).structure;
+    if (!(Evaluate(WrapAngle(at - dt)).structure == right)) return std::nullopt;
+    const Switch s = right == after.structure ? Bisect(Unwrap(before.theta, at - 2 * M_PI), at - dt, before.structure)
+                                              : Bisect(at + dt, Unwrap(after.theta, at), right);
+    if (s.before.active_rays == s.after.active_rays) return std::nullopt;
+    return s;
+  }
+
+  // Reports a switch of the chosen rays as a `selection` orientation, naming the rays that come or go.
+  void AddSelection(const Switch& s, std::vector<double>& changes, std::vector<int>& change_candidate) {
+    changes.push_back(s.theta);
+    change_candidate.push_back(-1);
+    std::vector<std::string> refs;
+    std::set_symmetric_difference(s.before.active_rays.begin(), s.before.active_rays.end(), s.after.active_rays.begin(),
+                                  s.after.active_rays.end(), std::back_inserter(refs));
+    selection_refs_[s.theta] = refs;
   }
 
   // The candidate within `tolerance` of θ, or −1.
@@ -516,29 +521,12 @@ class Builder {
         for (int a = 0; a < 2; ++a) {
           if (p.s[a].structure == p.s[a + 1].structure) continue;
           // Bisect between the two probes for where the structure changes.
-          double x = p.lo + fractions[a] * (p.hi - p.lo), y = p.lo + fractions[a + 1] * (p.hi - p.lo);
-          SliceStructure sx = p.s[a].structure;
-          for (int it = 0; it < 60 && y - x > 1e-12; ++it) {
-            const double mid = 0.5 * (x + y);
-            Slice s = Evaluate(WrapAngle(mid));
-            if (s.structure == sx) {
-              x = mid;
-            } else {
-              y = mid;
-            }
-          }
-          const Slice sy = Evaluate(WrapAngle(y));
-          const double theta = WrapAngle(0.5 * (x + y));
+          const Switch s =
+              Bisect(p.lo + fractions[a] * (p.hi - p.lo), p.lo + fractions[a + 1] * (p.hi - p.lo), p.s[a].structure);
+          const double theta = s.theta;
           const int c = NearestCandidate(theta, 1e-7);
-          const bool selection = sx.active_rays != sy.structure.active_rays;
-          if (selection) {
-            changes.push_back(theta);
-            change_candidate.push_back(-1);
-            std::vector<std::string> refs;
-            std::set_symmetric_difference(sx.active_rays.begin(), sx.active_rays.end(),
-                                          sy.structure.active_rays.begin(), sy.structure.active_rays.end(),
-                                          std::back_inserter(refs));
-            selection_refs_[theta] = refs;
+          if (s.before.active_rays != s.after.active_rays) {
+            AddSelection(s, changes, change_candidate);
           } else {
             changes.push_back(c >= 0 ? structural_[c].theta : theta);
             change_candidate.push_back(c >= 0 ? c : (structural_.empty() ? -1 : 0));
