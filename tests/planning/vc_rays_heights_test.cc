@@ -202,10 +202,34 @@ Seen Sample(const Scene& s, const Point& a, double margin) {
     if (inside < -1e-3) return Seen::kNo;
     if (inside < 1e-3) result = Seen::kUnsure;
   }
+  // Evenly spaced samples, and more between each two consecutive crossings of the line of sight with obstacle edges,
+  // denser towards the first: a chord through a sliver's tip can be shorter than the spacing (seed 19 at
+  // VISCO_SEED_OFFSET=210000: 0.5 mm), and a line of sight that enters a prism just below its top is under it only
+  // for a hair after the entry (seed 15 at 290000: 1.2 mm).
+  const Vector d = cam.center - a;
+  std::vector<double> crossings = {0.0, 1.0};
+  for (const Obstacle& o : s.obstacles) {
+    for (std::size_t e = 0; e < o.shape.polygon.size(); ++e) {
+      const Segment edge = o.shape.polygon.Edge(e);
+      const Vector f = edge.target - edge.source, w = edge.source - a;
+      const double denominator = d.x() * f.y() - d.y() * f.x();
+      if (denominator == 0) continue;
+      const double t = (w.x() * f.y() - w.y() * f.x()) / denominator, u = (w.x() * d.y() - w.y() * d.x()) / denominator;
+      if (t > 0 && t < 1 && u >= 0 && u <= 1) crossings.push_back(t);
+    }
+  }
+  std::sort(crossings.begin(), crossings.end());
   const int n = 3000;
-  for (int k = 1; k < n; ++k) {
-    const double t = static_cast<double>(k) / n;
-    const Point x = a + t * (cam.center - a);
+  std::vector<double> samples;
+  for (int k = 1; k < n; ++k) samples.push_back(static_cast<double>(k) / n);
+  samples.push_back(0.5 * crossings[1]);
+  for (std::size_t k = 1; k + 1 < crossings.size(); ++k) {  // (from the point itself, samples near it are unsure)
+    for (const double f : {1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 0.1, 0.5}) {
+      samples.push_back(crossings[k] + f * (crossings[k + 1] - crossings[k]));
+    }
+  }
+  for (const double t : samples) {
+    const Point x = a + t * d;
     const double z = t * H;
     for (const Obstacle& o : s.obstacles) {
       const double depth = Depth(o.shape.polygon, x);

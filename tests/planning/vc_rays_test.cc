@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <set>
+#include <sstream>
 #include <string>
 
 #include "planning/cspace.h"
@@ -222,6 +223,49 @@ TEST(VcRaysProperty, SweepEqualsReference) {
   EXPECT_GT(total_visible, 1000);
 }
 
+// Distance from q to the boundary of CB (the union of the C-obstacles), in doubles.
+double DistanceToBoundary(const CSpace& cspace, const Point& q) {
+  double dist = 1e300;
+  for (const PolygonWithHoles& part : cspace.obstacle_union()) {
+    std::vector<const Polygon*> rings = {&part.outer};
+    for (const Polygon& hole : part.holes) rings.push_back(&hole);
+    for (const Polygon* ring : rings) {
+      for (std::size_t e = 0; e < ring->size(); ++e) {
+        const Segment edge = ring->Edge(e);
+        dist = std::min(dist, PointSegmentDistance(q, edge.source, edge.target));
+      }
+    }
+  }
+  return dist;
+}
+
+// A gap between two parts of a CVC ray is cut: no point of it is free inside the bounds, and some point of it is
+// inside CB or outside the bounds (its midpoint alone can be a vertex of CB's boundary, in lattice scenes:
+// VISCO_SEED_OFFSET=5000, seed 118).
+bool GapIsCut(const Scene& s, const CSpace& cspace, const CvcRay& c, double t0, double t1) {
+  const Point a = c.full.source, b = c.full.target;
+  bool cut = false;
+  for (const double f : {0.25, 0.5, 0.75}) {
+    const Point q = a + (t0 + f * (t1 - t0)) * (b - a);
+    const bool out_of_bounds = !s.bounds.Contains(q);
+    const Location where = cspace.Locate(q);
+    if (where == Location::kOutside && !out_of_bounds) return false;
+    cut = cut || where == Location::kInside || out_of_bounds;
+  }
+  return cut;
+}
+
+std::string DescribeGap(const CSpace& cspace, const CvcRay& c, double t0, double t1) {
+  const Point a = c.full.source, b = c.full.target;
+  const Point p0 = a + t0 * (b - a), p1 = a + t1 * (b - a), mid = 0.5 * (p0 + p1);
+  std::ostringstream out;
+  out << "ray (" << a.x() << ", " << a.y() << ")-(" << b.x() << ", " << b.y() << "), " << c.segments.size()
+      << " parts; gap (" << p0.x() << ", " << p0.y() << ")-(" << p1.x() << ", " << p1.y() << "), its midpoint "
+      << (cspace.Locate(mid) == Location::kBoundary ? "on" : "outside") << " CB, " << DistanceToBoundary(cspace, mid)
+      << " from its boundary";
+  return out.str();
+}
+
 // Property: every CVC free part lies outside CB's interior and inside the bounds, the cut parts between them lie
 // inside CB (or outside the bounds), and parts begin and end on CB's boundary, the bounds or the ray's ends.
 TEST(VcRaysProperty, CvcPartsAreExactlyTheFreeParts) {
@@ -242,16 +286,22 @@ TEST(VcRaysProperty, CvcPartsAreExactlyTheFreeParts) {
       double t_prev = 0;
       for (const Segment& seg : c.segments) {
         const Point mid = 0.5 * (seg.source + seg.target);
-        EXPECT_NE(cspace.Locate(mid), Location::kInside)
-            << c.id << " seed " << seed << ": part (" << seg.source.x() << ", " << seg.source.y() << ")-("
-            << seg.target.x() << ", " << seg.target.y() << "), length " << (seg.target - seg.source).norm();
+        // A part may run along CB's boundary (a ray along a C-obstacle edge); its rounded points then fall a hair
+        // to either side of it (VISCO_SEED_OFFSET=210000, seed 10).
+        for (const double t : {0.25, 0.5, 0.75}) {
+          const Point q = seg.source + t * (seg.target - seg.source);
+          EXPECT_TRUE(cspace.Locate(q) != Location::kInside || DistanceToBoundary(cspace, q) < 1e-9)
+              << c.id << " seed " << seed << ": part (" << seg.source.x() << ", " << seg.source.y() << ")-("
+              << seg.target.x() << ", " << seg.target.y() << "), length " << (seg.target - seg.source).norm() << ", at "
+              << t << " inside CB, " << DistanceToBoundary(cspace, q) << " from its boundary";
+        }
         EXPECT_TRUE(s.bounds.Contains(mid));
         const double t0 = (seg.source - a).dot(d) / len2, t1 = (seg.target - a).dot(d) / len2;
         EXPECT_LT(t0, t1);
         EXPECT_GE(t0, t_prev - 1e-12);
         if (t0 - t_prev > 1e-6) {  // a gap: inside CB or outside the bounds
-          const Point gap = a + 0.5 * (t_prev + t0) * d;
-          EXPECT_TRUE(cspace.Locate(gap) == Location::kInside || !s.bounds.Contains(gap)) << c.id << " seed " << seed;
+          EXPECT_TRUE(GapIsCut(s, cspace, c, t_prev, t0))
+              << c.id << " seed " << seed << ": " << DescribeGap(cspace, c, t_prev, t0);
         }
         // Each end is on CB's boundary, on the bounds, or an end of the ray.
         for (const Point& e : {seg.source, seg.target}) {
@@ -284,8 +334,8 @@ TEST(VcRaysProperty, CvcPartsAreExactlyTheFreeParts) {
         ++checked;
       }
       if (1 - t_prev > 1e-6) {
-        const Point gap = a + 0.5 * (t_prev + 1) * d;
-        EXPECT_TRUE(cspace.Locate(gap) == Location::kInside || !s.bounds.Contains(gap)) << c.id << " seed " << seed;
+        EXPECT_TRUE(GapIsCut(s, cspace, c, t_prev, 1.0))
+            << c.id << " seed " << seed << ": " << DescribeGap(cspace, c, t_prev, 1.0);
       }
     }
     // Crossings: each point lies on both rays' parts.
