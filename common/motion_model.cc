@@ -350,7 +350,7 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
   const Vector2d p = ns.position;
   const double length = speed * max_time;
   double best = length;
-  enum class Hit { kNone, kGoal, kBounds, kObstacle, kEdgeEnd, kRayCross, kRayEnd } hit = Hit::kNone;
+  enum class Hit { kNone, kGoal, kBounds, kObstacle, kEdgeEnd, kRayCross, kRayEnd, kBesideRay } hit = Hit::kNone;
   EdgeId hit_edge;
   int hit_ray = -1;
 
@@ -415,6 +415,31 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
       hit_ray = ns.ray;
     }
   }
+  // Complying with the servo's tracking error, the robot runs `ray_landing_offset` beside the ray's line, so CB can
+  // reach it before the ray's end: a corner within that distance of the line, or an edge leaving one
+  // (docs/semantics.md, "Compliance ends"). Met where the parallel line enters CB ahead of the robot; the edges the
+  // ray's ends lie on are the start's and the landing's (LandBesideRayEnd).
+  Vector2d beside_start = p;
+  if (ns.mode == MotionMode::kOnRay && world_.ray_landing_offset != 0.0) {
+    const auto& seg = world_.active_rays[ns.ray];
+    beside_start = p + Vector2d(-m.y(), m.x()) * world_.ray_landing_offset;
+    for (size_t k = 0; k < world_.obstacles.size(); ++k) {
+      const auto& poly = world_.obstacles[k];
+      for (size_t j = 0; j < poly.size(); ++j) {
+        const EdgeId e{static_cast<int>(k), static_cast<int>(j)};
+        const Vector2d& a = poly[j];
+        const Vector2d& b = poly[(j + 1) % poly.size()];
+        if (!(m.dot(OutwardNormal(e)) < 0.0)) continue;
+        if (DistanceToSegment(seg[0], a, b) <= tol_ || DistanceToSegment(seg[1], a, b) <= tol_) continue;
+        const double t = PathSegment(beside_start, m, a, b, tol_);
+        if (t > tol_ && t < best) {
+          best = t;
+          hit = Hit::kBesideRay;
+          hit_edge = e;
+        }
+      }
+    }
+  }
   for (int r = 0; r < static_cast<int>(world_.active_rays.size()); ++r) {
     if (ns.mode == MotionMode::kOnRay && r == ns.ray) continue;
     const auto& seg = world_.active_rays[r];
@@ -433,6 +458,12 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
   switch (hit) {
     case Hit::kObstacle:
       q = SnapOntoEdge(hit_edge, q);
+      break;
+    case Hit::kBesideRay:  // compliance ends where the robot meets CB; the contact rules take over
+      q = SnapOntoEdge(hit_edge, beside_start + best * m);
+      ns.mode = MotionMode::kFree;
+      ns.ray = -1;
+      ns.direction = Vector2d::Zero();
       break;
     case Hit::kEdgeEnd:
       q = m.dot(EdgeEnd(hit_edge) - EdgeStart(hit_edge)) > 0.0 ? EdgeEnd(hit_edge) : EdgeStart(hit_edge);

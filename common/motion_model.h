@@ -49,9 +49,10 @@ struct MotionWorld {
   /// Friction cone half-angle φ in radians, in [0, π/2).
   double friction_cone = 0.0;
   /// The servo's tracking error as a signed offset (metres, left of the direction of motion positive): a motion that
-  /// complies down an active ray to an end on a C-obstacle runs this far beside the ray's line and meets CB where that
-  /// parallel line does (near the end, not at it), where compliance ends and the contact rules take over. 0: exact
-  /// compliance. Tests run ±δ to check what the planner's BackprojectionProblem::ray_tracking_error promises.
+  /// complies down an active ray runs this far beside the ray's line and meets CB where that parallel line enters it
+  /// (beside the ray, or near an end on a C-obstacle rather than at it), where compliance ends and the contact rules
+  /// take over. 0: exact compliance. Tests run ±δ to check what the planner's BackprojectionProblem::ray_tracking_error
+  /// promises.
   double ray_landing_offset = 0.0;
 };
 

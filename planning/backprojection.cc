@@ -319,6 +319,43 @@ class Sweep {
   P2 current_;
 };
 
+// Where along the ray from `up` to `down` (0 at up, 1 at down) the C-obstacles last come within the tracking error
+// δ of its line beside the ray: the largest parameter in (0, 1] of a point of a C-obstacle edge within δ of the line,
+// over the edges that neither end lies on (within `snap`); 0 where there is none, 1 where such a piece runs on past
+// the lower end. Each edge's points within δ of the line form one piece of it (the distance is affine along the
+// edge), and the parameter is largest at one of the piece's ends.
+double LastPointWithinTrackingError(const BackprojectionProblem& pr, const Vector2d& up, const Vector2d& down,
+                                    double snap) {
+  const double delta = pr.ray_tracking_error;
+  const Vector2d d = down - up;
+  const Vector2d n = Vector2d(-d.y(), d.x()).normalized();
+  double last = 0.0;
+  for (const auto& poly : pr.obstacles) {
+    const size_t nv = poly.vertices.size();
+    for (size_t i = 0; i < nv; ++i) {
+      const Vector2d& a = poly.vertices[i];
+      const Vector2d& b = poly.vertices[(i + 1) % nv];
+      if (PointSegmentDistance(up, a, b) <= snap || PointSegmentDistance(down, a, b) <= snap) continue;
+      // Signed distance from the line: da + s (db − da) for s in [0, 1]; keep |·| <= δ.
+      const double da = (a - up).dot(n), db = (b - up).dot(n);
+      double s0 = 0.0, s1 = 1.0;
+      if (da != db) {
+        const double lo = (-delta - da) / (db - da), hi = (delta - da) / (db - da);
+        s0 = std::max(s0, std::min(lo, hi));
+        s1 = std::min(s1, std::max(lo, hi));
+      } else if (std::abs(da) > delta) {
+        continue;
+      }
+      if (s0 > s1) continue;
+      const double t0 = (a + s0 * (b - a) - up).dot(d) / d.squaredNorm();
+      const double t1 = (a + s1 * (b - a) - up).dot(d) / d.squaredNorm();
+      if (std::max(t0, t1) <= 0.0 || std::min(t0, t1) >= 1.0) continue;  // beside the line beyond the ray's ends
+      last = std::max(last, std::min(std::max(t0, t1), 1.0));
+    }
+  }
+  return last;
+}
+
 int Sweep::AddName(std::string name) {
   names_.push_back(std::move(name));
   return static_cast<int>(names_.size()) - 1;
@@ -480,31 +517,16 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       if (!ClipToBounds(ends, open)) continue;
       if (ends[0] == ends[1]) continue;
       const int lower = CGAL::compare_yx(ends[0], ends[1]) == CGAL::SMALLER ? 0 : 1;
-      // The servo runs up to δ beside the line all along, so a C-obstacle corner within δ of the line can stop a motion
-      // complying past it: the part of the ray before the last such corner counts as ending there, open (complying
-      // into it fails). The corners of the edges the ray's ends lie on are the start's and the landing's (above).
+      // The servo runs up to δ beside the line all along, so CB within δ of the line (a corner, or an edge leaving
+      // one) can stop a motion complying past it: the part of the ray before the last point where CB comes within δ
+      // counts as ending there, open (complying into it fails). The edges the ray's ends lie on are the start's and
+      // the landing's (above); where CB comes within δ right up to the lower end, the whole ray ends open.
+      bool cut_to_the_end = false;
       if (pr.ray_tracking_error > 0.0) {
         const Vector2d up = rot_.InvertExact(ends[1 - lower]), down = rot_.InvertExact(ends[lower]);
-        const Vector2d d = down - up;
-        const Vector2d n = Vector2d(-d.y(), d.x()).normalized();
-        double cut = 0.0;
-        for (const auto& poly : pr.obstacles) {
-          const size_t nv = poly.vertices.size();
-          for (size_t i = 0; i < nv; ++i) {
-            const Vector2d& v = poly.vertices[i];
-            const double t = (v - up).dot(d) / d.squaredNorm();
-            if (!(t > cut && t < 1.0) || std::abs((v - up).dot(n)) > pr.ray_tracking_error) continue;
-            const Vector2d& prev = poly.vertices[(i + nv - 1) % nv];
-            const Vector2d& next = poly.vertices[(i + 1) % nv];
-            bool at_an_end = false;
-            for (const Vector2d& end : {up, down}) {
-              at_an_end =
-                  at_an_end || PointSegmentDistance(end, prev, v) <= snap || PointSegmentDistance(end, v, next) <= snap;
-            }
-            if (!at_an_end) cut = t;
-          }
-        }
-        if (cut > 0.0) {
+        const double cut = LastPointWithinTrackingError(pr, up, down, snap);
+        cut_to_the_end = cut >= 1.0;
+        if (cut > 0.0 && cut < 1.0) {
           const P2 corner = ends[1 - lower] + (ends[lower] - ends[1 - lower]) * FT(cut);
           Source part;
           part.a = ends[1 - lower];
@@ -524,7 +546,7 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       s.name = AddName(ray.id);
       s.ray = r;
       sources_.push_back(s);
-      if (open[lower]) {
+      if (open[lower] || cut_to_the_end) {
         open_lower_ends_.insert(ends[lower]);
       } else if (pr.ray_tracking_error > 0.0) {
         closed_lower_ends_[ends[lower]].push_back(static_cast<int>(sources_.size()) - 1);

@@ -236,6 +236,32 @@ std::vector<ContactFeature> ContactFeatures(const CSpace& cspace, double velocit
   std::vector<ContactFeature> out;
   const auto& polys = cspace.obstacle_union();
   const auto& sources = cspace.obstacle_union_sources();
+  // Every boundary edge of CB, to tell a corner from a pinch: where two C-obstacles touch at a point, the boundary
+  // passes there twice, and free space goes on through the point on the other side. A motion sliding into the
+  // corner that one pass makes can leave through it (the motion model's contact rules see all four faces), so
+  // it is no place where motions stop (random scene 11 at VISCO_SEED_OFFSET=56000: every start of a contact step
+  // "sticking" in such a corner slid on through it and out of the bounds).
+  std::vector<std::pair<Vector2d, Vector2d>> edges;
+  double extent = 0.0;
+  for (const auto& poly : polys) {
+    std::vector<const Polygon*> rings = {&poly.outer};
+    for (const auto& hole : poly.holes) rings.push_back(&hole);
+    for (const Polygon* r : rings) {
+      for (size_t i = 0; i < r->size(); ++i) {
+        edges.emplace_back(r->Vertex(i), r->Vertex(i + 1));
+        extent = std::max(extent, r->Vertex(i).cwiseAbs().maxCoeff());
+      }
+    }
+  }
+  const double touch = 1e-9 * std::max(extent, 1.0);
+  auto pinch = [&](const Vector2d& p, const Vector2d& v, const Vector2d& q) {
+    int through = 0;  // boundary edges through v other than (p, v) and (v, q)
+    for (const auto& [a, b] : edges) {
+      const bool own = (a == p && b == v) || (a == v && b == q);
+      if (!own && PointSegmentDistance(v, a, b) <= touch) ++through;
+    }
+    return through > 0;
+  };
   auto ring = [&](const Polygon& r, const RingSources* src) {
     const size_t n = r.size();
     if (n < 3) return;
@@ -264,7 +290,7 @@ std::vector<ContactFeature> ContactFeatures(const CSpace& cspace, double velocit
         f.ref = "face:" + (src && i < src->edges.size() ? src->edges[i].ref : fmt::format("e({})", i));
         out.push_back(std::move(f));
       }
-      if (turn < 0) {
+      if (turn < 0 && !pinch(p, v, q)) {
         // Free space turns left at v: the reaction can be anything in the hull of the two faces' friction cones.
         const Vector2d m1 = LeftNormal(v - p), m2 = LeftNormal(q - v);
         const double a2 = std::atan2(m2.y(), m2.x());

@@ -359,6 +359,40 @@ TEST(VcBackprojection, ACornerWithinTheTrackingErrorOfARayCutsIt) {
   ExpectSoundOnAGrid(pr, active, region, {-0.1, 0.0, 0.1});
 }
 
+// The simulator runs the servo's tracking error all along a ray too: a block whose flat top has a corner 5 cm from
+// the line stops a robot complying 10 cm beside it (it meets the top, where the push sticks). The region of exact
+// compliance claims the start above the block; the simulator refutes it on the block's side only, and the region
+// with δ = 0.1 leaves it out and is sound.
+TEST(VcBackprojection, TheSimulatorStopsAMotionComplyingPastACornerWithinTheTrackingError) {
+  const Vector2d top(2, 9), bottom(6, 1);
+  const Vector2d t = (bottom - top).normalized(), left(-t.y(), t.x());  // left of the motion: the block's side
+  const Vector2d corner = 0.5 * (top + bottom) + 0.05 * left;
+  NamedPolygon block;  // a flat top to the right of the corner, a side leaving the line downwards
+  block.vertices = {corner, corner + Vector2d(0.7, -1), corner + Vector2d(1, 0)};
+  if (SignedArea(block.vertices) < 0) std::swap(block.vertices[1], block.vertices[2]);
+  auto problem = [&](double tracking) {
+    BackprojectionProblem pr = Problem({Rect(0, 0, 10, 1), block}, {Rect(5, 1, 7, 1.5)}, -90, 5, 10);
+    pr.rays.push_back(Ray("vc0.cm1", top, bottom));
+    pr.ray_tracking_error = tracking;
+    return pr;
+  };
+  const std::vector<std::string> active = {"vc0.cm1"};
+  const Vector2d above(3, 8.5);
+  const Region exact = BackprojectionWithActiveRays(problem(0.0), active);
+  ASSERT_TRUE(exact.Contains(above));
+  for (const double offset : {-0.1, 0.1}) {
+    MotionWorld w = ToMotionWorld(problem(0.0), active);
+    w.ray_landing_offset = offset;
+    const MotionModel m(std::move(w));
+    const Outcome outcome = SimulateAdversarially(m, above, -90 * kDeg, 5 * kDeg).outcome;
+    EXPECT_EQ(outcome == Outcome::kReachedGoal, offset < 0) << "offset " << offset;
+  }
+  const BackprojectionProblem pr = problem(0.1);
+  const Region region = BackprojectionWithActiveRays(pr, active);
+  EXPECT_FALSE(region.Contains(above));
+  ExpectSoundOnAGrid(pr, active, region, {-0.1, 0.0, 0.1});
+}
+
 TEST(VcBackprojection, HarmfulAndUselessRaysAreNotActivated) {
   // A ray crossing the classic region's triangle and ending on the sticking floor away from the goal would divert
   // configurations of B_θ(G) onto the floor: it must stay inactive, and the region equals the classic one.
