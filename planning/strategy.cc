@@ -464,8 +464,9 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
         child.end_b = eb;
         child.end_radius = kVcStripHalfWidth;
         // The rest of the ray (every free segment, outside the piece): reaching it first ends the step outside the
-        // next preimage, so it is forbidden (a hair away from the piece, still inside the next preimage).
-        const double gap = 0.5 * shrink;
+        // piece, so it is forbidden, right up to the piece's strip. (It used to start 1.5 cm away, and the executor's
+        // event fires in that gap as anywhere on the ray: a motion the planner let pass through it stopped there,
+        // 1 cm beside the line and outside the target, VISCO_SEED_OFFSET=168000, random scene 5.)
         for (size_t k = 0; k < ray.segments.size(); ++k) {
           const auto& seg = ray.segments[k];
           child.triggers.push_back(Strip(seg[0], seg[1], kVcStripHalfWidth, ray.id + ".strip"));
@@ -477,7 +478,7 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
                           ta >= -1e-9 && tb <= 1 + 1e-9;
           std::vector<std::pair<double, double>> rest;
           if (on) {
-            rest = {{0.0, std::min(ta, tb) - gap / len}, {std::max(ta, tb) + gap / len, 1.0}};
+            rest = {{0.0, std::min(ta, tb)}, {std::max(ta, tb), 1.0}};
           } else {
             rest = {{0.0, 1.0}};
           }

@@ -288,6 +288,18 @@ TEST(Strategy, ACornerWhereTwoCObstaclesTouchIsNoPlaceToStop) {
   }
 }
 
+// A visual guarded step ends wherever the robot first reaches its ray (the executor's event fires anywhere on it), so
+// the rest of the ray is forbidden right up to the target piece's strip. It used to start 1.5 cm away: a motion the
+// planner let pass through that gap stopped there, 1 cm beside the line and outside the piece (random scene 5 at
+// VISCO_SEED_OFFSET=168000: one start of 24 in the check).
+TEST(Strategy, AGuardedStepStopsNowhereButOnItsPiece) {
+  const Scene s = LoadScene("tests/planning/data/cases/guarded_step_beside_its_piece.json");
+  const Planned p = PlanAndCheck(s, "guarded_step_beside_its_piece", kSanitized ? 24 : 96);
+  ASSERT_TRUE(p.with_camera.feasible) << p.with_camera.reason;
+  EXPECT_TRUE(std::any_of(p.with_camera.steps.begin(), p.with_camera.steps.end(),
+                          [](const StrategyStep& step) { return step.terminate == Termination::kVisualGuarded; }));
+}
+
 TEST(Strategy, RandomScenesAreCheckedInSimulation) {
   int scenes = 0, with = 0, without = 0, multi = 0;
 #if defined(__SANITIZE_ADDRESS__)
