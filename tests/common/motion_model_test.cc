@@ -167,6 +167,23 @@ TEST(MotionModel, OverlappingObstaclesFormAConcaveCorner) {
   EXPECT_NEAR(r.final_state.position.y(), 4.0, 1e-9);
 }
 
+TEST(MotionModel, ObstaclesTouchingAlongAnEdgeLeaveNoCrack) {
+  // A wall and a shelf touching along x = 4, y in [2, 3]: a motion sliding down the wall stops on the shelf's corner
+  // (4, 3); the crack between them is inside their union. Below the shelf it would reach the goal. (Until 2026-12-06
+  // the test for a crack skipped the wall's own side, and the motion slid on down between them.)
+  const Poly wall = Rect(0, 0, 4, 9), shelf = Rect(4, 2, 6, 3);
+  const MotionModel m(World({wall, shelf}, {Rect(4, 0, 5, 1)}, 10));
+  FixedAdversary a(0);
+  const SimulationResult r = Simulate(m, Vector2d(4.5, 8), -100 * kDeg, 0.0, a);
+  EXPECT_EQ(r.outcome, Outcome::kStopped);
+  EXPECT_NEAR(r.final_state.position.x(), 4.0, 1e-9);
+  EXPECT_NEAR(r.final_state.position.y(), 3.0, 1e-9);
+  // Without the shelf the same motion slides down the wall into the goal.
+  const MotionModel open(World({wall}, {Rect(4, 0, 5, 1)}, 10));
+  FixedAdversary b(0);
+  EXPECT_EQ(Simulate(open, Vector2d(4.5, 8), -100 * kDeg, 0.0, b).outcome, Outcome::kReachedGoal);
+}
+
 TEST(MotionModel, ActiveRayGuidesIntoTheGoal) {
   // A floor (sticking for straight down) with the goal at x in [7, 8]. A ray from (2, 8) down to (7.5, 2) on the
   // floor: motion from (2, 9) falls onto the ray and complies along it to the goal.

@@ -9,6 +9,8 @@
 #include <string>
 
 #include "common/error.h"
+#include "tests/planning/random_vc_scenes.h"
+#include "tests/planning/scene_json.h"
 
 namespace visco::planning {
 namespace {
@@ -285,6 +287,53 @@ TEST(Scene, LoadScene) {
   std::ifstream in("data/scenes/slot.json");
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_EQ(std::string(DefaultSceneJson()), text);
+}
+
+// The tests' scene writer (tests/planning/scene_json.h, for reproducing a failing random scene with the command-line
+// tools) gives back the same scene: random scenes with heights and a planar camera, and both pinhole example scenes.
+TEST(SceneJson, WrittenScenesLoadAsTheSameScene) {
+  std::vector<Scene> scenes = {LoadScene("data/scenes/slot_pinhole.json"), LoadScene("data/scenes/fig13.json")};
+  for (std::uint64_t seed = 1; seed <= 10; ++seed) {
+    Scene s;
+    double theta = 0;
+    if (!testing::RandomWholeScene(seed, s, theta, 2, 1)) continue;
+    if (seed % 2 == 0) {
+      for (Obstacle& o : s.obstacles) o.height = 0.5 + 0.1 * static_cast<double>(seed);
+      if (s.camera) s.camera->height = 3.0;
+    }
+    testing::PlaceStartRegion(seed, s);
+    scenes.push_back(s);
+  }
+  ASSERT_GE(scenes.size(), 8u);
+  for (const Scene& a : scenes) {
+    const Scene b = ParseScene(testing::SceneToJson(a), "written");
+    EXPECT_EQ(b.bounds.min, a.bounds.min);
+    EXPECT_EQ(b.bounds.max, a.bounds.max);
+    EXPECT_EQ(b.robot.polygon.vertices, a.robot.polygon.vertices);
+    ASSERT_EQ(b.obstacles.size(), a.obstacles.size());
+    for (size_t i = 0; i < a.obstacles.size(); ++i) {
+      EXPECT_EQ(b.obstacles[i].id, a.obstacles[i].id);
+      EXPECT_EQ(b.obstacles[i].shape.polygon.vertices, a.obstacles[i].shape.polygon.vertices);
+      EXPECT_EQ(b.obstacles[i].height, a.obstacles[i].height);
+    }
+    EXPECT_EQ(b.goal.polygon.vertices, a.goal.polygon.vertices);
+    ASSERT_EQ(b.start.has_value(), a.start.has_value());
+    if (a.start) {
+      EXPECT_EQ(b.start->polygon.vertices, a.start->polygon.vertices);
+    }
+    ASSERT_EQ(b.camera.has_value(), a.camera.has_value());
+    if (a.camera) {
+      EXPECT_EQ(b.camera->center, a.camera->center);
+      EXPECT_NEAR(b.camera->fov_first_rad, a.camera->fov_first_rad, 1e-12);
+      EXPECT_NEAR(b.camera->fov_second_rad, a.camera->fov_second_rad, 1e-12);
+      EXPECT_EQ(b.camera->height, a.camera->height);
+      EXPECT_EQ(b.camera->pinhole.has_value(), a.camera->pinhole.has_value());
+    }
+    EXPECT_NEAR(b.uncertainty.velocity_cone_rad, a.uncertainty.velocity_cone_rad, 1e-15);
+    EXPECT_EQ(b.uncertainty.position, a.uncertainty.position);
+    EXPECT_EQ(b.uncertainty.vc_tracking, a.uncertainty.vc_tracking);
+    EXPECT_NEAR(b.friction_cone_rad, a.friction_cone_rad, 1e-15);
+  }
 }
 
 }  // namespace
