@@ -328,6 +328,16 @@ TEST(VcBackprojection, ARayStartingAHairBesideAnEdgeStopsTheMotionsSlidingDownIt
   EXPECT_NE(SimulateAdversarially(m, above, pr.theta, pr.velocity_cone).outcome, Outcome::kReachedGoal);
 }
 
+// A floor, the goal on it from x = 5 to 7, one obstacle beside the ray vc0.cm1 from `top` down into the goal; θ = −90°,
+// ε_v = 5°, φ = 10°.
+BackprojectionProblem RayDownToTheGoal(const NamedPolygon& obstacle, const Vector2d& top, const Vector2d& bottom,
+                                       double tracking) {
+  BackprojectionProblem pr = Problem({Rect(0, 0, 10, 1), obstacle}, {Rect(5, 1, 7, 1.5)}, -90, 5, 10);
+  pr.rays.push_back(Ray("vc0.cm1", top, bottom));
+  pr.ray_tracking_error = tracking;
+  return pr;
+}
+
 // The servo's tracking error acts along the whole ray, not only at its end: a C-obstacle corner 5 cm from the line,
 // with δ = 10 cm, can stop a motion complying past it. The part of the ray above the corner counts as ending there,
 // open; the part below still leads into the goal. Found on shifted seeds (VISCO_SEED_OFFSET=300000, seed 8: a ray
@@ -341,12 +351,7 @@ TEST(VcBackprojection, ACornerWithinTheTrackingErrorOfARayCutsIt) {
   const Vector2d out = away.normalized();
   spike.vertices = {corner, corner + out + 0.5 * t, corner + out - 0.5 * t};
   if (SignedArea(spike.vertices) < 0) std::swap(spike.vertices[1], spike.vertices[2]);
-  auto problem = [&](double tracking) {
-    BackprojectionProblem pr = Problem({Rect(0, 0, 10, 1), spike}, {Rect(5, 1, 7, 1.5)}, -90, 5, 10);
-    pr.rays.push_back(Ray("vc0.cm1", top, bottom));
-    pr.ray_tracking_error = tracking;
-    return pr;
-  };
+  auto problem = [&](double tracking) { return RayDownToTheGoal(spike, top, bottom, tracking); };
   const std::vector<std::string> active = {"vc0.cm1"};
   const Vector2d above(3, 8.5), below(5.5, 3.5);  // meet the ray above the corner, and below it
   const Region exact = BackprojectionWithActiveRays(problem(0.0), active);
@@ -370,12 +375,7 @@ TEST(VcBackprojection, TheSimulatorStopsAMotionComplyingPastACornerWithinTheTrac
   NamedPolygon block;  // a flat top to the right of the corner, a side leaving the line downwards
   block.vertices = {corner, corner + Vector2d(0.7, -1), corner + Vector2d(1, 0)};
   if (SignedArea(block.vertices) < 0) std::swap(block.vertices[1], block.vertices[2]);
-  auto problem = [&](double tracking) {
-    BackprojectionProblem pr = Problem({Rect(0, 0, 10, 1), block}, {Rect(5, 1, 7, 1.5)}, -90, 5, 10);
-    pr.rays.push_back(Ray("vc0.cm1", top, bottom));
-    pr.ray_tracking_error = tracking;
-    return pr;
-  };
+  auto problem = [&](double tracking) { return RayDownToTheGoal(block, top, bottom, tracking); };
   const std::vector<std::string> active = {"vc0.cm1"};
   const Vector2d above(3, 8.5);
   const Region exact = BackprojectionWithActiveRays(problem(0.0), active);
