@@ -319,17 +319,17 @@ class Sweep {
   P2 current_;
 };
 
-// Where along the ray from `up` to `down` (0 at up, 1 at down) the C-obstacles last come within the tracking error
-// δ of its line beside the ray: the largest parameter in (0, 1] of a point of a C-obstacle edge within δ of the line,
-// over the edges that neither end lies on (within `snap`); 0 where there is none, 1 where such a piece runs on past
-// the lower end. Each edge's points within δ of the line form one piece of it (the distance is affine along the
-// edge), and the parameter is largest at one of the piece's ends.
-double LastPointWithinTrackingError(const BackprojectionProblem& pr, const Vector2d& up, const Vector2d& down,
-                                    double snap) {
+// Where along the ray from `up` to `down` (0 at up, 1 at down) the C-obstacles come within the tracking error δ of
+// its line beside the ray, over the edges that neither end lies on (within `snap`): each edge's points within δ of the
+// line form one piece of it (the distance is affine along the edge); returns the parameters in (0, 1) where such
+// pieces begin and end, ascending, and sets `to_the_end` where one runs on to the lower end or past it.
+std::vector<double> PointsWithinTrackingError(const BackprojectionProblem& pr, const Vector2d& up, const Vector2d& down,
+                                              double snap, bool& to_the_end) {
   const double delta = pr.ray_tracking_error;
   const Vector2d d = down - up;
   const Vector2d n = Vector2d(-d.y(), d.x()).normalized();
-  double last = 0.0;
+  std::vector<double> breaks;
+  to_the_end = false;
   for (const auto& poly : pr.obstacles) {
     const size_t nv = poly.vertices.size();
     for (size_t i = 0; i < nv; ++i) {
@@ -350,10 +350,16 @@ double LastPointWithinTrackingError(const BackprojectionProblem& pr, const Vecto
       const double t0 = (a + s0 * (b - a) - up).dot(d) / d.squaredNorm();
       const double t1 = (a + s1 * (b - a) - up).dot(d) / d.squaredNorm();
       if (std::max(t0, t1) <= 0.0 || std::min(t0, t1) >= 1.0) continue;  // beside the line beyond the ray's ends
-      last = std::max(last, std::min(std::max(t0, t1), 1.0));
+      to_the_end = to_the_end || std::max(t0, t1) >= 1.0;
+      for (const double t : {t0, t1}) {
+        if (t > 0.0 && t < 1.0) breaks.push_back(t);
+      }
     }
   }
-  return last;
+  std::sort(breaks.begin(), breaks.end());
+  breaks.erase(std::unique(breaks.begin(), breaks.end(), [](double x, double y) { return y - x <= 1e-12; }),
+               breaks.end());
+  return breaks;
 }
 
 int Sweep::AddName(std::string name) {
@@ -518,16 +524,17 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       if (ends[0] == ends[1]) continue;
       const int lower = CGAL::compare_yx(ends[0], ends[1]) == CGAL::SMALLER ? 0 : 1;
       // The servo runs up to δ beside the line all along, so CB within δ of the line (a corner, or an edge leaving
-      // one) can stop a motion complying past it: the part of the ray before the last point where CB comes within δ
-      // counts as ending there, open (complying into it fails). The edges the ray's ends lie on are the start's and
-      // the landing's (above); where CB comes within δ right up to the lower end, the whole ray ends open.
+      // one) can stop a motion complying past it. The ray is cut where such a piece begins and ends: each part before
+      // the last cut ends at its lower cut, open (complying into it fails, even where the goal lies further down: the
+      // robot meets CB first). The edges the ray's ends lie on are the start's and the landing's (above); where CB
+      // comes within δ right up to the lower end, the whole ray ends open.
       bool cut_to_the_end = false;
       if (pr.ray_tracking_error > 0.0) {
         const Vector2d up = rot_.InvertExact(ends[1 - lower]), down = rot_.InvertExact(ends[lower]);
-        const double cut = LastPointWithinTrackingError(pr, up, down, snap);
-        cut_to_the_end = cut >= 1.0;
-        if (cut > 0.0 && cut < 1.0) {
-          const P2 corner = ends[1 - lower] + (ends[lower] - ends[1 - lower]) * FT(cut);
+        const P2 top = ends[1 - lower], bottom = ends[lower];
+        for (const double cut : PointsWithinTrackingError(pr, up, down, snap, cut_to_the_end)) {
+          const P2 corner = top + (bottom - top) * FT(cut);
+          if (corner == ends[1 - lower]) continue;
           Source part;
           part.a = ends[1 - lower];
           part.b = corner;

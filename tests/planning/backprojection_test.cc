@@ -393,6 +393,32 @@ TEST(VcBackprojection, TheSimulatorStopsAMotionComplyingPastACornerWithinTheTrac
   ExpectSoundOnAGrid(pr, active, region, {-0.1, 0.0, 0.1});
 }
 
+// CB within δ of a ray at two places, with the goal on the ray between them: the ray is cut at both, so a motion that
+// complies past the upper corner fails there even though the goal lies further down. Cutting only at the last place
+// (below the goal) left the start above the corner in the region, and the simulator's robot met the corner and stuck
+// (VISCO_SEED_OFFSET=781000, soundness seed 6).
+TEST(VcBackprojection, ARayIsCutAtEveryCornerWithinTheTrackingErrorNotOnlyTheLast) {
+  const Vector2d top(2, 9), bottom(6, 1);
+  const Vector2d t = (bottom - top).normalized(), left(-t.y(), t.x());
+  auto block_at = [&](double y) {  // a flat top whose corner lies 5 cm left of the motion, where the ray is at height y
+    const Vector2d corner = top + (9 - y) / 8 * (bottom - top) + 0.05 * left;
+    NamedPolygon block;
+    block.vertices = {corner, corner + Vector2d(0.7, -1), corner + Vector2d(1, 0)};
+    if (SignedArea(block.vertices) < 0) std::swap(block.vertices[1], block.vertices[2]);
+    return block;
+  };
+  BackprojectionProblem pr =
+      Problem({Rect(0, 0, 10, 1), block_at(5), block_at(1.8)}, {Rect(4.7, 2.8, 5.3, 3.2)}, -90, 5, 10);
+  pr.rays.push_back(Ray("vc0.cm1", top, bottom));
+  const std::vector<std::string> active = {"vc0.cm1"};
+  const Vector2d above(3, 8.5);
+  ASSERT_TRUE(BackprojectionWithActiveRays(pr, active).Contains(above));  // exact compliance
+  pr.ray_tracking_error = 0.1;
+  const Region region = BackprojectionWithActiveRays(pr, active);
+  EXPECT_FALSE(region.Contains(above));
+  ExpectSoundOnAGrid(pr, active, region, {-0.1, 0.0, 0.1});
+}
+
 TEST(VcBackprojection, HarmfulAndUselessRaysAreNotActivated) {
   // A ray crossing the classic region's triangle and ending on the sticking floor away from the goal would divert
   // configurations of B_θ(G) onto the floor: it must stay inactive, and the region equals the classic one.
