@@ -384,21 +384,27 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
       hit = Hit::kBounds;
     }
   }
-  // C-obstacle edges the path enters.
-  for (size_t k = 0; k < world_.obstacles.size(); ++k) {
-    const auto& poly = world_.obstacles[k];
-    for (size_t j = 0; j < poly.size(); ++j) {
-      const EdgeId e{static_cast<int>(k), static_cast<int>(j)};
-      if (ns.mode == MotionMode::kSliding && e == ns.edge) continue;
-      if (!(m.dot(OutwardNormal(e)) < 0.0)) continue;
-      const double t = PathSegment(p, m, poly[j], poly[(j + 1) % poly.size()], tol_);
-      if (t > tol_ && t < best) {
-        best = t;
-        hit = Hit::kObstacle;
-        hit_edge = e;
+  // The first C-obstacle edge that the path from `from` along m enters before `best` (edges `skip` accepts aside).
+  auto first_entered = [&](const Vector2d& from, Hit kind, const auto& skip) {
+    for (size_t k = 0; k < world_.obstacles.size(); ++k) {
+      const auto& poly = world_.obstacles[k];
+      for (size_t j = 0; j < poly.size(); ++j) {
+        const EdgeId e{static_cast<int>(k), static_cast<int>(j)};
+        const Vector2d& a = poly[j];
+        const Vector2d& b = poly[(j + 1) % poly.size()];
+        if (skip(e, a, b) || !(m.dot(OutwardNormal(e)) < 0.0)) continue;
+        const double t = PathSegment(from, m, a, b, tol_);
+        if (t > tol_ && t < best) {
+          best = t;
+          hit = kind;
+          hit_edge = e;
+        }
       }
     }
-  }
+  };
+  first_entered(p, Hit::kObstacle, [&](const EdgeId& e, const Vector2d&, const Vector2d&) {
+    return ns.mode == MotionMode::kSliding && e == ns.edge;
+  });
   // End of the edge being slid along.
   if (ns.mode == MotionMode::kSliding) {
     const Vector2d end = m.dot(EdgeEnd(ns.edge) - EdgeStart(ns.edge)) > 0.0 ? EdgeEnd(ns.edge) : EdgeStart(ns.edge);
@@ -426,22 +432,9 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
   if (ns.mode == MotionMode::kOnRay && world_.ray_landing_offset != 0.0) {
     const auto& seg = world_.active_rays[ns.ray];
     beside_start = p + Vector2d(-m.y(), m.x()) * world_.ray_landing_offset;
-    for (size_t k = 0; k < world_.obstacles.size(); ++k) {
-      const auto& poly = world_.obstacles[k];
-      for (size_t j = 0; j < poly.size(); ++j) {
-        const EdgeId e{static_cast<int>(k), static_cast<int>(j)};
-        const Vector2d& a = poly[j];
-        const Vector2d& b = poly[(j + 1) % poly.size()];
-        if (!(m.dot(OutwardNormal(e)) < 0.0)) continue;
-        if (DistanceToSegment(seg[0], a, b) <= tol_ || DistanceToSegment(seg[1], a, b) <= tol_) continue;
-        const double t = PathSegment(beside_start, m, a, b, tol_);
-        if (t > tol_ && t < best) {
-          best = t;
-          hit = Hit::kBesideRay;
-          hit_edge = e;
-        }
-      }
-    }
+    first_entered(beside_start, Hit::kBesideRay, [&](const EdgeId&, const Vector2d& a, const Vector2d& b) {
+      return DistanceToSegment(seg[0], a, b) <= tol_ || DistanceToSegment(seg[1], a, b) <= tol_;
+    });
   }
   for (int r = 0; r < static_cast<int>(world_.active_rays.size()); ++r) {
     if (ns.mode == MotionMode::kOnRay && r == ns.ray) continue;

@@ -510,6 +510,17 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
   };
   for (int r : active_rays) {
     const CvcRayInput& ray = pr.rays.at(r);
+    // A part of the ray from a to b as a sweep source; its index.
+    auto add_part = [&](const P2& a, const P2& b) {
+      Source part;
+      part.a = a;
+      part.b = b;
+      part.kind = EdgeKind::kVc;
+      part.name = AddName(ray.id);
+      part.ray = r;
+      sources_.push_back(part);
+      return static_cast<int>(sources_.size()) - 1;
+    };
     for (size_t k = 0; k < ray.segments.size(); ++k) {
       const auto& seg = ray.segments[k];
       if (seg[0] == seg[1]) continue;
@@ -535,28 +546,16 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
         for (const double cut : PointsWithinTrackingError(pr, up, down, snap, cut_to_the_end)) {
           const P2 corner = top + (bottom - top) * FT(cut);
           if (corner == ends[1 - lower]) continue;
-          Source part;
-          part.a = ends[1 - lower];
-          part.b = corner;
-          part.kind = EdgeKind::kVc;
-          part.name = AddName(ray.id);
-          part.ray = r;
-          sources_.push_back(part);
+          add_part(ends[1 - lower], corner);
           open_lower_ends_.insert(corner);
           ends[1 - lower] = corner;  // strictly between the ends: the lower end stays the lower one
         }
       }
-      Source s;
-      s.a = ends[0];
-      s.b = ends[1];
-      s.kind = EdgeKind::kVc;
-      s.name = AddName(ray.id);
-      s.ray = r;
-      sources_.push_back(s);
+      const int whole = add_part(ends[0], ends[1]);
       if (open[lower] || cut_to_the_end) {
         open_lower_ends_.insert(ends[lower]);
       } else if (pr.ray_tracking_error > 0.0) {
-        closed_lower_ends_[ends[lower]].push_back(static_cast<int>(sources_.size()) - 1);
+        closed_lower_ends_[ends[lower]].push_back(whole);
       }
     }
   }

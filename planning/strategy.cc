@@ -254,13 +254,12 @@ std::vector<ContactFeature> ContactFeatures(const CSpace& cspace, double velocit
     }
   }
   const double touch = 1e-9 * std::max(extent, 1.0);
+  // Whether a boundary edge other than (p, v) and (v, q) passes through v.
   auto pinch = [&](const Vector2d& p, const Vector2d& v, const Vector2d& q) {
-    int through = 0;  // boundary edges through v other than (p, v) and (v, q)
-    for (const auto& [a, b] : edges) {
-      const bool own = (a == p && b == v) || (a == v && b == q);
-      if (!own && PointSegmentDistance(v, a, b) <= touch) ++through;
-    }
-    return through > 0;
+    return std::any_of(edges.begin(), edges.end(), [&](const auto& e) {
+      const bool own = (e.first == p && e.second == v) || (e.first == v && e.second == q);
+      return !own && PointSegmentDistance(v, e.first, e.second) <= touch;
+    });
   };
   auto ring = [&](const Polygon& r, const RingSources* src) {
     const size_t n = r.size();

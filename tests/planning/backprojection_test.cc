@@ -364,6 +364,14 @@ TEST(VcBackprojection, ACornerWithinTheTrackingErrorOfARayCutsIt) {
   ExpectSoundOnAGrid(pr, active, region, {-0.1, 0.0, 0.1});
 }
 
+// A triangle with a flat top running right from `corner` and a side leaving it downwards, to the right.
+NamedPolygon FlatTopBlock(const Vector2d& corner) {
+  NamedPolygon block;
+  block.vertices = {corner, corner + Vector2d(0.7, -1), corner + Vector2d(1, 0)};
+  if (SignedArea(block.vertices) < 0) std::swap(block.vertices[1], block.vertices[2]);
+  return block;
+}
+
 // The simulator runs the servo's tracking error all along a ray too: a block whose flat top has a corner 5 cm from
 // the line stops a robot complying 10 cm beside it (it meets the top, where the push sticks). The region of exact
 // compliance claims the start above the block; the simulator refutes it on the block's side only, and the region
@@ -371,10 +379,7 @@ TEST(VcBackprojection, ACornerWithinTheTrackingErrorOfARayCutsIt) {
 TEST(VcBackprojection, TheSimulatorStopsAMotionComplyingPastACornerWithinTheTrackingError) {
   const Vector2d top(2, 9), bottom(6, 1);
   const Vector2d t = (bottom - top).normalized(), left(-t.y(), t.x());  // left of the motion: the block's side
-  const Vector2d corner = 0.5 * (top + bottom) + 0.05 * left;
-  NamedPolygon block;  // a flat top to the right of the corner, a side leaving the line downwards
-  block.vertices = {corner, corner + Vector2d(0.7, -1), corner + Vector2d(1, 0)};
-  if (SignedArea(block.vertices) < 0) std::swap(block.vertices[1], block.vertices[2]);
+  const NamedPolygon block = FlatTopBlock(0.5 * (top + bottom) + 0.05 * left);
   auto problem = [&](double tracking) { return RayDownToTheGoal(block, top, bottom, tracking); };
   const std::vector<std::string> active = {"vc0.cm1"};
   const Vector2d above(3, 8.5);
@@ -400,12 +405,8 @@ TEST(VcBackprojection, TheSimulatorStopsAMotionComplyingPastACornerWithinTheTrac
 TEST(VcBackprojection, ARayIsCutAtEveryCornerWithinTheTrackingErrorNotOnlyTheLast) {
   const Vector2d top(2, 9), bottom(6, 1);
   const Vector2d t = (bottom - top).normalized(), left(-t.y(), t.x());
-  auto block_at = [&](double y) {  // a flat top whose corner lies 5 cm left of the motion, where the ray is at height y
-    const Vector2d corner = top + (9 - y) / 8 * (bottom - top) + 0.05 * left;
-    NamedPolygon block;
-    block.vertices = {corner, corner + Vector2d(0.7, -1), corner + Vector2d(1, 0)};
-    if (SignedArea(block.vertices) < 0) std::swap(block.vertices[1], block.vertices[2]);
-    return block;
+  auto block_at = [&](double y) {  // its corner 5 cm left of the motion, where the ray is at height y
+    return FlatTopBlock(top + (9 - y) / 8 * (bottom - top) + 0.05 * left);
   };
   BackprojectionProblem pr =
       Problem({Rect(0, 0, 10, 1), block_at(5), block_at(1.8)}, {Rect(4.7, 2.8, 5.3, 3.2)}, -90, 5, 10);
