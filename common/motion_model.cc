@@ -427,14 +427,35 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
   // Complying with the servo's tracking error, the robot runs `ray_landing_offset` beside the ray's line, so CB can
   // reach it before the ray's end: a corner within that distance of the line, or an edge leaving one
   // (docs/semantics.md, "Compliance ends"). Met where the parallel line enters CB ahead of the robot; the edges the
-  // ray's ends lie on are the start's and the landing's (LandBesideRayEnd).
+  // ray's ends lie on are the start's and the landing's (LandBesideRayEnd). Where CB already lies within the offset
+  // of the robot (the parallel line starts inside it), the robot meets it at once, on its way across to the line.
   Vector2d beside_start = p;
   if (ns.mode == MotionMode::kOnRay && world_.ray_landing_offset != 0.0) {
     const auto& seg = world_.active_rays[ns.ray];
-    beside_start = p + Vector2d(-m.y(), m.x()) * world_.ray_landing_offset;
-    first_entered(beside_start, Hit::kBesideRay, [&](const EdgeId&, const Vector2d& a, const Vector2d& b) {
+    const auto end_edge = [&](const EdgeId&, const Vector2d& a, const Vector2d& b) {
       return DistanceToSegment(seg[0], a, b) <= tol_ || DistanceToSegment(seg[1], a, b) <= tol_;
-    });
+    };
+    const Vector2d across = Vector2d(-m.y(), m.x()) * (world_.ray_landing_offset > 0.0 ? 1.0 : -1.0);
+    double nearest = std::abs(world_.ray_landing_offset);
+    const bool at_end = hit == Hit::kRayEnd && best <= tol_;  // the landing there is LandBesideRayEnd's
+    for (size_t k = 0; k < world_.obstacles.size(); ++k) {
+      const auto& poly = world_.obstacles[k];
+      for (size_t j = 0; j < poly.size(); ++j) {
+        const EdgeId e{static_cast<int>(k), static_cast<int>(j)};
+        const Vector2d& a = poly[j];
+        const Vector2d& b = poly[(j + 1) % poly.size()];
+        if (at_end || end_edge(e, a, b) || !(across.dot(OutwardNormal(e)) < 0.0)) continue;
+        const double t = PathSegment(p, across, a, b, tol_);
+        if (t >= 0.0 && t < nearest) {
+          nearest = t;
+          best = 0.0;
+          hit = Hit::kBesideRay;
+          hit_edge = e;
+        }
+      }
+    }
+    beside_start = p + across * nearest;
+    if (hit != Hit::kBesideRay) first_entered(beside_start, Hit::kBesideRay, end_edge);
   }
   for (int r = 0; r < static_cast<int>(world_.active_rays.size()); ++r) {
     if (ns.mode == MotionMode::kOnRay && r == ns.ray) continue;

@@ -222,6 +222,34 @@ TEST(MotionModel, ComplyingToAnOpenRayEndFails) {
   EXPECT_EQ(RunFixed(MotionModel(w), {3, 9}, kDown, 5 * kDeg, 0.0), Outcome::kReachedGoal);
 }
 
+TEST(MotionModel, ARobotJoiningARayBesideCBMeetsItAtOnce) {
+  // docs/semantics.md, "Compliance ends": the servo runs the robot up to δ beside the ray's line. A robot falling onto
+  // the ray of ActiveRayGuidesIntoTheGoal at (3, 6.5), where a block's top lies 5.7 cm across from the line on its
+  // lower left, meets the block on its way across when the tracking error takes it that way (δ = 10 cm), and sticks
+  // on the flat top; on the other side, or with no error, it complies on into the goal. Before 2026-12-06 the
+  // simulator looked for CB only ahead along the parallel line, which here starts inside the block: the robot passed.
+  const Poly floor = Rect(0, 0, 10, 2);
+  MotionWorld w = World({floor, Rect(2.5, 6.0, 2.98, 6.46)}, {Rect(7, 2, 8, 2.5)}, 20);
+  w.active_rays.push_back({Vector2d(1, 8.5), Vector2d(7.5, 2)});
+  for (const double offset : {-0.1, 0.0, 0.1}) {
+    w.ray_landing_offset = offset;
+    const MotionModel m(w);
+    MotionState s;
+    s.position = {3, 9};
+    const Vector2d v(0, -1);
+    ASSERT_EQ(m.AdvanceToEvent(s, v, 100).event, MotionEvent::kRay) << offset;  // on the ray at (3, 6.5)
+    EXPECT_NEAR((s.position - Vector2d(3, 6.5)).norm(), 0.0, 1e-9);
+    const StepResult r = m.AdvanceToEvent(s, v, 100);
+    if (offset < 0) {
+      EXPECT_EQ(r.event, MotionEvent::kStopped);
+      EXPECT_NEAR((s.position - Vector2d(2.96, 6.46)).norm(), 0.0, 1e-9);  // where the way across meets the top
+    } else {
+      EXPECT_NE(r.event, MotionEvent::kStopped) << offset;
+      EXPECT_EQ(RunFixed(m, {3, 9}, kDown, 5 * kDeg, 0.0), Outcome::kReachedGoal) << offset;
+    }
+  }
+}
+
 TEST(MotionModel, RayIsClimbedFromAnEdgeOnlyWhenItsProjectionPointsAway) {
   // A 30° slope sliding right (φ = 10°) with a ray standing on it at (5, y(5)) going up-right at 45°.
   const auto y = [](double x) { return 6 - x * std::tan(30 * kDeg); };

@@ -398,6 +398,35 @@ TEST(VcBackprojection, TheSimulatorStopsAMotionComplyingPastACornerWithinTheTrac
   ExpectSoundOnAGrid(pr, active, region, {-0.1, 0.0, 0.1});
 }
 
+// The same where the robot joins the ray right beside CB: a block's flat top 3 cm below the point (3, 7) where a
+// robot falling straight down from (3, 8.5) meets the ray, 6.7 cm across from it. With the tracking error taking it
+// that way the robot meets the top on its way across and sticks; the simulator once looked for CB only ahead along
+// the parallel line, which starts inside the block there, and let it pass (other directions of the cone meet the
+// ray higher up, where the top lies ahead: the adversarial simulation refuted the start anyway). The planner
+// already cut the ray there.
+TEST(VcBackprojection, TheSimulatorStopsARobotJoiningARayBesideCB) {
+  const Vector2d top(2, 9), bottom(6, 1);
+  auto problem = [&](double tracking) { return RayDownToTheGoal(Rect(2.5, 6.5, 2.98, 6.97), top, bottom, tracking); };
+  const std::vector<std::string> active = {"vc0.cm1"};
+  const Vector2d start(3, 8.5);
+  ASSERT_TRUE(BackprojectionWithActiveRays(problem(0.0), active).Contains(start));
+  for (const double offset : {-0.1, 0.0, 0.1}) {
+    MotionWorld w = ToMotionWorld(problem(0.0), active);
+    w.ray_landing_offset = offset;
+    const MotionModel m(std::move(w));
+    FixedAdversary straight_down(0.0);
+    const SimulationResult r = Simulate(m, start, -90 * kDeg, 5 * kDeg, straight_down);
+    EXPECT_EQ(r.outcome == Outcome::kReachedGoal, offset >= 0) << "offset " << offset;
+    if (offset < 0) {
+      EXPECT_NEAR((r.final_state.position - Vector2d(2.94, 6.97)).norm(), 0.0, 1e-3);
+    }
+  }
+  const BackprojectionProblem pr = problem(0.1);
+  const Region region = BackprojectionWithActiveRays(pr, active);
+  EXPECT_FALSE(region.Contains(start));
+  ExpectSoundOnAGrid(pr, active, region, {-0.1, 0.0, 0.1});
+}
+
 // CB within δ of a ray at two places, with the goal on the ray between them: the ray is cut at both, so a motion that
 // complies past the upper corner fails there even though the goal lies further down. Cutting only at the last place
 // (below the goal) left the start above the corner in the region, and the simulator's robot met the corner and stuck
