@@ -4,6 +4,7 @@
 // vertices, vertices on each other's projection rays, robot edges parallel to rays and cameras on supporting lines
 // happen often.
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <random>
@@ -122,8 +123,10 @@ inline Scene RandomScene(std::uint64_t seed, const RandomSceneOptions& o = {}) {
 
 // A whole random scene for the VC property tests: cells_x x cells_y cells of 4 m (3 x 3 by default), star-shaped
 // (non-convex) obstacles, some overlapping; the camera on the edge of the bounds for two seeds in three, anywhere
-// otherwise; a small goal in free space; θ and ε_v random.
-inline bool RandomWholeScene(std::uint64_t seed, Scene& s, double& theta, int cells_x = 3, int cells_y = 3) {
+// otherwise; a small goal in free space (with `goal_on_cb`, around a point of CB's boundary instead: a goal resting on
+// a surface, partly inside CB, where motions slide and rays land into it); θ and ε_v random.
+inline bool RandomWholeScene(std::uint64_t seed, Scene& s, double& theta, int cells_x = 3, int cells_y = 3,
+                             bool goal_on_cb = false) {
   testing::RandomSceneOptions o;
   o.cells_x = cells_x;
   o.cells_y = cells_y;
@@ -159,13 +162,23 @@ inline bool RandomWholeScene(std::uint64_t seed, Scene& s, double& theta, int ce
   // A goal rectangle whose corners are free (the region may still graze CB; the sweep clips it).
   for (int attempt = 0; attempt < 200; ++attempt) {
     const double w = 0.4 + unit(rng), h = 0.3 + 0.6 * unit(rng);
-    const double x = s.bounds.min.x() + unit(rng) * (s.bounds.max.x() - s.bounds.min.x() - w);
-    const double y = s.bounds.min.y() + unit(rng) * (s.bounds.max.y() - s.bounds.min.y() - h);
+    double x = s.bounds.min.x() + unit(rng) * (s.bounds.max.x() - s.bounds.min.x() - w);
+    double y = s.bounds.min.y() + unit(rng) * (s.bounds.max.y() - s.bounds.min.y() - h);
+    if (goal_on_cb && probe.num_c_obstacles() > 0) {
+      // Around a random point of a random C-obstacle's outer boundary, anywhere within the rectangle.
+      const auto& c_obstacle = probe.c_obstacle(static_cast<std::size_t>(unit(rng) * probe.num_c_obstacles()));
+      if (c_obstacle.empty()) continue;
+      const auto& ring = c_obstacle[static_cast<std::size_t>(unit(rng) * c_obstacle.size())].outer.vertices;
+      const std::size_t k = static_cast<std::size_t>(unit(rng) * ring.size());
+      const Point on = ring[k] + unit(rng) * (ring[(k + 1) % ring.size()] - ring[k]);
+      x = std::clamp(on.x() - unit(rng) * w, s.bounds.min.x(), s.bounds.max.x() - w);
+      y = std::clamp(on.y() - unit(rng) * h, s.bounds.min.y(), s.bounds.max.y() - h);
+    }
     Polygon g{{{x, y}, {x + w, y}, {x + w, y + h}, {x, y + h}}};
-    bool free = true;
-    for (const Point& v : g.vertices) free &= probe.Locate(v) == Location::kOutside;
-    free &= probe.Locate(Point(x + w / 2, y + h / 2)) == Location::kOutside;
-    if (!free) continue;
+    int free_points = 0;
+    for (const Point& v : g.vertices) free_points += probe.Locate(v) == Location::kOutside;
+    free_points += probe.Locate(Point(x + w / 2, y + h / 2)) == Location::kOutside;
+    if (goal_on_cb ? free_points == 0 : free_points < 5) continue;
     s.goal.polygon = g;
     s.goal.source_index = {0, 1, 2, 3};
     s.uncertainty.velocity_cone_rad = (2.0 + 18.0 * unit(rng)) * M_PI / 180;

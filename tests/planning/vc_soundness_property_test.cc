@@ -81,10 +81,11 @@ void CheckRegion(std::uint64_t seed, const CSpace& cspace, const BackprojectionP
 
 // With `heights`, the camera stands 1-6 m above the plane and most obstacles are prisms 0.2-3 m high (2.5D
 // visibility): rays see over low prisms, and break where a prism hides the robot, with open ends there.
-void CheckScene(std::uint64_t seed, Counts& counts, bool heights = false) {
+// With `goal_on_cb`, the goal rests on a surface (around a point of CB's boundary, partly inside CB).
+void CheckScene(std::uint64_t seed, Counts& counts, bool heights = false, bool goal_on_cb = false) {
   Scene s;
   double theta = 0;
-  if (!testing::RandomWholeScene(seed, s, theta)) return;
+  if (!testing::RandomWholeScene(seed, s, theta, 3, 3, goal_on_cb)) return;
   if (heights) {
     std::mt19937_64 rng(seed * 977 + 5);
     std::uniform_real_distribution<double> unit(0, 1);
@@ -181,6 +182,14 @@ TEST(VcSoundnessProperty, SkippingRaysThatOnlyLeadToOpenEndsChangesNothing) {
 TEST(VcSoundnessProperty, RandomWholeScenesWithHeights) {
   Counts c;
   for (std::uint64_t seed = 1; seed <= 60; ++seed) CheckScene(seed, c, /*heights=*/true);
+  Report(c);
+}
+
+// Goals resting on surfaces, as real goals do (a slot, a shelf): motions slide into them and rays land beside and in
+// them, with the servo's tracking error.
+TEST(VcSoundnessProperty, RandomWholeScenesWithTheGoalOnCB) {
+  Counts c;
+  for (std::uint64_t seed = 1; seed <= 60; ++seed) CheckScene(seed, c, /*heights=*/false, /*goal_on_cb=*/true);
   Report(c);
 }
 
