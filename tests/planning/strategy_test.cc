@@ -301,7 +301,8 @@ TEST(Strategy, CaseFilesAreCheckedInSimulation) {
   }
 }
 
-TEST(Strategy, RandomScenesAreCheckedInSimulation) {
+// Plans on random whole scenes (with `goal_on_cb`, the goal resting on a surface) and checks every strategy found.
+void CheckRandomScenes(bool goal_on_cb) {
   int scenes = 0, with = 0, without = 0, multi = 0;
 #if defined(__SANITIZE_ADDRESS__)
   const std::uint64_t last_seed = 3;
@@ -311,7 +312,7 @@ TEST(Strategy, RandomScenesAreCheckedInSimulation) {
   for (std::uint64_t seed = 1; seed <= last_seed; ++seed) {
     Scene s;
     double theta = 0;
-    if (!testing::RandomWholeScene(seed, s, theta, 2, 1)) continue;
+    if (!testing::RandomWholeScene(seed, s, theta, 2, 1, goal_on_cb)) continue;
     if (!testing::PlaceStartRegion(seed, s)) continue;
     ++scenes;
     const Planned p = PlanAndCheck(s, "seed " + std::to_string(seed), kSanitized ? 6 : 24);
@@ -326,6 +327,10 @@ TEST(Strategy, RandomScenesAreCheckedInSimulation) {
   EXPECT_GE(with, static_cast<int>(last_seed) / 4)
       << "too few random scenes have a strategy for the check to mean much";
 }
+
+TEST(Strategy, RandomScenesAreCheckedInSimulation) { CheckRandomScenes(false); }
+
+TEST(Strategy, RandomScenesWithTheGoalOnCBAreCheckedInSimulation) { CheckRandomScenes(true); }
 
 }  // namespace
 }  // namespace visco::planning
