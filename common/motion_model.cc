@@ -291,7 +291,9 @@ MotionState MotionModel::ResolveAt(const MotionState& state, const Vector2d& v, 
   if (current >= 0) {
     const auto& seg = world_.active_rays[current];
     const Vector2d u = (seg[1] - seg[0]).normalized();
-    at_current_end = RayRemaining(current, s.position, u) <= tol_ || RayRemaining(current, s.position, -u) <= tol_;
+    // Only the end that v carries the robot towards ends the ray: at the other one it has just engaged it (met its
+    // end sliding along an edge, or switched to it at a crossing) and stays on it, even where another ray passes.
+    at_current_end = RayRemaining(current, s.position, vd.dot(u) >= 0.0 ? u : Vector2d(-u)) <= tol_;
   }
   if (current < 0 || arrived_ray >= 0 || at_current_end) {
     // Not continuing along the current ray's interior: look for other rays through the point.

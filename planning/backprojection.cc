@@ -203,7 +203,8 @@ struct Curve {
   Label left = Label::kBad, right = Label::kBad;
   Label track = Label::kBad;  // active rays: where complying down the ray leads
   bool sticking = false;
-  Vector2d n_free{0, 0};  // obstacle/bounds: unit normal into the free side (sweep frame)
+  bool obstacle_face = false;  // bounds: a C-obstacle edge on the bounds' line (n_free: out of the C-obstacle)
+  Vector2d n_free{0, 0};       // obstacle/bounds: unit normal into the free side (sweep frame)
   int id = 0;
 };
 
@@ -215,6 +216,7 @@ struct StaticCurve {
   Label left, right;  // static labels
   Vector2d n_free;
   bool sticking;
+  bool obstacle_face = false;  // as Curve::obstacle_face
 };
 
 struct Piece {
@@ -279,6 +281,7 @@ class Sweep {
     Label ccw = Label::kBad, cw = Label::kBad;  // labels of the sectors on either side (upper: static)
     Label track = Label::kBad;
     bool sticking = false;
+    bool obstacle_face = false;
     Vector2d n_free{0, 0};
     Vector2d dir{0, 0};
   };
@@ -291,6 +294,7 @@ class Sweep {
   void CheckIntersection(const Curve* a, const Curve* b, const P2& p);
   int VertexName(const P2& p, const std::vector<Curve*>& through);
   bool ClipToBounds(P2 (&ends)[2], bool (&open)[2]) const;
+  bool RunsAlongCB(const P2& lower, const P2& upper, SweepFrame& frame) const;
   int AddName(std::string name);
 
   const BackprojectionProblem& problem_;
@@ -305,6 +309,7 @@ class Sweep {
   std::map<P2, int, LessYX> vertex_names_;
   P2 bounds_sweep_[4];                    // the bounds' corners in the sweep frame, counter-clockwise
   std::set<P2, LessYX> open_lower_ends_;  // lower ends of active ray segments that fail when complied to
+  std::set<int> failing_parts_;           // ray parts (sources) beside CB within δ: complying along them fails
   // Lower ends on CB of active ray segments (sources_ indices), when the tracking error is positive: complying to the
   // end is good only if meeting CB beside it is (LandingIsGood).
   std::map<P2, std::vector<int>, LessYX> closed_lower_ends_;
@@ -322,9 +327,11 @@ class Sweep {
 // Where along the ray from `up` to `down` (0 at up, 1 at down) the C-obstacles come within the tracking error δ of
 // its line beside the ray, over the edges that neither end lies on (within `snap`): each edge's points within δ of the
 // line form one piece of it (the distance is affine along the edge); returns the parameters in (0, 1) where such
-// pieces begin and end, ascending, and sets `to_the_end` where one runs on to the lower end or past it.
+// pieces begin and end, ascending, and sets `to_the_end` where one runs on to the lower end or past it; `pieces` gets
+// each piece's parameter range.
 std::vector<double> PointsWithinTrackingError(const BackprojectionProblem& pr, const Vector2d& up, const Vector2d& down,
-                                              double snap, bool& to_the_end) {
+                                              double snap, bool& to_the_end,
+                                              std::vector<std::pair<double, double>>& pieces) {
   const double delta = pr.ray_tracking_error;
   const Vector2d d = down - up;
   const Vector2d n = Vector2d(-d.y(), d.x()).normalized();
@@ -351,6 +358,7 @@ std::vector<double> PointsWithinTrackingError(const BackprojectionProblem& pr, c
       const double t1 = (a + s1 * (b - a) - up).dot(d) / d.squaredNorm();
       if (std::max(t0, t1) <= 0.0 || std::min(t0, t1) >= 1.0) continue;  // beside the line beyond the ray's ends
       to_the_end = to_the_end || std::max(t0, t1) >= 1.0;
+      pieces.emplace_back(std::min(t0, t1), std::max(t0, t1));
       for (const double t : {t0, t1}) {
         if (t > 0.0 && t < 1.0) breaks.push_back(t);
       }
@@ -360,6 +368,23 @@ std::vector<double> PointsWithinTrackingError(const BackprojectionProblem& pr, c
   breaks.erase(std::unique(breaks.begin(), breaks.end(), [](double x, double y) { return y - x <= 1e-12; }),
                breaks.end());
   return breaks;
+}
+
+// True if the ray part from `lower` up to `upper` runs along a C-obstacle edge at `lower`: the edge lies on the
+// part's line and goes on from `lower` towards `upper` (exact, in the sweep frame).
+bool Sweep::RunsAlongCB(const P2& lower, const P2& upper, SweepFrame& frame) const {
+  for (const auto& poly : problem_.obstacles) {
+    const size_t n = poly.vertices.size();
+    for (size_t k = 0; k < n; ++k) {
+      if (poly.vertices[k] == poly.vertices[(k + 1) % n]) continue;
+      const P2 a = frame.Map(poly.vertices[k]), b = frame.Map(poly.vertices[(k + 1) % n]);
+      if (!CGAL::collinear(a, b, lower) || !CGAL::collinear(a, b, upper)) continue;
+      if (!CGAL::collinear_are_ordered_along_line(a, lower, b)) continue;
+      const V2 up = upper - lower;
+      if (CGAL::is_positive((a - lower) * up) || CGAL::is_positive((b - lower) * up)) return true;
+    }
+  }
+  return false;
 }
 
 int Sweep::AddName(std::string name) {
@@ -539,19 +564,42 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       // the last cut ends at its lower cut, open (complying into it fails, even where the goal lies further down: the
       // robot meets CB first). The edges the ray's ends lie on are the start's and the landing's (above); where CB
       // comes within δ right up to the lower end, the whole ray ends open.
-      bool cut_to_the_end = false;
+      bool cut_to_the_end = false, last_part_beside_cb = false;
       if (pr.ray_tracking_error > 0.0) {
         const Vector2d up = rot_.InvertExact(ends[1 - lower]), down = rot_.InvertExact(ends[lower]);
         const P2 top = ends[1 - lower], bottom = ends[lower];
-        for (const double cut : PointsWithinTrackingError(pr, up, down, snap, cut_to_the_end)) {
+        std::vector<std::pair<double, double>> pieces;
+        // A part beside such a piece of CB: a motion complying along it can meet CB anywhere on it, before the goal
+        // too where the goal lies on it (VISCO_SEED_OFFSET=5261327, seed 51 of the soundness test: the goal's corner
+        // on a C-obstacle face 1 cm from the ray), so complying along it fails throughout, not only at its end.
+        auto beside_cb = [&](double t0, double t1) {
+          const double mid = 0.5 * (t0 + t1);
+          return std::any_of(pieces.begin(), pieces.end(),
+                             [&](const auto& piece) { return piece.first <= mid && mid <= piece.second; });
+        };
+        double from = 0.0;
+        for (const double cut : PointsWithinTrackingError(pr, up, down, snap, cut_to_the_end, pieces)) {
           const P2 corner = top + (bottom - top) * FT(cut);
           if (corner == ends[1 - lower]) continue;
-          add_part(ends[1 - lower], corner);
+          const int part = add_part(ends[1 - lower], corner);
+          if (beside_cb(from, cut)) failing_parts_.insert(part);
           open_lower_ends_.insert(corner);
           ends[1 - lower] = corner;  // strictly between the ends: the lower end stays the lower one
+          from = cut;
         }
+        last_part_beside_cb = beside_cb(from, 1.0);
       }
       const int whole = add_part(ends[0], ends[1]);
+      if (last_part_beside_cb) failing_parts_.insert(whole);
+      if (open[lower] || cut_to_the_end ||
+          (pr.ray_tracking_error > 0.0 && RunsAlongCB(ends[lower], ends[1 - lower], frame))) {
+        // Along a C-obstacle edge down to its lower end, the servo holds the robot up to δ off the edge on the free
+        // side, and past the end of the edge on the line beyond it: whatever CB does there, the motion never lands
+        // where the planner could vouch for it (complying into such an end counts as failing, like an open end).
+        // The overlay merges the ray into the edge, so without this the sweep would see only a sliding motion.
+        // Found on random scenes with the goal on CB (VISCO_SEED_OFFSET=6995588, seed 31 of the soundness test).
+        open_lower_ends_.insert(ends[lower]);
+      }
       if (open[lower] || cut_to_the_end) {
         open_lower_ends_.insert(ends[lower]);
       } else if (pr.ray_tracking_error > 0.0) {
@@ -689,6 +737,14 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       if ((left_normal.dot(c.n_free) > 0) != free_left) c.n_free = -c.n_free;
       if (c.n_free.norm() == 0.0) c.n_free = (free_left ? left_normal : Vector2d(-left_normal)).normalized();
     }
+    // A C-obstacle edge on the bounds' line: the motion model slides along it like any other (the robot stays on
+    // the closed bounds), so the vertex rule at its ends must see it; its normal points out of the C-obstacle.
+    if (c.kind == EdgeKind::kBounds && (left == Label::kObstacle || right == Label::kObstacle)) {
+      const Vector2d d = ToD(hi - lo);
+      const Vector2d left_normal = Vector2d(-d.y(), d.x()).normalized();
+      c.obstacle_face = true;
+      c.n_free = left == Label::kObstacle ? Vector2d(-left_normal) : left_normal;
+    }
     events[lo].push_back(c);
     events.try_emplace(hi);
   }
@@ -813,7 +869,7 @@ bool Sweep::OutcomeAt(const V2& w, const std::vector<LRay>& rays, Label below) c
   constexpr double kTie = 1e-12;
   std::vector<std::pair<double, const LRay*>> pushed;
   for (const LRay& r : rays) {
-    if (r.kind != EdgeKind::kObstacle) continue;
+    if (r.kind != EdgeKind::kObstacle && !r.obstacle_face) continue;
     if (!(wd.dot(r.n_free) < -1e-14)) continue;
     if (MotionModel::Sticks(wd, r.n_free, phi_)) continue;
     const double comp = wd.dot(r.dir);
@@ -825,7 +881,9 @@ bool Sweep::OutcomeAt(const V2& w, const std::vector<LRay>& rays, Label below) c
   for (const auto& [comp, r] : pushed) best_comp = std::max(best_comp, comp);
   for (const auto& [comp, best] : pushed) {
     if (comp < best_comp - kTie) continue;
-    if (best->upper || best->sticking) return false;
+    // Sliding along a C-obstacle edge on the bounds' line runs along the bounds: counted as failing (conservative;
+    // found on random scenes with the goal on CB, VISCO_SEED_OFFSET=5340517, seed 33 of the soundness test).
+    if (best->upper || best->sticking || best->obstacle_face) return false;
     bool good = false;
     for (Label l : {best->ccw, best->cw}) {
       if (l == Label::kGoal) {
@@ -868,7 +926,7 @@ Label Sweep::StatusAtPoint(const std::vector<LRay>& rays, Label below) const {
   const double cphi = std::cos(phi_), sphi = std::sin(phi_);
   for (const LRay& r : rays) {
     if (in_cone(r.edir)) crit.push_back(r.edir);
-    if (r.kind != EdgeKind::kObstacle) continue;
+    if (r.kind != EdgeKind::kObstacle && !r.obstacle_face) continue;
     const Vector2d in = -r.n_free;
     add({cphi * in.x() - sphi * in.y(), sphi * in.x() + cphi * in.y()});  // friction-cone boundaries
     add({cphi * in.x() + sphi * in.y(), -sphi * in.x() + cphi * in.y()});
@@ -876,7 +934,7 @@ Label Sweep::StatusAtPoint(const std::vector<LRay>& rays, Label below) const {
     // it neither pushes (the tolerance below) nor moves freely, and would be taken for a stop.
     if (in_cone(-r.edir)) crit.push_back(-r.edir);
     for (const LRay& q : rays) {
-      if (&q == &r || q.kind != EdgeKind::kObstacle) continue;
+      if (&q == &r || (q.kind != EdgeKind::kObstacle && !q.obstacle_face)) continue;
       const Vector2d diff = r.dir - q.dir;  // w · r.dir = w · q.dir on the perpendicular of the difference
       add({-diff.y(), diff.x()});
       add({diff.y(), -diff.x()});
@@ -1011,6 +1069,7 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
     r.ccw = uppers[i].left;
     r.cw = uppers[i].right;
     r.sticking = uppers[i].sticking;
+    r.obstacle_face = uppers[i].obstacle_face;
     r.n_free = uppers[i].n_free;
     rays.push_back(r);
   }
@@ -1024,6 +1083,7 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
     r.cw = c->left;
     r.track = c->track;
     r.sticking = c->sticking;
+    r.obstacle_face = c->obstacle_face;
     r.n_free = c->n_free;
     rays.push_back(r);
   }
@@ -1055,6 +1115,7 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
   // overlay stops it at a C-obstacle edge: a rounded end a few ulps inside CB leaves the piece beyond the edge in CB,
   // and the overlay drops it, so the ray really ends where it enters CB.
   auto ray_status = [&](const StaticCurve& u) -> Label {
+    if (failing_parts_.count(u.src) != 0) return Label::kBad;
     const Label at_p = point_status();
     if (!IsGood(at_p) || !(problem_.ray_tracking_error > 0.0)) return at_p;
     const bool registered =
@@ -1172,6 +1233,7 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
       c->src = u.src;
       c->name = sources_[u.src].name;
       c->sticking = u.sticking;
+      c->obstacle_face = u.obstacle_face;
       c->n_free = u.n_free;
       if (u.kind == EdgeKind::kVc) {
         c->track = ray_status(u);
