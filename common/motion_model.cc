@@ -440,13 +440,19 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
     const Vector2d across = Vector2d(-m.y(), m.x()) * (world_.ray_landing_offset > 0.0 ? 1.0 : -1.0);
     double nearest = std::abs(world_.ray_landing_offset);
     const bool at_end = hit == Hit::kRayEnd && best <= tol_;  // the landing there is LandBesideRayEnd's
+    // The edges of the end behind the robot are where the ray starts; the end ahead's are where it lands, met here
+    // when they already lie within the offset (a ray converging on its landing edge at a small angle).
+    const Vector2d& behind = (seg[0] - p).dot(m) < (seg[1] - p).dot(m) ? seg[0] : seg[1];
+    const auto start_edge = [&](const EdgeId&, const Vector2d& a, const Vector2d& b) {
+      return DistanceToSegment(behind, a, b) <= tol_;
+    };
     for (size_t k = 0; k < world_.obstacles.size(); ++k) {
       const auto& poly = world_.obstacles[k];
       for (size_t j = 0; j < poly.size(); ++j) {
         const EdgeId e{static_cast<int>(k), static_cast<int>(j)};
         const Vector2d& a = poly[j];
         const Vector2d& b = poly[(j + 1) % poly.size()];
-        if (at_end || end_edge(e, a, b) || !(across.dot(OutwardNormal(e)) < 0.0)) continue;
+        if (at_end || start_edge(e, a, b) || !(across.dot(OutwardNormal(e)) < 0.0)) continue;
         const double t = PathSegment(p, across, a, b, tol_);
         if (t >= 0.0 && t < nearest) {
           nearest = t;
@@ -552,7 +558,11 @@ StepResult MotionModel::LandBesideRayEnd(MotionState& state, MotionState ns, con
   result.time = time;
   const double o = world_.ray_landing_offset;
   const Vector2d side = Vector2d(-m.y(), m.x()) * o;
-  double back = std::min((q - other_end).norm(), 100.0 * std::abs(o));
+  // From beside where this step of compliance began (where the robot joined the ray, or any later point): the robot
+  // is there, and a landing edge already within the offset there was met at once (AdvanceToEvent). Searching from
+  // further back put the start out of the bounds or into CB beside a ray converging on its landing edge, and the
+  // robot was taken to stop (VISCO_SEED_OFFSET=8636742, seed 14 of the goal-on-CB soundness scenes).
+  double back = std::min({(q - other_end).norm(), 100.0 * std::abs(o), std::max(0.0, (q - ns.position).dot(m))});
   Vector2d s0 = q + side - back * m;
   while (back > tol_ && (InObstacleInterior(s0) || !InBounds(s0))) {
     back *= 0.5;

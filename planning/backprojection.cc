@@ -337,13 +337,70 @@ std::vector<double> PointsWithinTrackingError(const BackprojectionProblem& pr, c
   const Vector2d n = Vector2d(-d.y(), d.x()).normalized();
   std::vector<double> breaks;
   to_the_end = false;
+  auto consider = [&](const Vector2d& a, const Vector2d& b) {
+    // Signed distance from the line: da + s (db − da) for s in [0, 1]; keep |·| <= δ.
+    const double da = (a - up).dot(n), db = (b - up).dot(n);
+    double s0 = 0.0, s1 = 1.0;
+    if (da != db) {
+      const double lo = (-delta - da) / (db - da), hi = (delta - da) / (db - da);
+      s0 = std::max(s0, std::min(lo, hi));
+      s1 = std::min(s1, std::max(lo, hi));
+    } else if (std::abs(da) > delta) {
+      return;
+    }
+    if (s0 > s1) return;
+    const double t0 = (a + s0 * (b - a) - up).dot(d) / d.squaredNorm();
+    const double t1 = (a + s1 * (b - a) - up).dot(d) / d.squaredNorm();
+    if (std::max(t0, t1) <= 0.0 || std::min(t0, t1) >= 1.0) return;  // beside the line beyond the ray's ends
+    to_the_end = to_the_end || std::max(t0, t1) >= 1.0;
+    pieces.emplace_back(std::min(t0, t1), std::max(t0, t1));
+    for (const double t : {t0, t1}) {
+      if (t > 0.0 && t < 1.0) breaks.push_back(t);
+    }
+  };
   for (const auto& poly : pr.obstacles) {
     const size_t nv = poly.vertices.size();
     for (size_t i = 0; i < nv; ++i) {
       const Vector2d& a = poly.vertices[i];
       const Vector2d& b = poly.vertices[(i + 1) % nv];
       if (PointSegmentDistance(up, a, b) <= snap || PointSegmentDistance(down, a, b) <= snap) continue;
-      // Signed distance from the line: da + s (db − da) for s in [0, 1]; keep |·| <= δ.
+      consider(a, b);
+    }
+  }
+  // The bounds and the forbidden regions too, ends or not: the robot beside the line can leave the allowed
+  // configurations there (VISCO_SEED_OFFSET=8636742, seed 14 of the goal-on-CB soundness scenes: a ray starting on
+  // the bounds, the robot joining it 1 cm inside them with δ = 2.3 cm).
+  const Vector2d lo = pr.bounds_min, hi = pr.bounds_max;
+  const Vector2d corners[4] = {{lo.x(), lo.y()}, {hi.x(), lo.y()}, {hi.x(), hi.y()}, {lo.x(), hi.y()}};
+  for (int k = 0; k < 4; ++k) consider(corners[k], corners[(k + 1) % 4]);
+  for (const auto& poly : pr.forbidden) {
+    const size_t nv = poly.vertices.size();
+    for (size_t i = 0; i < nv; ++i) consider(poly.vertices[i], poly.vertices[(i + 1) % nv]);
+  }
+  std::sort(breaks.begin(), breaks.end());
+  breaks.erase(std::unique(breaks.begin(), breaks.end(), [](double x, double y) { return y - x <= 1e-12; }),
+               breaks.end());
+  return breaks;
+}
+
+// With the servo's tracking error the robot can meet the edges a closed lower end `down` lies on (its landing) up to
+// δ / sin(angle) before the end. The sweep checks the landing at the end (LandingIsGood), but where the ray enters
+// the goal on the way there it stops at the goal and never looks. True if the part from `up` enters the goal only
+// after a landing edge has come within δ of its line: the robot may meet the edge first (seed 29 of the soundness
+// test's goal-on-CB scenes, once the simulator met landing edges where the robot joins a ray).
+bool GoalAfterTheLanding(const BackprojectionProblem& pr, const Vector2d& up, const Vector2d& down, double snap) {
+  const Vector2d d = down - up;
+  const double len2 = d.squaredNorm();
+  if (!(len2 > 0.0)) return false;
+  const Vector2d n = Vector2d(-d.y(), d.x()).normalized();
+  const double delta = pr.ray_tracking_error;
+  double landing = 1.0;  // the ray parameter where a landing edge first comes within δ
+  for (const auto& poly : pr.obstacles) {
+    const size_t nv = poly.vertices.size();
+    for (size_t i = 0; i < nv; ++i) {
+      const Vector2d& a = poly.vertices[i];
+      const Vector2d& b = poly.vertices[(i + 1) % nv];
+      if (PointSegmentDistance(down, a, b) > snap) continue;
       const double da = (a - up).dot(n), db = (b - up).dot(n);
       double s0 = 0.0, s1 = 1.0;
       if (da != db) {
@@ -354,20 +411,24 @@ std::vector<double> PointsWithinTrackingError(const BackprojectionProblem& pr, c
         continue;
       }
       if (s0 > s1) continue;
-      const double t0 = (a + s0 * (b - a) - up).dot(d) / d.squaredNorm();
-      const double t1 = (a + s1 * (b - a) - up).dot(d) / d.squaredNorm();
-      if (std::max(t0, t1) <= 0.0 || std::min(t0, t1) >= 1.0) continue;  // beside the line beyond the ray's ends
-      to_the_end = to_the_end || std::max(t0, t1) >= 1.0;
-      pieces.emplace_back(std::min(t0, t1), std::max(t0, t1));
-      for (const double t : {t0, t1}) {
-        if (t > 0.0 && t < 1.0) breaks.push_back(t);
-      }
+      for (const double s : {s0, s1}) landing = std::min(landing, (a + s * (b - a) - up).dot(d) / len2);
     }
   }
-  std::sort(breaks.begin(), breaks.end());
-  breaks.erase(std::unique(breaks.begin(), breaks.end(), [](double x, double y) { return y - x <= 1e-12; }),
-               breaks.end());
-  return breaks;
+  if (!(landing < 1.0)) return false;
+  double goal = 1.0;  // the ray parameter where the part first meets the goal's boundary
+  for (const auto& poly : pr.goal) {
+    const size_t nv = poly.vertices.size();
+    for (size_t i = 0; i < nv; ++i) {
+      const Vector2d& a = poly.vertices[i];
+      const Vector2d e = poly.vertices[(i + 1) % nv] - a;
+      const double denom = d.x() * e.y() - d.y() * e.x();
+      if (denom == 0.0) continue;
+      const Vector2d w = a - up;
+      const double t = (w.x() * e.y() - w.y() * e.x()) / denom, u = (w.x() * d.y() - w.y() * d.x()) / denom;
+      if (t >= 0.0 && t < goal && u >= 0.0 && u <= 1.0) goal = t;
+    }
+  }
+  return goal < 1.0 && goal > landing;
 }
 
 // True if the ray part from `lower` up to `upper` runs along a C-obstacle edge at `lower`: the edge lies on the
@@ -590,7 +651,11 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
         last_part_beside_cb = beside_cb(from, 1.0);
       }
       const int whole = add_part(ends[0], ends[1]);
-      if (last_part_beside_cb) failing_parts_.insert(whole);
+      if (last_part_beside_cb ||
+          (pr.ray_tracking_error > 0.0 && !open[lower] &&
+           GoalAfterTheLanding(pr, rot_.InvertExact(ends[1 - lower]), rot_.InvertExact(ends[lower]), snap))) {
+        failing_parts_.insert(whole);
+      }
       if (open[lower] || cut_to_the_end ||
           (pr.ray_tracking_error > 0.0 && RunsAlongCB(ends[lower], ends[1 - lower], frame))) {
         // Along a C-obstacle edge down to its lower end, the servo holds the robot up to δ off the edge on the free
@@ -1520,6 +1585,17 @@ double Region::BoundaryDistance(const Vector2d& p) const {
     for (const auto& h : poly.holes) ring_distance(h);
   }
   return best;
+}
+
+std::vector<Vector2d> TrackingErrorCuts(const BackprojectionProblem& problem, const Vector2d& a, const Vector2d& b) {
+  std::vector<Vector2d> cuts;
+  if (!(problem.ray_tracking_error > 0.0) || a == b) return cuts;
+  const double snap = 1e-9 * (problem.bounds_max - problem.bounds_min).norm();
+  bool to_the_end = false;
+  std::vector<std::pair<double, double>> pieces;
+  for (const double t : PointsWithinTrackingError(problem, a, b, snap, to_the_end, pieces))
+    cuts.push_back(a + t * (b - a));
+  return cuts;
 }
 
 bool IsReliableRay(const Vector2d& a, const Vector2d& b, double theta, double velocity_cone) {

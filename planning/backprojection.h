@@ -168,6 +168,13 @@ bool IsReliableRay(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double th
 /// is reliable (IsReliableRay).
 bool IsReliableRay(const CvcRayInput& ray, double theta, double velocity_cone);
 
+/// Where the servo's tracking error δ (`problem.ray_tracking_error`) makes the sweep cut an active ray segment
+/// [a, b]: the points where CB (edges neither end lies on), the bounds or a forbidden region come within δ of its
+/// line beside it or stop doing so (docs/semantics.md, "Compliance ends"). They do not depend on θ; the critical
+/// orientations take them as static points. Empty when δ = 0.
+std::vector<Eigen::Vector2d> TrackingErrorCuts(const BackprojectionProblem& problem, const Eigen::Vector2d& a,
+                                               const Eigen::Vector2d& b);
+
 /// The goal kernel: each goal polygon eroded by the disc of radius ε_p, approximated from inside (the disc is
 /// replaced by a circumscribed regular polygon with `sides` sides, so the result is a subset of the true kernel).
 std::vector<NamedPolygon> GoalKernel(const std::vector<NamedPolygon>& goal, double position_uncertainty,

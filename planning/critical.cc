@@ -406,6 +406,9 @@ class Generator {
         segs_.push_back({ray.segments[k][0], ray.segments[k][1], ray.id, SegKind::kRay});
         points_.push_back({ray.segments[k][0], ref + ".end[0]"});
         points_.push_back({ray.segments[k][1], ref + ".end[1]"});
+        // Where the tracking error cuts the ray, a part of it starts to fail: a static point of the regions.
+        const auto cuts = TrackingErrorCuts(pr_, ray.segments[k][0], ray.segments[k][1]);
+        for (size_t c = 0; c < cuts.size(); ++c) points_.push_back({cuts[c], ref + ".cut[" + std::to_string(c) + "]"});
       }
     }
     if (start) AddRing(*start, "start", SegKind::kStart, true);
