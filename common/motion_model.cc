@@ -386,22 +386,30 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
       hit = Hit::kBounds;
     }
   }
-  // The first C-obstacle edge that the path from `from` along m enters before `best` (edges `skip` accepts aside).
-  auto first_entered = [&](const Vector2d& from, Hit kind, const auto& skip) {
+  // The first C-obstacle edge that the path from `from` along `dir` enters before `limit` (edges `skip` accepts
+  // aside; one met right at `from` counts only with `at_from`): its distance and the edge, or `limit` if none.
+  auto entered = [&](const Vector2d& from, const Vector2d& dir, double limit, bool at_from, const auto& skip) {
+    std::pair<double, EdgeId> first{limit, EdgeId{}};
     for (size_t k = 0; k < world_.obstacles.size(); ++k) {
       const auto& poly = world_.obstacles[k];
       for (size_t j = 0; j < poly.size(); ++j) {
         const EdgeId e{static_cast<int>(k), static_cast<int>(j)};
         const Vector2d& a = poly[j];
         const Vector2d& b = poly[(j + 1) % poly.size()];
-        if (skip(e, a, b) || !(m.dot(OutwardNormal(e)) < 0.0)) continue;
-        const double t = PathSegment(from, m, a, b, tol_);
-        if (t > tol_ && t < best) {
-          best = t;
-          hit = kind;
-          hit_edge = e;
-        }
+        if (skip(e, a, b) || !(dir.dot(OutwardNormal(e)) < 0.0)) continue;
+        const double t = PathSegment(from, dir, a, b, tol_);
+        if ((at_from ? t >= 0.0 : t > tol_) && t < first.first) first = {t, e};
       }
+    }
+    return first;
+  };
+  // Ahead of the robot along m: the nearer edge becomes the step's event of `kind`.
+  auto first_entered = [&](const Vector2d& from, Hit kind, const auto& skip) {
+    const auto [t, e] = entered(from, m, best, false, skip);
+    if (t < best) {
+      best = t;
+      hit = kind;
+      hit_edge = e;
     }
   };
   first_entered(p, Hit::kObstacle, [&](const EdgeId& e, const Vector2d&, const Vector2d&) {
@@ -446,20 +454,13 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
     const auto start_edge = [&](const EdgeId&, const Vector2d& a, const Vector2d& b) {
       return DistanceToSegment(behind, a, b) <= tol_;
     };
-    for (size_t k = 0; k < world_.obstacles.size(); ++k) {
-      const auto& poly = world_.obstacles[k];
-      for (size_t j = 0; j < poly.size(); ++j) {
-        const EdgeId e{static_cast<int>(k), static_cast<int>(j)};
-        const Vector2d& a = poly[j];
-        const Vector2d& b = poly[(j + 1) % poly.size()];
-        if (at_end || start_edge(e, a, b) || !(across.dot(OutwardNormal(e)) < 0.0)) continue;
-        const double t = PathSegment(p, across, a, b, tol_);
-        if (t >= 0.0 && t < nearest) {
-          nearest = t;
-          best = 0.0;
-          hit = Hit::kBesideRay;
-          hit_edge = e;
-        }
+    if (!at_end) {
+      const auto [t, e] = entered(p, across, nearest, true, start_edge);
+      if (t < nearest) {
+        nearest = t;
+        best = 0.0;
+        hit = Hit::kBesideRay;
+        hit_edge = e;
       }
     }
     beside_start = p + across * nearest;

@@ -324,6 +324,29 @@ class Sweep {
   P2 current_;
 };
 
+// The points of segment [a, b] within δ of the line through `up` and `down` form one piece (the distance is affine
+// along the segment): false if there are none, else the piece's ends as parameters along the line (0 at up, 1 at
+// down), in any order.
+bool PieceWithinTrackingError(const Vector2d& a, const Vector2d& b, const Vector2d& up, const Vector2d& down,
+                              double delta, double& t0, double& t1) {
+  const Vector2d d = down - up;
+  const Vector2d n = Vector2d(-d.y(), d.x()).normalized();
+  // Signed distance from the line: da + s (db − da) for s in [0, 1]; keep |·| <= δ.
+  const double da = (a - up).dot(n), db = (b - up).dot(n);
+  double s0 = 0.0, s1 = 1.0;
+  if (da != db) {
+    const double lo = (-delta - da) / (db - da), hi = (delta - da) / (db - da);
+    s0 = std::max(s0, std::min(lo, hi));
+    s1 = std::min(s1, std::max(lo, hi));
+  } else if (std::abs(da) > delta) {
+    return false;
+  }
+  if (s0 > s1) return false;
+  t0 = (a + s0 * (b - a) - up).dot(d) / d.squaredNorm();
+  t1 = (a + s1 * (b - a) - up).dot(d) / d.squaredNorm();
+  return true;
+}
+
 // Where along the ray from `up` to `down` (0 at up, 1 at down) the C-obstacles come within the tracking error δ of
 // its line beside the ray, over the edges that neither end lies on (within `snap`): each edge's points within δ of the
 // line form one piece of it (the distance is affine along the edge); returns the parameters in (0, 1) where such
@@ -333,24 +356,11 @@ std::vector<double> PointsWithinTrackingError(const BackprojectionProblem& pr, c
                                               double snap, bool& to_the_end,
                                               std::vector<std::pair<double, double>>& pieces) {
   const double delta = pr.ray_tracking_error;
-  const Vector2d d = down - up;
-  const Vector2d n = Vector2d(-d.y(), d.x()).normalized();
   std::vector<double> breaks;
   to_the_end = false;
   auto consider = [&](const Vector2d& a, const Vector2d& b) {
-    // Signed distance from the line: da + s (db − da) for s in [0, 1]; keep |·| <= δ.
-    const double da = (a - up).dot(n), db = (b - up).dot(n);
-    double s0 = 0.0, s1 = 1.0;
-    if (da != db) {
-      const double lo = (-delta - da) / (db - da), hi = (delta - da) / (db - da);
-      s0 = std::max(s0, std::min(lo, hi));
-      s1 = std::min(s1, std::max(lo, hi));
-    } else if (std::abs(da) > delta) {
-      return;
-    }
-    if (s0 > s1) return;
-    const double t0 = (a + s0 * (b - a) - up).dot(d) / d.squaredNorm();
-    const double t1 = (a + s1 * (b - a) - up).dot(d) / d.squaredNorm();
+    double t0, t1;
+    if (!PieceWithinTrackingError(a, b, up, down, delta, t0, t1)) return;
     if (std::max(t0, t1) <= 0.0 || std::min(t0, t1) >= 1.0) return;  // beside the line beyond the ray's ends
     to_the_end = to_the_end || std::max(t0, t1) >= 1.0;
     pieces.emplace_back(std::min(t0, t1), std::max(t0, t1));
@@ -392,7 +402,6 @@ bool GoalAfterTheLanding(const BackprojectionProblem& pr, const Vector2d& up, co
   const Vector2d d = down - up;
   const double len2 = d.squaredNorm();
   if (!(len2 > 0.0)) return false;
-  const Vector2d n = Vector2d(-d.y(), d.x()).normalized();
   const double delta = pr.ray_tracking_error;
   double landing = 1.0;  // the ray parameter where a landing edge first comes within δ
   for (const auto& poly : pr.obstacles) {
@@ -400,18 +409,9 @@ bool GoalAfterTheLanding(const BackprojectionProblem& pr, const Vector2d& up, co
     for (size_t i = 0; i < nv; ++i) {
       const Vector2d& a = poly.vertices[i];
       const Vector2d& b = poly.vertices[(i + 1) % nv];
-      if (PointSegmentDistance(down, a, b) > snap) continue;
-      const double da = (a - up).dot(n), db = (b - up).dot(n);
-      double s0 = 0.0, s1 = 1.0;
-      if (da != db) {
-        const double lo = (-delta - da) / (db - da), hi = (delta - da) / (db - da);
-        s0 = std::max(s0, std::min(lo, hi));
-        s1 = std::min(s1, std::max(lo, hi));
-      } else if (std::abs(da) > delta) {
-        continue;
-      }
-      if (s0 > s1) continue;
-      for (const double s : {s0, s1}) landing = std::min(landing, (a + s * (b - a) - up).dot(d) / len2);
+      double t0, t1;
+      if (PointSegmentDistance(down, a, b) > snap || !PieceWithinTrackingError(a, b, up, down, delta, t0, t1)) continue;
+      landing = std::min({landing, t0, t1});
     }
   }
   if (!(landing < 1.0)) return false;
