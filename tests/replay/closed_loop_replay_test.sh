@@ -23,12 +23,18 @@ port=$((22000 + $$ % 20000))
 url="udpm://239.255.76.67:$port?ttl=0"
 tmp=$(mktemp -d)
 pids=()
+failures=0
 cleanup() {
   for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done
-  [[ -n "${KEEP_TMP:-}" ]] && echo "kept $tmp" || rm -rf "$tmp"
+  # A failing run keeps its logs (it has failed now and then inside a full ctest run, never alone).
+  if [[ -n "${KEEP_TMP:-}" || $failures -gt 0 ]]; then
+    echo "kept $tmp"
+    tail -n 5 "$tmp"/*.log 2>/dev/null
+  else
+    rm -rf "$tmp"
+  fi
 }
 trap cleanup EXIT
-failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
 
 noise=2
