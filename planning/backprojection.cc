@@ -347,11 +347,11 @@ bool PieceWithinTrackingError(const Vector2d& a, const Vector2d& b, const Vector
   return true;
 }
 
-// Where along the ray from `up` to `down` (0 at up, 1 at down) the C-obstacles come within the tracking error δ of
-// its line beside the ray, over the edges that neither end lies on (within `snap`): each edge's points within δ of the
-// line form one piece of it (the distance is affine along the edge); returns the parameters in (0, 1) where such
-// pieces begin and end, ascending, and sets `to_the_end` where one runs on to the lower end or past it; `pieces` gets
-// each piece's parameter range.
+// Where along the ray from `up` to `down` (0 at up, 1 at down) the C-obstacles (their edges that neither end lies on,
+// within `snap`), the bounds and the forbidden regions come within the tracking error δ of its line beside the ray:
+// each edge's points within δ of the line form one piece of it (PieceWithinTrackingError); returns the parameters in
+// (0, 1) where such pieces begin and end, ascending, and sets `to_the_end` where one runs on to the lower end or past
+// it; `pieces` gets each piece's parameter range.
 std::vector<double> PointsWithinTrackingError(const BackprojectionProblem& pr, const Vector2d& up, const Vector2d& down,
                                               double snap, bool& to_the_end,
                                               std::vector<std::pair<double, double>>& pieces) {
@@ -623,7 +623,8 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       if (ends[0] == ends[1]) continue;
       const int lower = CGAL::compare_yx(ends[0], ends[1]) == CGAL::SMALLER ? 0 : 1;
       // The servo runs up to δ beside the line all along, so CB within δ of the line (a corner, or an edge leaving
-      // one) can stop a motion complying past it. The ray is cut where such a piece begins and ends: each part before
+      // one) can stop a motion complying past it, and the bounds or a forbidden region that close can let it leave
+      // the allowed configurations. The ray is cut where such a piece begins and ends: each part before
       // the last cut ends at its lower cut, open (complying into it fails, even where the goal lies further down: the
       // robot meets CB first). The edges the ray's ends lie on are the start's and the landing's (above); where CB
       // comes within δ right up to the lower end, the whole ray ends open.

@@ -242,14 +242,19 @@ TEST(VcBackprojection, RayThatFansOutEnlargesTheRegion) {
   }
 }
 
+// The motion model of `pr` with `active` as walls, the servo running `offset` beside the rays' lines.
+MotionModel ModelWithOffset(const BackprojectionProblem& pr, const std::vector<std::string>& active, double offset) {
+  MotionWorld w = ToMotionWorld(pr, active);
+  w.ray_landing_offset = offset;
+  return MotionModel(std::move(w));
+}
+
 // Every point of a half-metre grid inside `region` reaches the goal in the motion model with `active` as walls, the
 // servo running each of `offsets` beside the line where compliance ends on CB.
 void ExpectSoundOnAGrid(const BackprojectionProblem& pr, const std::vector<std::string>& active, const Region& region,
                         const std::vector<double>& offsets) {
   for (const double offset : offsets) {
-    MotionWorld w = ToMotionWorld(pr, active);
-    w.ray_landing_offset = offset;
-    const MotionModel m(std::move(w));
+    const MotionModel m = ModelWithOffset(pr, active, offset);
     for (double x = 0.25; x < 10; x += 0.5) {
       for (double y = 1.25; y < 10; y += 0.5) {
         const Vector2d p(x, y);
@@ -386,9 +391,7 @@ TEST(VcBackprojection, TheSimulatorStopsAMotionComplyingPastACornerWithinTheTrac
   const Region exact = BackprojectionWithActiveRays(problem(0.0), active);
   ASSERT_TRUE(exact.Contains(above));
   for (const double offset : {-0.1, 0.1}) {
-    MotionWorld w = ToMotionWorld(problem(0.0), active);
-    w.ray_landing_offset = offset;
-    const MotionModel m(std::move(w));
+    const MotionModel m = ModelWithOffset(problem(0.0), active, offset);
     const Outcome outcome = SimulateAdversarially(m, above, -90 * kDeg, 5 * kDeg).outcome;
     EXPECT_EQ(outcome == Outcome::kReachedGoal, offset < 0) << "offset " << offset;
   }
@@ -411,9 +414,7 @@ TEST(VcBackprojection, TheSimulatorStopsARobotJoiningARayBesideCB) {
   const Vector2d start(3, 8.5);
   ASSERT_TRUE(BackprojectionWithActiveRays(problem(0.0), active).Contains(start));
   for (const double offset : {-0.1, 0.0, 0.1}) {
-    MotionWorld w = ToMotionWorld(problem(0.0), active);
-    w.ray_landing_offset = offset;
-    const MotionModel m(std::move(w));
+    const MotionModel m = ModelWithOffset(problem(0.0), active, offset);
     FixedAdversary straight_down(0.0);
     const SimulationResult r = Simulate(m, start, -90 * kDeg, 5 * kDeg, straight_down);
     EXPECT_EQ(r.outcome == Outcome::kReachedGoal, offset >= 0) << "offset " << offset;
