@@ -1,5 +1,6 @@
 #include "drivers/can_protocol.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace visco::drivers::can {
@@ -157,6 +158,8 @@ const char* ToString(CommandVerdict verdict) {
       return "of another session";
     case CommandVerdict::kBadChecksum:
       return "bad checksum";
+    case CommandVerdict::kRepeat:
+      return "a copy of an accepted frame (a replay)";
   }
   return "?";
 }
@@ -180,6 +183,25 @@ CommandVerdict JudgeCommand(const Frame& frame, std::uint32_t session, std::uint
   }
   return CommandVerdict::kBadChecksum;
 }
+
+namespace {
+std::uint64_t FrameBytes(const Frame& frame) {
+  std::uint64_t key = 0;
+  for (int i = 0; i < 8; ++i) key |= static_cast<std::uint64_t>(frame.data[i]) << (8 * i);
+  return key;
+}
+}  // namespace
+
+bool FrameHistory::Contains(const Frame& frame) const {
+  return have_[frame.data[0]] && frames_[frame.data[0]] == FrameBytes(frame);
+}
+
+void FrameHistory::Add(const Frame& frame) {
+  frames_[frame.data[0]] = FrameBytes(frame);
+  have_[frame.data[0]] = true;
+}
+
+void FrameHistory::Clear() { std::fill(std::begin(have_), std::end(have_), false); }
 
 FrameKind Classify(const Frame& frame, int node) {
   if (frame.id & kErrFlag) return FrameKind::kError;

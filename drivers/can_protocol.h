@@ -194,6 +194,7 @@ enum class CommandVerdict : std::uint8_t {
   kAhead,         // current session, more than the window ahead
   kWrongSession,  // another session's tag
   kBadChecksum,   // the CRC fails for the current session and every plausible counter
+  kRepeat,        // passes as 1..window ahead, but is a copy of a frame accepted earlier in the session (a replay)
 };
 const char* ToString(CommandVerdict verdict);
 /// Judges a command frame against the receiver's `session` and the last accepted counter `last`: reconstructs the
@@ -201,6 +202,25 @@ const char* ToString(CommandVerdict verdict);
 /// `seq` gets the reconstructed counter (for kAccept, kStale, kAhead). Real-time safe.
 CommandVerdict JudgeCommand(const Frame& frame, std::uint32_t session, std::uint32_t last, std::uint32_t window,
                             std::uint32_t& seq);
+
+/// The last command frame of each low byte of the number that a receiver accepted (or a sender sent) in the current
+/// session: the frames of the last wrap of the counter, 256 commands. A replay of a frame one wrap old carries the low
+/// byte of a number in the window, and the CRC tells the two numbers apart only 255 times in 256: the CRC is linear,
+/// so for 1 number pair in 256 every payload passes under both numbers (drivers/README.md, "Replays"). The driver
+/// rejects a byte-identical copy of the frame it accepted one wrap earlier (CommandVerdict::kRepeat); a sender
+/// skips a number whose frame would be such a copy (the same payload as one wrap earlier under a colliding pair, 1
+/// command in 256 at a constant velocity), so that no live command is rejected. Older wraps are not kept: a frame
+/// identical to one of them is a new command as often as a replay. Real-time safe, 2.3 KB.
+class FrameHistory {
+ public:
+  bool Contains(const Frame& frame) const;
+  void Add(const Frame& frame);
+  void Clear();
+
+ private:
+  std::uint64_t frames_[256] = {};
+  bool have_[256] = {};
+};
 
 /// The counter value nearest after `last` (1..256 ahead) whose low 8 bits are `low`; minus 256 for the one behind.
 /// Real-time safe.

@@ -44,6 +44,7 @@ void Driver::NewSession(std::int64_t now_us) {
   while (nonce == 0 || nonce == session_) nonce = NextNonce();
   session_ = nonce;
   last_seq_ = 0;
+  accepted_frames_.Clear();
   last_valid_us_ = -1;  // the watchdog waits for the session's first command
   session_expired_ = false;
   ++stats_.sessions;
@@ -186,9 +187,12 @@ void Driver::Update(std::int64_t now_us) {
 void Driver::OnCommand(const DriverEvent& event, std::int64_t now_us) {
   const std::uint32_t modulus = transport_.sequence_modulus();
   std::uint32_t seq = event.seq;
-  const can::CommandVerdict verdict =
+  can::CommandVerdict verdict =
       event.has_frame ? can::JudgeCommand(event.frame, session_, last_seq_, kCommandWindow, seq)
                       : JudgeSequence(event.session, event.seq, session_, last_seq_, kCommandWindow, modulus);
+  if (verdict == can::CommandVerdict::kAccept && event.has_frame && accepted_frames_.Contains(event.frame)) {
+    verdict = can::CommandVerdict::kRepeat;
+  }
   // An e-stop is honoured from any well-formed command frame, whatever its session, number or checksum.
   if (event.command.estop) {
     EStop(now_us, verdict == can::CommandVerdict::kAccept ? "e-stop requested by the controller"
@@ -213,6 +217,7 @@ void Driver::OnCommand(const DriverEvent& event, std::int64_t now_us) {
   }
   stats_.sequence_gaps += (seq + modulus - last_seq_) % modulus - 1;
   last_seq_ = seq;
+  if (event.has_frame) accepted_frames_.Add(event.frame);
   last_valid_us_ = std::max(now_us, event.receive_us);
   ClearFault(fault_bits::kBadFrame);
   ClearFault(fault_bits::kSequence);
@@ -254,6 +259,12 @@ void Driver::Reject(can::CommandVerdict verdict, const DriverEvent& event, std::
       ++stats_.out_of_sequence;
       std::snprintf(message, sizeof(message), "command %u is stale (last accepted %u): a duplicate or replay, ignored",
                     seq, last_seq_);
+      SetFault(fault_bits::kSequence, can::kEmcyProtocol, fault_t::CODE_BAD_MESSAGE, false, message);
+      return;
+    case can::CommandVerdict::kRepeat:
+      ++stats_.out_of_sequence;
+      std::snprintf(message, sizeof(message),
+                    "command frame repeats one accepted earlier in this session (a replay): ignored");
       SetFault(fault_bits::kSequence, can::kEmcyProtocol, fault_t::CODE_BAD_MESSAGE, false, message);
       return;
     case can::CommandVerdict::kAhead:

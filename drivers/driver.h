@@ -26,6 +26,7 @@
 #include <limits>
 
 #include "common/shared_snapshot.h"
+#include "drivers/can_protocol.h"
 #include "drivers/driver_transport.h"
 #include "drivers/robot_interface.h"
 #include "drivers/robot_link.h"
@@ -135,7 +136,10 @@ class Driver {
   bool out_of_bounds_ = false;  // the robot reported itself outside its workspace (one fault per episode)
   std::uint64_t rng_ = 0;       // splitmix64 state of the nonces
   std::uint32_t session_ = 0;
-  std::uint32_t last_seq_ = 0;    // last accepted command number in the session (0: none)
+  std::uint32_t last_seq_ = 0;  // last accepted command number in the session (0: none)
+  // The session's last accepted frame of each low byte (CAN): a replay of one from the last wrap of the counter is
+  // rejected even where its CRC matches the number it claims by chance (1 in 256).
+  can::FrameHistory accepted_frames_;
   bool session_expired_ = false;  // a new session starts at the end of this Update()
   // The current session's announcement went out. A status is sent only after it (a status of a session nobody was told
   // of cannot be verified): when the bus or the interface failed the announcement, it is retried before the next one.

@@ -93,15 +93,26 @@ class SocketCanRobotLink final : public RobotLink {
     wire.quick_stop = command.quick_stop;
     wire.velocity[0] = command.velocity[0];
     wire.velocity[1] = command.velocity[1];
+    if (wire.session != sent_session_) {
+      sent_frames_.Clear();
+      sent_session_ = wire.session;
+    }
     can::Frame frame;
-    if (can::EncodeCommand(node_, wire, frame) != can::EncodeStatus::kOk) {
-      ++counters_.send_failures;
-      return LinkResult::kOutOfRange;
+    // A frame identical to the one sent a wrap earlier with the same low byte would be rejected as a replay: take
+    // the next number (within the driver's window; two skips in a row are 1 in 65 536 commands).
+    for (int skip = 0;; ++skip) {
+      if (can::EncodeCommand(node_, wire, frame) != can::EncodeStatus::kOk) {
+        ++counters_.send_failures;
+        return LinkResult::kOutOfRange;
+      }
+      if (skip == static_cast<int>(kCommandWindow / 2) || !sent_frames_.Contains(frame)) break;
+      ++wire.seq;
     }
     const CanIo io = tx_.Write(frame);
     switch (io) {
       case CanIo::kOk:
         session_.Sent(wire.seq);
+        sent_frames_.Add(frame);
         ++counters_.commands_sent;
         Note(bus_.OnTraffic(), now_us);
         return LinkResult::kOk;
@@ -418,6 +429,8 @@ class SocketCanRobotLink final : public RobotLink {
   CanPort& tx_;
   BusTracker bus_;
   SessionView session_;
+  can::FrameHistory sent_frames_;  // of sent_session_
+  std::uint32_t sent_session_ = 0;
   std::uint32_t dropped_seen_ = 0;
   can::StatusFrames partial_;
   std::int64_t partial_utime_ = 0;

@@ -438,6 +438,47 @@ TEST(CanProtocol, JudgeCommandClassifiesStaleAheadWrongSessionAndCorrupted) {
   EXPECT_EQ(JudgeCommand(frame_of(9, session), session, 0, kCommandWindow, seq), CommandVerdict::kAhead);
 }
 
+// The history of accepted frames against a slow obvious reference (the list of every frame added: the last one
+// with the probe's low byte), on seeded random frames with few distinct payloads so that repeats are common.
+TEST(CanProtocol, FrameHistoryKeepsTheLastFrameOfEachLowByte) {
+  FrameHistory history;
+  std::vector<Frame> added;
+  std::mt19937_64 rng(5);
+  auto random_frame = [&] {
+    Frame f;
+    f.id = kCommandBase + 1;
+    f.dlc = 8;
+    f.data[0] = static_cast<std::uint8_t>(rng() % 3);
+    f.data[2] = static_cast<std::uint8_t>(rng() % 3);
+    f.data[7] = static_cast<std::uint8_t>(rng() % 2);
+    return f;
+  };
+  auto reference = [&](const Frame& f) {
+    for (auto it = added.rbegin(); it != added.rend(); ++it) {
+      if (it->data[0] == f.data[0]) return std::equal(it->data, it->data + 8, f.data);
+    }
+    return false;
+  };
+  int hits = 0;
+  for (int i = 0; i < 20000; ++i) {
+    if (i == 12000) {
+      history.Clear();
+      added.clear();
+    }
+    const Frame probe = random_frame();
+    const bool expected = reference(probe);
+    ASSERT_EQ(history.Contains(probe), expected) << "step " << i;
+    hits += expected;
+    if (rng() % 2 == 0) {
+      const Frame f = random_frame();
+      history.Add(f);
+      added.push_back(f);
+    }
+  }
+  EXPECT_GT(hits, 1000);
+  EXPECT_LT(hits, 19000);
+}
+
 TEST(CanProtocol, SessionFrame) {
   SessionFrame announce;
   announce.session = 0xDEADBEEF;

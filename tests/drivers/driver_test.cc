@@ -695,6 +695,56 @@ TEST(DriverAttack, InWindowReplayOfAnEarlierWrapIsRejected) {
   EXPECT_EQ(rig.driver.state(), RobotState::kStopped);
 }
 
+// The in-window replay whose CRC matches the number it claims by chance: the CRC is linear, so for 1 number pair
+// in 256 (n, n + 256) every frame of n passes as n + 256 too. The driver knows the frame as the one it accepted a
+// wrap earlier and rejects it all the same (found in the HIL VM, 2026-12-06: 2 runs in 4 saw one of 20 replayed
+// frames move the robot).
+TEST(DriverAttack, AnInWindowReplayWhoseCrcMatchesByChanceIsRejected) {
+  Rig rig(true, 23);
+  rig.Enable();
+  const std::uint32_t session = rig.driver.session();
+  auto passes_a_wrap_later = [&](std::uint32_t n) {
+    can::CommandFrame wire;
+    wire.session = session;
+    wire.seq = n;
+    wire.velocity[0] = 0.3;
+    can::Frame frame;
+    EXPECT_EQ(can::EncodeCommand(1, wire, frame), can::EncodeStatus::kOk);
+    std::uint32_t seq = 0;
+    return can::JudgeCommand(frame, session, n + 255, kCommandWindow, seq) == can::CommandVerdict::kAccept;
+  };
+  std::uint32_t n = rig.transport.next + 1;
+  while (!passes_a_wrap_later(n) && n < 20000) ++n;
+  ASSERT_LT(n, 20000U) << "no colliding number pair (expected 1 in 256)";
+  while (rig.transport.next < n) {
+    rig.transport.Command(0.1, 0.0);
+    rig.Run(1);
+  }
+  const can::Frame recorded = rig.transport.Command(0.3, 0.0);  // number n
+  rig.Run(1);
+  for (int i = 0; i < 255; ++i) {
+    rig.transport.Command(0.1, 0.0);
+    rig.Run(1);
+  }
+  ASSERT_NEAR(rig.Speed(), 0.1, 1e-9);
+  std::uint32_t seq = 0;
+  ASSERT_EQ(can::JudgeCommand(recorded, session, n + 255, kCommandWindow, seq), can::CommandVerdict::kAccept)
+      << "the CRC alone would take the replay";
+  const DriverStats before = rig.driver.stats();
+  rig.transport.Frame(recorded);  // number n + 256 by its low byte, and its CRC says so too
+  rig.Run(1);
+  EXPECT_EQ(rig.driver.stats().commands_applied, before.commands_applied);
+  EXPECT_EQ(rig.driver.stats().out_of_sequence, before.out_of_sequence + 1);
+  EXPECT_TRUE(rig.driver.fault_bits() & fault_bits::kSequence);
+  rig.Run(20);
+  EXPECT_NEAR(rig.Speed(), 0.1, 1e-9) << "the replayed frame was applied";
+  // The live controller's next command (n + 256, the number the replay claimed) is accepted.
+  rig.transport.Command(0.1, 0.0);
+  rig.Run(1);
+  EXPECT_EQ(rig.driver.stats().commands_applied, before.commands_applied + 1);
+  EXPECT_FALSE(rig.driver.fault_bits() & fault_bits::kSequence);
+}
+
 // The same replay within the current wrap: a duplicate or an older frame is stale.
 TEST(DriverAttack, ReplayOfTheCurrentSessionsRecentFramesIsStale) {
   Rig rig(true, 22);

@@ -94,13 +94,15 @@ def session_crc(can_id, session, counter, data):
                       ((counter >> 8) & 0xFFFFFF).to_bytes(3, "little") + bytes(data[:7]))
 
 
-def judge_command(can_id, data, session, last):
-    """The README's acceptance rule: (verdict, counter)."""
+def judge_command(can_id, data, session, last, last_wrap=None):
+    """The README's acceptance rule: (verdict, counter). `last_wrap`: low byte -> the last accepted frame with it."""
     if data[6] != session & 0xFF:
         return "wrong-session", None
     k = (data[0] - last) & 0xFF
     ahead = last + (k if k else 256)
     if ahead - last <= WINDOW and session_crc(can_id, session, ahead, data) == data[7]:
+        if last_wrap is not None and last_wrap.get(data[0]) == bytes(data[:8]):
+            return "repeat (replay of the last wrap)", ahead
         return "accepted", ahead
     behind = ahead - 256
     if session_crc(can_id, session, behind, data) == data[7]:
@@ -125,6 +127,7 @@ class Node:
         self.replay_triple = None     # the same for a replayed (injected) copy of an earlier status triple
         self.stop_pending = None      # time of a watchdog EMCY not yet followed by a zero-velocity STOPPED status
         self.frames_of_session = {}   # command payload -> session it was first seen in
+        self.last_wrap = {}           # low byte -> the last accepted command frame with it, in the session
 
 
 def main():
@@ -172,10 +175,18 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
                 return bytes.fromhex(mm.group(2)) + bytes(8)
         return None
 
+    last_time = 0.0
     for index, line in enumerate(lines):
         m = re.match(r"^\((\d+\.\d+)\) (\w+) ([0-9A-Fa-f]+)#([0-9A-Fa-f]*)", line)
         if not m:
+            # candump -d: its own socket's queue overflowed, frames on the bus are missing from the log (every
+            # check after that point would judge a hole, not the driver).
+            drop = re.match(r"^DROPCOUNT: dropped (\d+) CAN frames?", line)
+            if drop:
+                problems.append("candump itself dropped %s frames after %.3f: the log has holes (a larger -r buffer)"
+                                % (drop.group(1), last_time))
             continue
+        last_time = float(m.group(1))
         frames += 1
         t = float(m.group(1))
         can_id = int(m.group(3), 16)
@@ -206,7 +217,7 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
             if node.session is None:
                 verdicts["before any session"] = verdicts.get("before any session", 0) + 1
                 continue
-            verdict, counter = judge_command(can_id, data, node.session, node.last)
+            verdict, counter = judge_command(can_id, data, node.session, node.last, node.last_wrap)
             verdicts[verdict] = verdicts.get(verdict, 0) + 1
             payload = bytes(data[:8])
             first_session = node.frames_of_session.setdefault(payload, node.session)
@@ -215,6 +226,7 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
             if verdict == "accepted":
                 replays_accepted += replay
                 node.last = counter
+                node.last_wrap[data[0]] = bytes(data[:8])
                 node.recent = (node.recent + [counter])[-32:]
                 node.unacked = (t, counter & 0xFF)
                 node.last_accepted_t = t
@@ -237,6 +249,7 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
                 node.recent = [0]
                 node.acked = 0
                 node.unacked = None
+                node.last_wrap = {}
                 node.triple = None
             continue
         if name in ("Status", "Position", "Force"):
@@ -452,6 +465,8 @@ def self_test(dbc):
         "a watchdog EMCY too early": (base() + [emcy(0.100, 0x8250)] + triple(0.101, 4, 2, state=3), "only"),
         "an incomplete status triple": (base() + triple(0.100, 4, 2)[:1] + triple(0.101, 5, 2) + tail(6),
                                         "incomplete"),
+        "candump's own drops": (base() + ["DROPCOUNT: dropped 7 CAN frames on 'vcan0' socket (total drops 7)\n"] +
+                                tail(4), "candump itself dropped 7 frames after 0.050"),
         "a replayed status triple is not the driver's fault": (base() + triple(0.014, 2, 1) + tail(4), None),
         "no STOPPED status after a watchdog EMCY": (base() + [emcy(0.313, 0x8250)], "no zero-velocity"),
     }

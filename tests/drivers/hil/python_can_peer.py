@@ -63,21 +63,29 @@ class Peer:
         self.status_counter = None  # full counter of the last status accepted
         self.sessions_seen = 0
         self.seq = 0         # our command counter in the session
+        self.sent = {}       # low byte of the number -> the last frame sent with it, in the session
         self.status = None  # (cmd_seq, vx, vy, state, contact)
         self.emcy = []      # (error_code, fault_code, fault_bits, stopped, cleared)
         self.heartbeats = 0
         self.bad_status_crc = 0
 
     def command(self, vx, vy, estop=False, reset=False, corrupt=False):
-        self.seq += 1
         can_id = 0x200 + self.node
         flags = (1 if estop else 0) | (2 if reset else 0)
-        payload = struct.pack("<BBhhB", self.seq & 0xFF, flags, round(vx / 1e-4), round(vy / 1e-4),
-                              self.session & 0xFF)
-        data = bytearray(payload + bytes([session_crc(can_id, self.session, self.seq, payload)]))
+        # README "Replays": a frame identical to the one sent a wrap earlier under its low byte would be taken for a
+        # replay; such a number is skipped.
+        for _ in range(4):
+            self.seq += 1
+            payload = struct.pack("<BBhhB", self.seq & 0xFF, flags, round(vx / 1e-4), round(vy / 1e-4),
+                                  self.session & 0xFF)
+            data = bytearray(payload + bytes([session_crc(can_id, self.session, self.seq, payload)]))
+            if self.sent.get(self.seq & 0xFF) != bytes(data):
+                break
         if corrupt:
             data[7] ^= 0xA5
             self.seq -= 1  # the driver never accepted it
+        else:
+            self.sent[self.seq & 0xFF] = bytes(data)
         self.bus.send(can.Message(arbitration_id=can_id, data=bytes(data), is_extended_id=False))
 
     def drain(self, seconds):
@@ -106,6 +114,7 @@ class Peer:
                 self.epoch = int.from_bytes(d[4:7], "little")
                 self.status_counter = None
                 self.seq = 0  # a new session: numbering from 1
+                self.sent = {}
                 self.sessions_seen += 1
         elif fc == 0x180:
             if self.session is None:
