@@ -414,7 +414,16 @@ StepResult MotionModel::AdvanceToEvent(MotionState& state, const Vector2d& v, do
       hit_edge = e;
     }
   };
-  first_entered(p, Hit::kObstacle, [&](const EdgeId& e, const Vector2d&, const Vector2d&) {
+  // Complying with the tracking error, the edges the ray's end ahead lies on are where it lands, met beside the ray
+  // (LandBesideRayEnd), not on its line: reaching them at the end is the ray's end event, whatever the rounding of
+  // the two distances (the edge's used to win, and the robot landed at the end, not δ / sin α before it).
+  const Vector2d* end_ahead = nullptr;
+  if (ns.mode == MotionMode::kOnRay && world_.ray_landing_offset != 0.0) {
+    const auto& seg = world_.active_rays[ns.ray];
+    end_ahead = (seg[0] - p).dot(m) > (seg[1] - p).dot(m) ? &seg[0] : &seg[1];
+  }
+  first_entered(p, Hit::kObstacle, [&](const EdgeId& e, const Vector2d& a, const Vector2d& b) {
+    if (end_ahead != nullptr && DistanceToSegment(*end_ahead, a, b) <= tol_) return true;
     return ns.mode == MotionMode::kSliding && e == ns.edge;
   });
   // End of the edge being slid along.
@@ -564,8 +573,10 @@ StepResult MotionModel::LandBesideRayEnd(MotionState& state, MotionState ns, con
   // From beside where this step of compliance began (where the robot joined the ray, or any later point): the robot
   // is there, and a landing edge already within the offset there was met at once (AdvanceToEvent). Searching from
   // further back put the start out of the bounds or into CB beside a ray converging on its landing edge, and the
-  // robot was taken to stop (VISCO_SEED_OFFSET=8636742, seed 14 of the goal-on-CB soundness scenes).
-  double back = std::min({(q - other_end).norm(), 100.0 * std::abs(o), std::max(0.0, (q - ns.position).dot(m))});
+  // robot was taken to stop (VISCO_SEED_OFFSET=8636742, seed 14 of the goal-on-CB soundness scenes). No other
+  // limit: a ray meeting its landing edge at angle α lands δ / sin α before its end (a cap at 100 δ missed a landing
+  // 0.42 m back at 0.56°, and the robot was taken to stop: VISCO_SEED_OFFSET=16155279, seed 52).
+  double back = std::min((q - other_end).norm(), std::max(0.0, (q - ns.position).dot(m)));
   Vector2d s0 = q + side - back * m;
   while (back > tol_ && (InObstacleInterior(s0) || !InBounds(s0))) {
     back *= 0.5;

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 namespace visco {
@@ -246,6 +247,33 @@ TEST(MotionModel, ARobotJoiningARayBesideCBMeetsItAtOnce) {
     } else {
       EXPECT_NE(r.event, MotionEvent::kStopped) << offset;
       EXPECT_EQ(RunFixed(m, {3, 9}, kDown, 5 * kDeg, 0.0), Outcome::kReachedGoal) << offset;
+    }
+  }
+}
+
+TEST(MotionModel, ARayMeetingItsLandingEdgeAtASmallAngleLandsFarBeforeItsEnd) {
+  // A ray rising at 0.5° to the underside of a ceiling (y = 5), ending on it at (6, 5); the goal hangs under the
+  // ceiling further right. With the tracking error δ = 4 mm to the ceiling's side, the robot complying beside the ray
+  // lands on the underside δ / sin 0.5° = 0.46 m before the ray's end (more than 100 δ, where the simulator used to
+  // stop looking and took the robot to stop: VISCO_SEED_OFFSET=16155279, seed 52 of the goal-on-CB scenes), and
+  // slides on into the goal; with the error to the other side, or none, it reaches the end and slides on from there.
+  const double slope = std::tan(0.5 * kDeg);
+  MotionWorld w = World({Rect(0, 5, 10, 6)}, {Rect(7, 4.95, 8, 5)});
+  w.active_rays.push_back({Vector2d(1, 5 - 5 * slope), Vector2d(6, 5)});
+  for (const double offset : {-0.004, 0.0, 0.004}) {
+    w.ray_landing_offset = offset;
+    const MotionModel m(w);
+    FixedAdversary a(0.0);
+    SimulationOptions o;
+    o.record_path = true;
+    const SimulationResult r = Simulate(m, Vector2d(2, 3), 60 * kDeg, 0.0, a, o);
+    EXPECT_EQ(r.outcome, Outcome::kReachedGoal) << offset;
+    if (offset > 0) {  // landed on the underside where the parallel line meets it
+      const double landing = 6 - offset / std::sin(0.5 * kDeg);
+      EXPECT_TRUE(std::any_of(
+          r.path.begin(), r.path.end(),
+          [&](const Vector2d& p) { return std::abs(p.y() - 5) < 1e-9 && std::abs(p.x() - landing) < 1e-3; }))
+          << "no landing at x = " << landing;
     }
   }
 }
