@@ -53,6 +53,19 @@ std::vector<std::string> RingSequence(const RegionRing& ring, const char* tag) {
   return out;
 }
 
+// Which of its source's two free edges a region's free edge is, from its reference (`REF/+eps`: direction
+// θ + π + ε_v, +1; `REF/-eps`: −1; 0 when the reference does not say).
+int FreeEdgeSign(const RegionEdge& e) {
+  const auto ends_with = [&](const char* tail) {
+    const std::string t(tail);
+    return e.ref.size() >= t.size() && e.ref.compare(e.ref.size() - t.size(), t.size(), t) == 0;
+  };
+  return ends_with("/+eps") ? 1 : ends_with("/-eps") ? -1 : 0;
+}
+
+// Whether `p` is the source of a free edge of `region` (or one of its vertices, where other edges meet).
+bool SourceOfRegion(const Region& region, const Vector2d& p, double tolerance);
+
 std::string Join(const std::vector<std::string>& v) {
   std::string s;
   for (const auto& x : v) {
@@ -80,6 +93,17 @@ void ForEachRing(const Region& region, F&& f) {
     f(poly.outer);
     for (const auto& h : poly.holes) f(h);
   }
+}
+
+bool SourceOfRegion(const Region& region, const Vector2d& p, double tolerance) {
+  bool found = false;
+  ForEachRing(region, [&](const RegionRing& ring) {
+    for (size_t i = 0; i < ring.vertices.size(); ++i) {
+      found = found || (ring.vertices[i] - p).norm() <= tolerance ||
+              (ring.edges[i].kind == EdgeKind::kFree && (ring.edges[i].source - p).norm() <= tolerance);
+    }
+  });
+  return found;
 }
 
 // Runs task(i) for i in [0, n) on `threads` threads; the calling thread reports progress.
@@ -269,8 +293,13 @@ class Builder {
     int sign = 0;
   };
 
-  // The ends of the free edges of the slice's regions: a free edge starts at a static point, and only events at
-  // those points, involving that free edge, can change the structure.
+  // The static points the free edges of the slice's regions are erected at, and their ends: only events at those
+  // points, involving that free edge, can change the structure. A free edge usually starts at its source, but not
+  // always: where the part next to the source lies outside the region (in a forbidden region beside a goal strip,
+  // or beyond the bounds), the region's edge starts where the line leaves it, and the source is no vertex of the
+  // region; events at the source move that edge all the same (VISCO_SEED_OFFSET=19507001, strategy seed 11: the
+  // free vertex of a goal strip's two free edges crossed the bounds unseen, and a slice spanning 133° was carried
+  // to a region of area 15 where the sweep gives 0.03).
   std::vector<FreeEnd> FreeEndsOf(const Slice& s) const {
     std::vector<FreeEnd> v;
     const double eps = pr_.velocity_cone;
@@ -289,7 +318,10 @@ class Builder {
       const size_t n = r.vertices.size();
       for (size_t i = 0; i < n; ++i) {
         const size_t prev = (i + n - 1) % n, next = (i + 1) % n;
-        if (r.edges[i].kind == EdgeKind::kFree) v.push_back({r.vertices[i], sign_of(r.vertices[i], r.vertices[next])});
+        if (r.edges[i].kind == EdgeKind::kFree) {
+          v.push_back({r.vertices[i], sign_of(r.vertices[i], r.vertices[next])});
+          v.push_back({r.edges[i].source, FreeEdgeSign(r.edges[i])});
+        }
         if (r.edges[prev].kind == EdgeKind::kFree) {
           v.push_back({r.vertices[i], sign_of(r.vertices[i], r.vertices[prev])});
         }
@@ -387,13 +419,43 @@ class Builder {
         if (out[hi - 1].structure == out[lo].structure) return;  // the change is at event hi alone
         bisect(lo, hi - 1);
       };
+      // Where the structure differs between swept intervals lo < hi: the changes located, then every stretch between
+      // two swept intervals walked again with the free edges of the slice that begins it. The events there were
+      // skipped for the free edges of the slice at lo; a change found in between can give the region free edges
+      // (and so relevant events) it did not have at lo, and a bisection alone misses a structure that comes and
+      // goes again between two equal ends (VISCO_SEED_OFFSET=19507001, strategy seed 11: free edges appeared at
+      // 54.2°, their free vertex crossed the bounds at 78.3° and back at 152.2°, and the walk, which had skipped
+      // those events before the free edges were found, never swept between them).
+      std::function<void(size_t, size_t)> walk;
+      auto resolve = [&](size_t lo, size_t hi) {
+        locate(lo, hi);
+        size_t p = lo;
+        for (size_t q = lo + 1; q <= hi; ++q) {
+          if (!swept[q]) continue;
+          if (q - p > 1) walk(p, q);
+          p = q;
+        }
+      };
+      // The events strictly between swept intervals lo < hi, under the free edges of each last swept slice.
+      walk = [&](size_t lo, size_t hi) {
+        size_t last = lo;
+        std::vector<FreeEnd> ends = FreeEndsOf(out[lo]);
+        for (size_t k = lo + 1; k < hi; ++k) {
+          if (swept[k] || !EventRelevant(k, ends, out[last])) continue;
+          sweep(k);
+          if (!(out[k].structure == out[last].structure)) resolve(last, k);
+          last = k;
+          ends = FreeEndsOf(out[k]);
+        }
+        if (last != lo && !(out[hi].structure == out[last].structure)) resolve(last, hi);
+      };
       sweep(begin);
       std::vector<FreeEnd> ends = FreeEndsOf(out[begin]);
       size_t last = begin;
       for (size_t k = begin + 1; k < end; ++k) {
         if (!EventRelevant(k, ends, out[last]) && k - last < period && k + 1 < end) continue;
         sweep(k);
-        if (!(out[k].structure == out[last].structure)) locate(last, k);
+        if (!(out[k].structure == out[last].structure)) resolve(last, k);
         last = k;
         ends = FreeEndsOf(out[k]);
       }
@@ -762,10 +824,7 @@ std::vector<ThetaInterval> IntervalsContaining(const NondirectionalBackprojectio
     const Slice& s = SliceAt(nd, c.theta);
     bool relevant = c.sources.empty();
     const Region& r = vc ? s.vc.region : s.vc.classic;
-    ForEachRing(r, [&](const RegionRing& ring) {
-      for (const auto& v : ring.vertices)
-        for (const auto& src : c.sources) relevant = relevant || (v - src).norm() <= 1e-9 * size;
-    });
+    for (const auto& src : c.sources) relevant = relevant || SourceOfRegion(r, src, 1e-9 * size);
     if (relevant) cuts.push_back(c.theta);
   }
   std::sort(cuts.begin(), cuts.end());
