@@ -321,6 +321,8 @@ class Builder {
         if (r.edges[i].kind == EdgeKind::kFree) {
           v.push_back({r.vertices[i], sign_of(r.vertices[i], r.vertices[next])});
           v.push_back({r.edges[i].source, FreeEdgeSign(r.edges[i])});
+        } else if (r.edges[prev].kind != EdgeKind::kFree) {
+          v.push_back({r.vertices[i], 0});
         }
         if (r.edges[prev].kind == EdgeKind::kFree) {
           v.push_back({r.vertices[i], sign_of(r.vertices[i], r.vertices[prev])});
