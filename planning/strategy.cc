@@ -25,19 +25,6 @@ using Eigen::Vector2d;
 
 double Deg(double rad) { return rad * 180.0 / M_PI; }
 
-// A thin rectangle around the segment [a, b]: "somewhere on this piece of the ray".
-NamedPolygon Strip(const Vector2d& a, const Vector2d& b, double half_width, const std::string& ref) {
-  const Vector2d d = (b - a).normalized();
-  const Vector2d n(-d.y() * half_width, d.x() * half_width);
-  NamedPolygon p;
-  p.vertices = {a - n, b - n, b + n, a + n};
-  for (int k = 0; k < 4; ++k) {
-    p.vertex_refs.push_back(ref + ".v[" + std::to_string(k) + "]");
-    p.edge_refs.push_back(ref + ".e[" + std::to_string(k) + "]");
-  }
-  return p;
-}
-
 // The parameters t in [0, 1] of segment [a, b] that lie inside the region (closed, within `tolerance`), as maximal
 // intervals.
 std::vector<std::pair<double, double>> InsidePieces(const Region& region, const Vector2d& a, const Vector2d& b,
@@ -323,6 +310,18 @@ NondirectionalOptions NdOptions(const PlanOptions& o) {
 }
 
 }  // namespace
+
+NamedPolygon Strip(const Vector2d& a, const Vector2d& b, double half_width, const std::string& ref) {
+  const Vector2d d = (b - a).normalized();
+  const Vector2d n(-d.y() * half_width, d.x() * half_width);
+  NamedPolygon p;
+  p.vertices = {a - n, b - n, b + n, a + n};
+  for (int k = 0; k < 4; ++k) {
+    p.vertex_refs.push_back(ref + ".v[" + std::to_string(k) + "]");
+    p.edge_refs.push_back(ref + ".e[" + std::to_string(k) + "]");
+  }
+  return p;
+}
 
 const char* TerminationName(Termination t) {
   switch (t) {

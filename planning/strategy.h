@@ -37,6 +37,11 @@ struct VcRays;
 /// (the servo's tracking error and the event's latency at the commanded speed must stay below it).
 inline constexpr double kVcStripHalfWidth = 0.01;
 
+/// A thin rectangle around the segment [a, b] ("somewhere on this piece of the ray"), `half_width` to either side;
+/// vertices a − n, b − n, b + n, a + n named `REF.v[k]`, edges `REF.e[k]`: a visual guarded step's target and the
+/// forbidden rest of its ray.
+NamedPolygon Strip(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double half_width, const std::string& ref);
+
 /// Depth of the target region at a contact feature (metres): a motion that enters it sticks within the feature's piece
 /// (the piece is shrunk by the lateral drift the friction cone allows over this depth).
 inline constexpr double kContactDepth = 0.01;

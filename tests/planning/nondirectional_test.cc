@@ -33,6 +33,7 @@
 #include "planning/critical.h"
 #include "planning/critical_command.h"
 #include "planning/cspace.h"
+#include "planning/strategy.h"
 #include "planning/vc_rays.h"
 #include "tests/planning/random_scenes.h"
 #include "tests/planning/random_vc_scenes.h"
@@ -334,22 +335,11 @@ std::optional<BackprojectionProblem> StripProblem(std::uint64_t seed) {
   const double len = (b - a).norm();
   if (len < 0.2) return std::nullopt;
   const double t0 = 0.6 * unit(rng), t1 = t0 + (0.1 + 0.3 * unit(rng)) * (1 - t0);
-  auto strip = [](const Vector2d& p, const Vector2d& q, const std::string& ref) {
-    const Vector2d d = (q - p).normalized();
-    const Vector2d n(-d.y() * 0.01, d.x() * 0.01);
-    NamedPolygon poly;
-    poly.vertices = {p - n, q - n, q + n, p + n};
-    for (int k = 0; k < 4; ++k) {
-      poly.vertex_refs.push_back(ref + ".v[" + std::to_string(k) + "]");
-      poly.edge_refs.push_back(ref + ".e[" + std::to_string(k) + "]");
-    }
-    return poly;
-  };
   const Vector2d pa = a + t0 * (b - a), pb = a + t1 * (b - a);
-  pr.goal = {strip(pa, pb, "piece.end")};
+  pr.goal = {Strip(pa, pb, kVcStripHalfWidth, "piece.end")};
   pr.forbidden.clear();
-  if (t0 > 1e-3) pr.forbidden.push_back(strip(a, pa, "piece.rest0"));
-  if (t1 < 1 - 1e-3) pr.forbidden.push_back(strip(pb, b, "piece.rest1"));
+  if (t0 > 1e-3) pr.forbidden.push_back(Strip(a, pa, kVcStripHalfWidth, "piece.rest0"));
+  if (t1 < 1 - 1e-3) pr.forbidden.push_back(Strip(pb, b, kVcStripHalfWidth, "piece.rest1"));
   pr.rays.clear();
   return pr;
 }
