@@ -844,6 +844,13 @@ int Sweep::VertexName(const P2& p, const std::vector<Curve*>& through) {
   if (it != vertex_names_.end()) return it->second;
   std::vector<std::string> parts;
   for (const Curve* c : through) parts.push_back(names_[c->name]);
+  // Every static segment through p, whatever the sweep holds there: where segments coincide (a goal strip and the
+  // forbidden strip abutting it share an edge) the curves through p depend on θ, and so did the name, a change of
+  // structure where nothing changed (found by
+  // NondirectionalProperty.StructureIsConstantWithStripGoalsAndForbiddenStrips).
+  for (const Source& src : sources_) {
+    if (src.name >= 0 && src.kind != EdgeKind::kFree && Seg(src.a, src.b).has_on(p)) parts.push_back(names_[src.name]);
+  }
   std::sort(parts.begin(), parts.end());
   parts.erase(std::unique(parts.begin(), parts.end()), parts.end());
   std::string s = "x(";
