@@ -286,47 +286,27 @@ class Builder {
     return s;
   }
 
-  // A static point where a free edge of the slice's regions starts, and which of its two free edges that is (+1:
-  // direction θ + π + ε_v, −1: θ + π − ε_v, 0: not told apart, e.g. an edge too short to tell its direction).
+  // A point where an event can change the slice's regions, and which of the point's two free edges it must involve
+  // (+1: direction θ + π + ε_v, −1: θ + π − ε_v, 0: either).
   struct FreeEnd {
     Vector2d p;
     int sign = 0;
   };
 
-  // The static points the free edges of the slice's regions are erected at, and their ends: only events at those
-  // points, involving that free edge, can change the structure. A free edge usually starts at its source, but not
-  // always: where the part next to the source lies outside the region (in a forbidden region beside a goal strip,
-  // or beyond the bounds), the region's edge starts where the line leaves it, and the source is no vertex of the
-  // region; events at the source move that edge all the same (VISCO_SEED_OFFSET=19507001, strategy seed 11: the
-  // free vertex of a goal strip's two free edges crossed the bounds unseen, and a slice spanning 133° was carried
-  // to a region of area 15 where the sweep gives 0.03).
+  // Where events can change the slice's regions: at the static point a free edge of the regions is erected at (its
+  // source), involving that free edge, and at every vertex of the regions, involving either free edge there. A free
+  // edge usually starts at its source, but not always: where the part next to the source lies outside the region (in
+  // a forbidden region beside a goal strip, or beyond the bounds), the region's edge starts where the line leaves it,
+  // and events at the source move that edge all the same (VISCO_SEED_OFFSET=19507001, strategy seed 11: the free
+  // vertex of a goal strip's two free edges crossed the bounds unseen, and a slice spanning 133° was carried to a
+  // region of area 15 where the sweep gives 0.03). And a vertex of the region where a free edge does not start yet
+  // is where a part of the region can appear, attached (and go again before the next sweep: the strip property).
   std::vector<FreeEnd> FreeEndsOf(const Slice& s) const {
     std::vector<FreeEnd> v;
-    const double eps = pr_.velocity_cone;
-    auto sign_of = [&](const Vector2d& from, const Vector2d& to) {
-      const Vector2d d = to - from;
-      if (eps < 1e-6 || d.norm() <= 1e-9 * size_) return 0;
-      const double a = std::atan2(d.y(), d.x());
-      const double plus = std::abs(WrapAngle(a - (s.theta + M_PI + eps)));
-      const double minus = std::abs(WrapAngle(a - (s.theta + M_PI - eps)));
-      // Free edges have exactly one of the two directions; anything else is told apart only when clear.
-      if (plus < 0.25 * eps && minus > 0.75 * eps) return 1;
-      if (minus < 0.25 * eps && plus > 0.75 * eps) return -1;
-      return 0;
-    };
     auto add = [&](const RegionRing& r) {
-      const size_t n = r.vertices.size();
-      for (size_t i = 0; i < n; ++i) {
-        const size_t prev = (i + n - 1) % n, next = (i + 1) % n;
-        if (r.edges[i].kind == EdgeKind::kFree) {
-          v.push_back({r.vertices[i], sign_of(r.vertices[i], r.vertices[next])});
-          v.push_back({r.edges[i].source, FreeEdgeSign(r.edges[i])});
-        } else if (r.edges[prev].kind != EdgeKind::kFree) {
-          v.push_back({r.vertices[i], 0});
-        }
-        if (r.edges[prev].kind == EdgeKind::kFree) {
-          v.push_back({r.vertices[i], sign_of(r.vertices[i], r.vertices[prev])});
-        }
+      for (size_t i = 0; i < r.vertices.size(); ++i) {
+        v.push_back({r.vertices[i], 0});
+        if (r.edges[i].kind == EdgeKind::kFree) v.push_back({r.edges[i].source, FreeEdgeSign(r.edges[i])});
       }
     };
     ForEachRing(s.vc.classic, add);
@@ -334,8 +314,8 @@ class Builder {
     return v;
   }
 
-  // An event matters only where every free edge it involves is one of the regions' (a free vertex needs both): its
-  // source is a free-edge end there with the same sign (or one not told apart).
+  // An event matters only where every free edge it involves can be one of the regions' (a free vertex needs both):
+  // each source is a vertex of the regions, or the source of one of their free edges with the same sign.
   bool Relevant(const CriticalOrientation& c, const std::vector<FreeEnd>& ends) const {
     if (c.sources.empty()) return true;
     const double tol = 1e-9 * size_;
