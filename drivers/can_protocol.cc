@@ -165,12 +165,12 @@ const char* ToString(CommandVerdict verdict) {
 }
 
 CommandVerdict JudgeCommand(const Frame& frame, std::uint32_t session, std::uint32_t last, std::uint32_t window,
-                            std::uint32_t& seq) {
+                            std::uint32_t& seq, const FrameHistory* accepted) {
   if (frame.data[6] != (session & 0xFF)) return CommandVerdict::kWrongSession;
   const std::uint32_t ahead = CounterAhead(last, frame.data[0]);  // last + 1..256
   if (ahead - last <= window && CommandCrcOk(frame, session, ahead)) {
     seq = ahead;
-    return CommandVerdict::kAccept;
+    return accepted != nullptr && accepted->Contains(frame) ? CommandVerdict::kRepeat : CommandVerdict::kAccept;
   }
   const std::uint32_t behind = ahead - 256;  // last - 0..255
   if (CommandCrcOk(frame, session, behind)) {

@@ -197,11 +197,6 @@ enum class CommandVerdict : std::uint8_t {
   kRepeat,        // passes as 1..window ahead, but is a copy of a frame accepted earlier in the session (a replay)
 };
 const char* ToString(CommandVerdict verdict);
-/// Judges a command frame against the receiver's `session` and the last accepted counter `last`: reconstructs the
-/// counter from the frame's low 8 bits (ahead: last + 1..255; behind: last - 0..255) and checks the CRC with it.
-/// `seq` gets the reconstructed counter (for kAccept, kStale, kAhead). Real-time safe.
-CommandVerdict JudgeCommand(const Frame& frame, std::uint32_t session, std::uint32_t last, std::uint32_t window,
-                            std::uint32_t& seq);
 
 /// The last command frame of each low byte of the number that a receiver accepted (or a sender sent) in the current
 /// session: the frames of the last wrap of the counter, 256 commands. A replay of a frame one wrap old carries the low
@@ -221,6 +216,14 @@ class FrameHistory {
   std::uint64_t frames_[256] = {};
   bool have_[256] = {};
 };
+
+/// Judges a command frame against the receiver's `session` and the last accepted counter `last`: reconstructs the
+/// counter from the frame's low 8 bits (ahead: last + 1..255; behind: last - 0..255) and checks the CRC with it.
+/// `seq` gets the reconstructed counter (for kAccept, kStale, kAhead, kRepeat). With `accepted` (the receiver's
+/// history of the session), a frame that would be accepted but is a copy of the one accepted a wrap earlier under its
+/// low byte is kRepeat. Real-time safe.
+CommandVerdict JudgeCommand(const Frame& frame, std::uint32_t session, std::uint32_t last, std::uint32_t window,
+                            std::uint32_t& seq, const FrameHistory* accepted = nullptr);
 
 /// The counter value nearest after `last` (1..256 ahead) whose low 8 bits are `low`; minus 256 for the one behind.
 /// Real-time safe.

@@ -187,12 +187,9 @@ void Driver::Update(std::int64_t now_us) {
 void Driver::OnCommand(const DriverEvent& event, std::int64_t now_us) {
   const std::uint32_t modulus = transport_.sequence_modulus();
   std::uint32_t seq = event.seq;
-  can::CommandVerdict verdict =
-      event.has_frame ? can::JudgeCommand(event.frame, session_, last_seq_, kCommandWindow, seq)
+  const can::CommandVerdict verdict =
+      event.has_frame ? can::JudgeCommand(event.frame, session_, last_seq_, kCommandWindow, seq, &accepted_frames_)
                       : JudgeSequence(event.session, event.seq, session_, last_seq_, kCommandWindow, modulus);
-  if (verdict == can::CommandVerdict::kAccept && event.has_frame && accepted_frames_.Contains(event.frame)) {
-    verdict = can::CommandVerdict::kRepeat;
-  }
   // An e-stop is honoured from any well-formed command frame, whatever its session, number or checksum.
   if (event.command.estop) {
     EStop(now_us, verdict == can::CommandVerdict::kAccept ? "e-stop requested by the controller"

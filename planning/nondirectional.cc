@@ -63,9 +63,6 @@ int FreeEdgeSign(const RegionEdge& e) {
   return ends_with("/+eps") ? 1 : ends_with("/-eps") ? -1 : 0;
 }
 
-// Whether `p` is the source of a free edge of `region` (or one of its vertices, where other edges meet).
-bool SourceOfRegion(const Region& region, const Vector2d& p, double tolerance);
-
 std::string Join(const std::vector<std::string>& v) {
   std::string s;
   for (const auto& x : v) {
@@ -95,15 +92,35 @@ void ForEachRing(const Region& region, F&& f) {
   }
 }
 
-bool SourceOfRegion(const Region& region, const Vector2d& p, double tolerance) {
-  bool found = false;
+// A point where an event can change a region, and which of the point's two free edges it must involve (+1:
+// direction θ + π + ε_v, −1: θ + π − ε_v, 0: either).
+struct EventPoint {
+  Vector2d p;
+  int sign = 0;
+};
+
+// Where events can change `region`: at the static point a free edge of it is erected at (its source), involving that
+// free edge, and at every vertex, involving either free edge there. A free edge usually starts at its source, but not
+// always: where the part next to the source lies outside the region (in a forbidden region beside a goal strip, or
+// beyond the bounds), the region's edge starts where the line leaves it, and events at the source move that edge all
+// the same (VISCO_SEED_OFFSET=19507001, strategy seed 11: the free vertex of a goal strip's two free edges crossed
+// the bounds unseen, and a slice spanning 133° was carried to a region of area 15 where the sweep gives 0.03). And a
+// vertex where a free edge does not start yet is where a part of the region can appear, attached (and go again
+// before the next sweep: the strip property).
+void AddEventPoints(const Region& region, std::vector<EventPoint>& out) {
   ForEachRing(region, [&](const RegionRing& ring) {
     for (size_t i = 0; i < ring.vertices.size(); ++i) {
-      found = found || (ring.vertices[i] - p).norm() <= tolerance ||
-              (ring.edges[i].kind == EdgeKind::kFree && (ring.edges[i].source - p).norm() <= tolerance);
+      out.push_back({ring.vertices[i], 0});
+      if (ring.edges[i].kind == EdgeKind::kFree) out.push_back({ring.edges[i].source, FreeEdgeSign(ring.edges[i])});
     }
   });
-  return found;
+}
+
+// Whether `p` is one of `points`, for the free edge of sign `want` (0: either).
+bool IsEventPoint(const std::vector<EventPoint>& points, const Vector2d& p, int want, double tolerance) {
+  return std::any_of(points.begin(), points.end(), [&](const EventPoint& e) {
+    return (e.p - p).norm() <= tolerance && (e.sign == 0 || want == 0 || e.sign == want);
+  });
 }
 
 // Runs task(i) for i in [0, n) on `threads` threads; the calling thread reports progress.
@@ -254,7 +271,7 @@ class Builder {
     nd.stats.unexplained_at = unexplained_at_;
     for (auto& c : r_candidates) {
       const Slice& s = SliceAt(nd, c.theta);
-      if (!Relevant(c, FreeEndsOf(s))) continue;
+      if (!Relevant(c, EventPointsOf(s))) continue;
       c.sources.clear();
       nd.orientations.push_back(std::move(c));
       ++nd.stats.r_critical;
@@ -286,53 +303,27 @@ class Builder {
     return s;
   }
 
-  // A point where an event can change the slice's regions, and which of the point's two free edges it must involve
-  // (+1: direction θ + π + ε_v, −1: θ + π − ε_v, 0: either).
-  struct FreeEnd {
-    Vector2d p;
-    int sign = 0;
-  };
-
-  // Where events can change the slice's regions: at the static point a free edge of the regions is erected at (its
-  // source), involving that free edge, and at every vertex of the regions, involving either free edge there. A free
-  // edge usually starts at its source, but not always: where the part next to the source lies outside the region (in
-  // a forbidden region beside a goal strip, or beyond the bounds), the region's edge starts where the line leaves it,
-  // and events at the source move that edge all the same (VISCO_SEED_OFFSET=19507001, strategy seed 11: the free
-  // vertex of a goal strip's two free edges crossed the bounds unseen, and a slice spanning 133° was carried to a
-  // region of area 15 where the sweep gives 0.03). And a vertex of the region where a free edge does not start yet
-  // is where a part of the region can appear, attached (and go again before the next sweep: the strip property).
-  std::vector<FreeEnd> FreeEndsOf(const Slice& s) const {
-    std::vector<FreeEnd> v;
-    auto add = [&](const RegionRing& r) {
-      for (size_t i = 0; i < r.vertices.size(); ++i) {
-        v.push_back({r.vertices[i], 0});
-        if (r.edges[i].kind == EdgeKind::kFree) v.push_back({r.edges[i].source, FreeEdgeSign(r.edges[i])});
-      }
-    };
-    ForEachRing(s.vc.classic, add);
-    ForEachRing(s.vc.region, add);
+  // Where events can change the slice's regions (both of them).
+  std::vector<EventPoint> EventPointsOf(const Slice& s) const {
+    std::vector<EventPoint> v;
+    AddEventPoints(s.vc.classic, v);
+    AddEventPoints(s.vc.region, v);
     return v;
   }
 
   // An event matters only where every free edge it involves can be one of the regions' (a free vertex needs both):
   // each source is a vertex of the regions, or the source of one of their free edges with the same sign.
-  bool Relevant(const CriticalOrientation& c, const std::vector<FreeEnd>& ends) const {
-    if (c.sources.empty()) return true;
-    const double tol = 1e-9 * size_;
+  bool Relevant(const CriticalOrientation& c, const std::vector<EventPoint>& ends) const {
     for (size_t k = 0; k < c.sources.size(); ++k) {
       const int want = k < c.source_signs.size() ? c.source_signs[k] : 0;
-      bool found = false;
-      for (const auto& e : ends) {
-        found = found || ((e.p - c.sources[k]).norm() <= tol && (e.sign == 0 || want == 0 || e.sign == want));
-      }
-      if (!found) return false;
+      if (!IsEventPoint(ends, c.sources[k], want, 1e-9 * size_)) return false;
     }
     return true;
   }
 
-  // Whether candidate c can change the structure of slice s (whose free-edge ends are `ends`): a sliding event only
-  // where its edge or vertex meets the closure of a region, the others where their sources are free-edge ends.
-  bool CanChange(const CriticalOrientation& c, const std::vector<FreeEnd>& ends, const Slice& s) const {
+  // Whether candidate c can change the structure of slice s (whose event points are `ends`): a sliding event only
+  // where its edge or vertex meets the closure of a region, the others where their sources are event points.
+  bool CanChange(const CriticalOrientation& c, const std::vector<EventPoint>& ends, const Slice& s) const {
     if (c.kind == CriticalKind::kSliding && options_.local_sliding && !c.feature.empty()) {
       const double tol = 1e-9 * size_;
       return FeatureMeetsRegion(c.feature, s.vc.classic, tol) || FeatureMeetsRegion(c.feature, s.vc.region, tol);
@@ -340,8 +331,8 @@ class Builder {
     return Relevant(c, ends);
   }
 
-  // Whether event k can change the structure of `current` (the last swept slice, whose free-edge ends are `ends`).
-  bool EventRelevant(size_t k, const std::vector<FreeEnd>& ends, const Slice& current) const {
+  // Whether event k can change the structure of `current` (the last swept slice, whose event points are `ends`).
+  bool EventRelevant(size_t k, const std::vector<EventPoint>& ends, const Slice& current) const {
     for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
       if (CanChange(structural_[i], ends, current)) return true;
     }
@@ -421,25 +412,25 @@ class Builder {
       // The events strictly between swept intervals lo < hi, under the free edges of each last swept slice.
       walk = [&](size_t lo, size_t hi) {
         size_t last = lo;
-        std::vector<FreeEnd> ends = FreeEndsOf(out[lo]);
+        std::vector<EventPoint> ends = EventPointsOf(out[lo]);
         for (size_t k = lo + 1; k < hi; ++k) {
           if (swept[k] || !EventRelevant(k, ends, out[last])) continue;
           sweep(k);
           if (!(out[k].structure == out[last].structure)) resolve(last, k);
           last = k;
-          ends = FreeEndsOf(out[k]);
+          ends = EventPointsOf(out[k]);
         }
         if (last != lo && !(out[hi].structure == out[last].structure)) resolve(last, hi);
       };
       sweep(begin);
-      std::vector<FreeEnd> ends = FreeEndsOf(out[begin]);
+      std::vector<EventPoint> ends = EventPointsOf(out[begin]);
       size_t last = begin;
       for (size_t k = begin + 1; k < end; ++k) {
         if (!EventRelevant(k, ends, out[last]) && k - last < period && k + 1 < end) continue;
         sweep(k);
         if (!(out[k].structure == out[last].structure)) resolve(last, k);
         last = k;
-        ends = FreeEndsOf(out[k]);
+        ends = EventPointsOf(out[k]);
       }
       // Intervals not swept have the structure of the last swept one before them (not copied: at thousands of
       // events the copies of large structures cost more memory and time than the sweeps).
@@ -455,7 +446,7 @@ class Builder {
 
   // The candidate of event k to report: the first whose sources are vertices on either side.
   int PickCandidate(size_t k, const Slice& before, const Slice& after) const {
-    auto vb = FreeEndsOf(before), va = FreeEndsOf(after);
+    auto vb = EventPointsOf(before), va = EventPointsOf(after);
     // Prefer the specific kinds (a free edge parallel to a ray is also parallel to the segment of its two ends).
     static const CriticalKind priority[] = {CriticalKind::kVc, CriticalKind::kFreeEdge, CriticalKind::kVertex,
                                             CriticalKind::kSliding, CriticalKind::kVgraph};
@@ -805,8 +796,9 @@ std::vector<ThetaInterval> IntervalsContaining(const NondirectionalBackprojectio
   for (const auto& c : RCriticalCandidates(problem, region)) {
     const Slice& s = SliceAt(nd, c.theta);
     bool relevant = c.sources.empty();
-    const Region& r = vc ? s.vc.region : s.vc.classic;
-    for (const auto& src : c.sources) relevant = relevant || SourceOfRegion(r, src, 1e-9 * size);
+    std::vector<EventPoint> points;
+    AddEventPoints(vc ? s.vc.region : s.vc.classic, points);
+    for (const auto& src : c.sources) relevant = relevant || IsEventPoint(points, src, 0, 1e-9 * size);
     if (relevant) cuts.push_back(c.theta);
   }
   std::sort(cuts.begin(), cuts.end());

@@ -5,36 +5,20 @@
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
-#include <deque>
 #include <memory>
 #include <vector>
 
 #include "drivers/can_protocol.h"
 #include "drivers/robot_link.h"
 #include "drivers/socketcan.h"
+#include "tests/drivers/memory_port.h"
 
 namespace visco::drivers {
 namespace {
 
 constexpr int kNode = 1;
 
-// Frames queued for the link to read, and the frames it wrote.
-class MemoryPort final : public CanPort {
- public:
-  CanIo Write(const can::Frame& frame) override {
-    written.push_back(frame);
-    return CanIo::kOk;
-  }
-  CanIo Read(ReceivedFrame& out) override {
-    if (queue.empty()) return CanIo::kWouldBlock;
-    out = queue.front();
-    queue.pop_front();
-    return CanIo::kOk;
-  }
-  std::uint32_t dropped() const override { return 0; }
-  std::deque<ReceivedFrame> queue;
-  std::vector<can::Frame> written;
-};
+using visco::drivers::testing::MemoryPort;
 
 bool SameBytes(const can::Frame& a, const can::Frame& b) { return std::equal(a.data, a.data + 8, b.data); }
 
@@ -125,7 +109,7 @@ TEST(CanLink, EveryCommandItSendsPassesTheDriversRule) {
     ASSERT_EQ(link->SendCommand(command, 2'000 * (i + 1)), LinkResult::kOk);
     const can::Frame& frame = written->back();
     std::uint32_t seq = 0;
-    ASSERT_EQ(can::JudgeCommand(frame, kSession, last, kCommandWindow, seq), can::CommandVerdict::kAccept)
+    ASSERT_EQ(can::JudgeCommand(frame, kSession, last, kCommandWindow, seq, &accepted), can::CommandVerdict::kAccept)
         << "command " << i;
     ASSERT_FALSE(accepted.Contains(frame)) << "command " << i << " repeats the last wrap's frame";
     accepted.Add(frame);

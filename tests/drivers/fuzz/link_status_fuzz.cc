@@ -20,7 +20,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <deque>
 #include <memory>
 #include <random>
 #include <vector>
@@ -28,6 +27,7 @@
 #include "drivers/can_protocol.h"
 #include "drivers/robot_link.h"
 #include "drivers/socketcan.h"
+#include "tests/drivers/memory_port.h"
 
 namespace {
 
@@ -43,19 +43,7 @@ void RequireAt(bool condition, const char* what, int line) {
 
 constexpr int kNode = 1;
 
-// The link's receive side: frames the harness queues, one at a time.
-class MemoryPort final : public CanPort {
- public:
-  CanIo Write(const can::Frame&) override { return CanIo::kOk; }
-  CanIo Read(ReceivedFrame& out) override {
-    if (queue.empty()) return CanIo::kWouldBlock;
-    out = queue.front();
-    queue.pop_front();
-    return CanIo::kOk;
-  }
-  std::uint32_t dropped() const override { return 0; }
-  std::deque<ReceivedFrame> queue;
-};
+using visco::drivers::testing::MemoryPort;  // the link's receive side: frames the harness queues, one at a time
 
 struct Triple {
   std::uint32_t session = 0;
