@@ -359,10 +359,10 @@ class Generator {
 
  private:
   void Add(double theta, CriticalKind kind, std::vector<std::string> refs, std::vector<Vector2d> sources = {},
-           std::vector<std::int8_t> signs = {}) {
+           std::vector<std::int8_t> signs = {}, std::vector<Vector2d> feature = {}) {
     if (!std::isfinite(theta)) return;
     if (r_only_ && kind != CriticalKind::kR) return;
-    out_.push_back({theta, kind, std::move(refs), std::move(sources), std::move(signs), {}});
+    out_.push_back({theta, kind, std::move(refs), std::move(sources), std::move(signs), std::move(feature)});
   }
 
   void AddSliding(double theta, const std::string& ref, std::vector<Vector2d> feature) {
@@ -559,13 +559,17 @@ class Generator {
         // Along β the free edge runs from b (its direction θ + π ± ε_v is β + π); along β + π from a. At
         // θ = β + se·ε_v (+π) that is the free edge of sign −se.
         const bool along = along_static.count({i, j}) != 0;
+        // Along a static segment, the segment itself is where the event acts (a part of the region can appear
+        // between it and the free edges turning across its line).
+        std::vector<Vector2d> feature;
+        if (along) feature = {points_[i].p, points_[j].p};
         for (double se : {-1.0, 1.0}) {
           const std::int8_t sign = se > 0 ? -1 : 1;
-          Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p}, {sign});
-          Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p}, {sign});
+          Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p}, {sign}, feature);
+          Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p}, {sign}, feature);
           if (along) {  // the other end's free edge of the same sign, parallel to the segment beyond that end
-            Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p}, {sign});
-            Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p}, {sign});
+            Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p}, {sign}, feature);
+            Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p}, {sign}, feature);
           }
         }
       }

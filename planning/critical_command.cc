@@ -240,7 +240,13 @@ void Run(const Args& a) {
                   {"selection", st.selection},
                   {"r_critical", st.r_critical},
                   {"unexplained", st.unexplained},
-                  {"found_by_probes", st.found_by_probes}};
+                  {"found_by_probes", st.found_by_probes},
+                  {"sweeps",
+                   {{"walk", st.sweeps[0]},
+                    {"locate", st.sweeps[1]},
+                    {"checks", st.sweeps[2]},
+                    {"bisect", st.sweeps[3]},
+                    {"slices", st.sweeps[4]}}}};
   if (scene.start) {
     doc["start_intervals"] = {{"classic", IntervalsJson(IntervalsContaining(nd, pr, start, false))},
                               {"vc", IntervalsJson(IntervalsContaining(nd, pr, start, true))}};

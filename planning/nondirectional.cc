@@ -116,6 +116,23 @@ void AddEventPoints(const Region& region, std::vector<EventPoint>& out) {
   });
 }
 
+// The kinetic walk's narrower rule: only the free edges of `region` (their sources, and their two ends, each with
+// its sign). A part of the region that appears attached at a vertex where no free edge starts does so where a free
+// edge turns across a static segment's line at that vertex (the segment's `along` vgraph events, decided by whether
+// the segment meets the region: CanChange) or where an edge starts or stops sticking (sliding events).
+void AddFreeEdgePoints(const Region& region, std::vector<EventPoint>& out) {
+  ForEachRing(region, [&](const RegionRing& ring) {
+    const size_t n = ring.vertices.size();
+    for (size_t i = 0; i < n; ++i) {
+      if (ring.edges[i].kind != EdgeKind::kFree) continue;
+      const int sign = FreeEdgeSign(ring.edges[i]);
+      out.push_back({ring.edges[i].source, sign});
+      out.push_back({ring.vertices[i], sign});
+      out.push_back({ring.vertices[(i + 1) % n], sign});
+    }
+  });
+}
+
 // Whether `p` is one of `points`, for the free edge of sign `want` (0: either).
 bool IsEventPoint(const std::vector<EventPoint>& points, const Vector2d& p, int want, double tolerance) {
   return std::any_of(points.begin(), points.end(), [&](const EventPoint& e) {
@@ -227,7 +244,7 @@ class Builder {
     nd.slices.resize(n == 0 ? 1 : 2 * n);
     ParallelFor(nd.slices.size(), options_.threads, options_.progress, 0.85, 0.15, [&](size_t s) {
       if (n == 0) {
-        nd.slices[0] = Evaluate(0.0);
+        nd.slices[0] = Evaluate(0.0, kSlices);
         nd.slices[0].lo = -M_PI;
         nd.slices[0].hi = M_PI;
         return;
@@ -236,14 +253,14 @@ class Builder {
       const double lo = order[k].first;
       const double hi = k + 1 < n ? order[k + 1].first : order[0].first + 2 * M_PI;
       if (s % 2 == 0) {
-        nd.slices[s] = Evaluate(lo);
+        nd.slices[s] = Evaluate(lo, kSlices);
         nd.slices[s].lo = nd.slices[s].hi = lo;
         nd.slices[s].critical = true;
       } else {
         // The interval checks swept its midpoint already when it was last probed.
         const auto cached = midpoints_.find({lo, hi});
         nd.slices[s] =
-            cached != midpoints_.end() ? std::move(cached->second) : Evaluate(WrapAngle(lo + 0.5 * (hi - lo)));
+            cached != midpoints_.end() ? std::move(cached->second) : Evaluate(WrapAngle(lo + 0.5 * (hi - lo)), kSlices);
         nd.slices[s].lo = lo;
         nd.slices[s].hi = hi;
       }
@@ -264,6 +281,8 @@ class Builder {
     }
     // R-critical orientations of the start region where their sources are vertices of the regions there.
     nd.stats.backprojections = backprojections_.load();
+    nd.stats.sweeps = {sweeps_[0].load(), sweeps_[1].load(), sweeps_[2].load(), sweeps_[3].load(), sweeps_[4].load()};
+    for (int i = 0; i < 5; ++i) nd.stats.sweep_seconds[i] = 1e-9 * static_cast<double>(sweep_ns_[i].load());
     nd.stats.checked = checked_;
     nd.stats.events = static_cast<std::int64_t>(events_.size());
     nd.stats.unexplained = unexplained_;
@@ -289,7 +308,19 @@ class Builder {
 
   double EventTheta(size_t k) const { return structural_[events_[k].begin].theta; }
 
-  Slice Evaluate(double theta) {
+  // Why a sweep is made (counted in NondirectionalStats::sweeps).
+  enum Purpose { kWalk = 0, kLocate = 1, kChecks = 2, kBisect = 3, kSlices = 4 };
+
+  Slice Evaluate(double theta, Purpose purpose) {
+    ++sweeps_[purpose];
+    const auto t0 = std::chrono::steady_clock::now();
+    struct Timer {
+      std::chrono::steady_clock::time_point t0;
+      std::atomic<std::int64_t>& ns;
+      ~Timer() {
+        ns += std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count();
+      }
+    } timer{t0, sweep_ns_[purpose]};
     BackprojectionProblem p = pr_;
     p.theta = theta;
     Slice s;
@@ -311,6 +342,15 @@ class Builder {
     return v;
   }
 
+  // The points the kinetic walk's rule looks at (every vertex of the regions with the broad rule).
+  std::vector<EventPoint> WalkPointsOf(const Slice& s) const {
+    if (options_.vertex_events) return EventPointsOf(s);
+    std::vector<EventPoint> v;
+    AddFreeEdgePoints(s.vc.classic, v);
+    AddFreeEdgePoints(s.vc.region, v);
+    return v;
+  }
+
   // An event matters only where every free edge it involves can be one of the regions' (a free vertex needs both):
   // each source is a vertex of the regions, or the source of one of their free edges with the same sign.
   bool Relevant(const CriticalOrientation& c, const std::vector<EventPoint>& ends) const {
@@ -324,11 +364,14 @@ class Builder {
   // Whether candidate c can change the structure of slice s (whose event points are `ends`): a sliding event only
   // where its edge or vertex meets the closure of a region, the others where their sources are event points.
   bool CanChange(const CriticalOrientation& c, const std::vector<EventPoint>& ends, const Slice& s) const {
+    const double tol = 1e-9 * size_;
     if (c.kind == CriticalKind::kSliding && options_.local_sliding && !c.feature.empty()) {
-      const double tol = 1e-9 * size_;
       return FeatureMeetsRegion(c.feature, s.vc.classic, tol) || FeatureMeetsRegion(c.feature, s.vc.region, tol);
     }
-    return Relevant(c, ends);
+    if (Relevant(c, ends)) return true;
+    // A free edge turning across the line of a static segment: a part of the region can appear along the segment.
+    return !options_.vertex_events && c.kind == CriticalKind::kVgraph && !c.feature.empty() &&
+           (FeatureMeetsRegion(c.feature, s.vc.classic, tol) || FeatureMeetsRegion(c.feature, s.vc.region, tol));
   }
 
   // Whether event k can change the structure of `current` (the last swept slice, whose event points are `ends`).
@@ -353,12 +396,12 @@ class Builder {
     const size_t m = events_.size();
     source.resize(m);
     for (size_t k = 0; k < m; ++k) source[k] = k;
-    if (m <= 1) return m == 0 ? std::vector<Slice>{} : std::vector<Slice>{Evaluate(IntervalTheta(0))};
+    if (m <= 1) return m == 0 ? std::vector<Slice>{} : std::vector<Slice>{Evaluate(IntervalTheta(0), kWalk)};
     std::vector<Slice> out(m);
     if (options_.method == SliceMethod::kBaseline) {
       checked_ = static_cast<std::int64_t>(m);
       ParallelFor(m, options_.threads, options_.progress, 0.0, 0.7,
-                  [&](size_t k) { out[k] = Evaluate(IntervalTheta(k)); });
+                  [&](size_t k) { out[k] = Evaluate(IntervalTheta(k), kWalk); });
       return out;
     }
     // Chunks of events walked independently (one per thread), each starting from a swept interval. An event is
@@ -371,8 +414,8 @@ class Builder {
     std::vector<char> swept(m, 0);
     ParallelFor(chunks, options_.threads, options_.progress, 0.0, 0.7, [&](size_t c) {
       const size_t begin = m * c / chunks, end = m * (c + 1) / chunks;
-      auto sweep = [&](size_t k) {
-        out[k] = Evaluate(IntervalTheta(k));
+      auto sweep = [&](size_t k, Purpose purpose) {
+        out[k] = Evaluate(IntervalTheta(k), purpose);
         swept[k] = 1;
         ++checked[c];
       };
@@ -380,7 +423,7 @@ class Builder {
       std::function<void(size_t, size_t)> bisect = [&](size_t lo, size_t hi) {
         if (hi - lo <= 1) return;
         const size_t mid = lo + (hi - lo) / 2;
-        sweep(mid);
+        sweep(mid, kLocate);
         if (!(out[mid].structure == out[lo].structure)) bisect(lo, mid);
         if (!(out[mid].structure == out[hi].structure)) bisect(mid, hi);
       };
@@ -388,7 +431,7 @@ class Builder {
       // tells at once, instead of a bisection of the whole gap.
       auto locate = [&](size_t lo, size_t hi) {
         if (hi - lo <= 2) return bisect(lo, hi);
-        sweep(hi - 1);
+        sweep(hi - 1, kLocate);
         if (out[hi - 1].structure == out[lo].structure) return;  // the change is at event hi alone
         bisect(lo, hi - 1);
       };
@@ -412,25 +455,25 @@ class Builder {
       // The events strictly between swept intervals lo < hi, under the free edges of each last swept slice.
       walk = [&](size_t lo, size_t hi) {
         size_t last = lo;
-        std::vector<EventPoint> ends = EventPointsOf(out[lo]);
+        std::vector<EventPoint> ends = WalkPointsOf(out[lo]);
         for (size_t k = lo + 1; k < hi; ++k) {
           if (swept[k] || !EventRelevant(k, ends, out[last])) continue;
-          sweep(k);
+          sweep(k, kWalk);
           if (!(out[k].structure == out[last].structure)) resolve(last, k);
           last = k;
-          ends = EventPointsOf(out[k]);
+          ends = WalkPointsOf(out[k]);
         }
         if (last != lo && !(out[hi].structure == out[last].structure)) resolve(last, hi);
       };
-      sweep(begin);
-      std::vector<EventPoint> ends = EventPointsOf(out[begin]);
+      sweep(begin, kWalk);
+      std::vector<EventPoint> ends = WalkPointsOf(out[begin]);
       size_t last = begin;
       for (size_t k = begin + 1; k < end; ++k) {
         if (!EventRelevant(k, ends, out[last]) && k - last < period && k + 1 < end) continue;
-        sweep(k);
+        sweep(k, kWalk);
         if (!(out[k].structure == out[last].structure)) resolve(last, k);
         last = k;
-        ends = EventPointsOf(out[k]);
+        ends = WalkPointsOf(out[k]);
       }
       // Intervals not swept have the structure of the last swept one before them (not copied: at thousands of
       // events the copies of large structures cost more memory and time than the sweeps).
@@ -476,13 +519,13 @@ class Builder {
   Switch Bisect(double x, double y, const SliceStructure& sx) {
     for (int it = 0; it < 60 && y - x > 1e-12; ++it) {
       const double mid = 0.5 * (x + y);
-      if (Evaluate(WrapAngle(mid)).structure == sx) {
+      if (Evaluate(WrapAngle(mid), kBisect).structure == sx) {
         x = mid;
       } else {
         y = mid;
       }
     }
-    return {WrapAngle(0.5 * (x + y)), sx, Evaluate(WrapAngle(y)).structure};
+    return {WrapAngle(0.5 * (x + y)), sx, Evaluate(WrapAngle(y), kBisect).structure};
   }
 
   // The chosen rays can switch between two events (the choice compares areas; no event bounds it): the walk's slices
@@ -497,8 +540,8 @@ class Builder {
                                 EventTheta((k + 1) % m) - at + (k + 1 == m ? 2 * M_PI : 0.0));
     const double dt = std::min(1e-9, 0.25 * gap);
     if (!(dt > 0)) return std::nullopt;
-    const SliceStructure right = Evaluate(WrapAngle(at + dt)).structure;
-    if (!(Evaluate(WrapAngle(at - dt)).structure == right)) return std::nullopt;
+    const SliceStructure right = Evaluate(WrapAngle(at + dt), kBisect).structure;
+    if (!(Evaluate(WrapAngle(at - dt), kBisect).structure == right)) return std::nullopt;
     const Switch s = right == after.structure ? Bisect(Unwrap(before.theta, at - 2 * M_PI), at - dt, before.structure)
                                               : Bisect(at + dt, Unwrap(after.theta, at), right);
     if (s.before.active_rays == s.after.active_rays) return std::nullopt;
@@ -549,7 +592,7 @@ class Builder {
             order.empty() ? M_PI : (k + 1 < order.size() ? order[k + 1].first : order[0].first + 2 * M_PI);
         probes[k].lo = lo;
         probes[k].hi = hi;
-        probes[k].s[t % 3] = Evaluate(WrapAngle(lo + fractions[t % 3] * (hi - lo)));
+        probes[k].s[t % 3] = Evaluate(WrapAngle(lo + fractions[t % 3] * (hi - lo)), kChecks);
       });
       bool found = false;
       for (auto& p : probes) {
@@ -589,6 +632,8 @@ class Builder {
   std::vector<CriticalOrientation> structural_;
   std::vector<Event> events_;
   std::atomic<std::int64_t> backprojections_{0};
+  std::array<std::atomic<std::int64_t>, 5> sweeps_{};
+  std::array<std::atomic<std::int64_t>, 5> sweep_ns_{};
   std::int64_t checked_ = 0;
   std::int64_t unexplained_ = 0;
   std::int64_t found_by_probes_ = 0;

@@ -15,6 +15,7 @@
 //     geometric event bounds); any other is counted as `unexplained` (the tests require none).
 // docs/planning_nondirectional.md explains the design and gives the figures.
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -53,9 +54,14 @@ struct NondirectionalStats {
   std::int64_t events = 0;           ///< distinct orientations of the structural candidates (the baseline sweeps each)
   std::int64_t checked = 0;          ///< events after which the structure was swept again
   std::int64_t backprojections = 0;  ///< VC-enlarged backprojections computed (each several sweeps)
-  std::int64_t changes = 0;          ///< orientations where the structure changes (reported, R-critical aside)
-  std::int64_t selection = 0;        ///< of which the chosen active rays alone change
-  std::int64_t unexplained = 0;      ///< changes found by the interval checks at no candidate (a bug if not 0)
+  /// The backprojections by purpose: the walk's (an interval after a relevant event, or the baseline's every
+  /// interval), locating a change the walk found, the interval checks, bisections for where a change lies (the checks'
+  /// and switches of the chosen rays), and the final slices (critical ones, open ones the checks had not swept).
+  std::array<std::int64_t, 5> sweeps{};
+  std::array<double, 5> sweep_seconds{};  ///< their time (wall clock, summed over the threads)
+  std::int64_t changes = 0;               ///< orientations where the structure changes (reported, R-critical aside)
+  std::int64_t selection = 0;             ///< of which the chosen active rays alone change
+  std::int64_t unexplained = 0;           ///< changes found by the interval checks at no candidate (a bug if not 0)
   /// Changes at a candidate that the kinetic walk skipped and the interval checks found (the walk's rule missed
   /// them; the result is still complete, the tests require none).
   std::int64_t found_by_probes = 0;
@@ -92,6 +98,10 @@ struct NondirectionalOptions {
   /// change and the interval checks find none it skipped), and a period p caps the gain over the baseline at p and
   /// costs a fifth of the sweeps at p = 64 on 644 vertices.
   int resweep_period = 0;
+  /// Kinetic walk: an event counts where its sources are any vertex of the last swept slice's regions (the broad
+  /// rule, kept to compare), instead of only where they are the sources or ends of its free edges, plus the `along`
+  /// vgraph events whose static segment meets a region (default; docs/planning_nondirectional.md says why).
+  bool vertex_events = false;
   /// Called now and then with the fraction done (0..1), from the calling thread.
   std::function<void(double)> progress;
 };

@@ -5,11 +5,12 @@
 //   index (search 0, the default) or by scanning every segment (search 1, the reference). Scaling exponent: compare
 //   two sizes, log(t2 / t1) / log(n2 / n1); the counters give the count by kind next to the time.
 // BM_Nondirectional/method/n: the whole nondirectional backprojection, kinetic (method 0, the default: a sweep only
-//   where an event involves the regions' free edges, or a sliding event's edge or vertex meets a region) against the
-//   critical-slice baseline (method 1: a sweep in every interval between candidates) and the kinetic walk as it was
-//   before (method 2: a sweep at every sliding event and at least every 8 events), same problem, same run: the ratio to
-//   the baseline is the kinetic method's gain; the counters give the candidates swept by the walk (checked), all sweeps
-//   (backprojections) and the orientations found (equal for all three).
+//   where an event involves the regions' free edges, or a sliding or along-a-segment event's edge or vertex meets a
+//   region) against the critical-slice baseline (method 1: a sweep in every interval between candidates) and the
+//   kinetic walk with its broad rule (method 2: also every event at any vertex of the regions), same problem, same
+//   run: the ratio to the baseline is the kinetic method's gain; the counters give the candidates swept by the walk
+//   (checked), all sweeps (backprojections) by purpose (sweeps_*, with their time *_s) and the orientations found
+//   (equal for all three).
 // BM_RegionAt/method/n: the region at a θ inside an open interval, carried from the slice (method 0) or swept
 //   (method 1), in the same run: the ratio is what the carried regions save the queries and the --svg curves.
 // Every benchmark but BM_Plan reports its peak resident memory (`peak_MiB`).
@@ -133,10 +134,7 @@ void BM_Nondirectional(benchmark::State& state) {
   const BackprojectionProblem pr = bench::PentagonGrid(static_cast<int>(state.range(1)) / 5);
   NondirectionalOptions o;
   o.method = state.range(0) == 1 ? SliceMethod::kBaseline : SliceMethod::kKinetic;
-  if (state.range(0) == 2) {  // the walk before the local sliding rule: every sliding event, a sweep every 8 events
-    o.local_sliding = false;
-    o.resweep_period = 8;
-  }
+  if (state.range(0) == 2) o.vertex_events = true;  // the walk's broad rule: an event at any vertex of the regions
   NondirectionalStats stats;
   size_t orientations = 0;
   ResetPeakMemory();
@@ -146,7 +144,7 @@ void BM_Nondirectional(benchmark::State& state) {
     orientations = nd.orientations.size();
     benchmark::DoNotOptimize(nd.slices.data());
   }
-  static const char* const kLabels[] = {"kinetic", "baseline", "kinetic before (every sliding event, period 8)"};
+  static const char* const kLabels[] = {"kinetic", "baseline", "kinetic, broad rule (every vertex of the regions)"};
   state.SetLabel(kLabels[state.range(0)]);
   state.counters["peak_MiB"] = PeakMemoryMiB();
   state.counters["vertices"] = bench::Vertices(pr);
@@ -177,6 +175,12 @@ void BM_Nondirectional(benchmark::State& state) {
       per_sweep_s * static_cast<double>(stats.events + 4 * static_cast<std::int64_t>(orientations));
   state.counters["backprojections"] = static_cast<double>(stats.backprojections);
   state.counters["orientations"] = static_cast<double>(orientations);
+  static const char* const kPurposes[] = {"sweeps_walk", "sweeps_locate", "sweeps_checks", "sweeps_bisect",
+                                          "sweeps_slices"};
+  for (size_t i = 0; i < stats.sweeps.size(); ++i) {
+    state.counters[kPurposes[i]] = static_cast<double>(stats.sweeps[i]);
+    state.counters[std::string(kPurposes[i]) + "_s"] = stats.sweep_seconds[i];
+  }
 }
 BENCHMARK(BM_Nondirectional)
     ->ArgsProduct({{0, 1, 2}, {10, 20, 40, 80}})
