@@ -305,7 +305,11 @@ class Sweep {
   FT top_;
   std::vector<Source> sources_;
   std::vector<std::string> names_;
-  std::map<int, P2> free_sources_;  // a free edge's name -> the point it is erected at (RegionEdge::source)
+  struct FreeSource {
+    P2 point;          // the point it is erected at (RegionEdge::source)
+    std::int8_t sign;  // RegionEdge::sign
+  };
+  std::map<int, FreeSource> free_sources_;  // by the free edge's name
   std::map<P2, int, LessYX> vertex_names_;
   P2 bounds_sweep_[4];                    // the bounds' corners in the sweep frame, counter-clockwise
   std::set<P2, LessYX> open_lower_ends_;  // lower ends of active ray segments that fail when complied to
@@ -1335,7 +1339,7 @@ void Sweep::Process(const P2& p, const std::vector<StaticCurve>& static_uppers) 
       if (name < 0) {
         if (point_name < 0) point_name = VertexName(p, through);
         name = AddName(names_[point_name] + (nc.right_free ? "/-eps" : "/+eps"));
-        free_sources_.emplace(name, p);
+        free_sources_.emplace(name, FreeSource{p, static_cast<std::int8_t>(nc.right_free ? -1 : 1)});
       }
       c->name = name;
     }
@@ -1452,7 +1456,8 @@ Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
       out.vertices.push_back(rot_.InvertExact(r.vertices[i]) + Vector2d::Zero());  // + 0: no negative zeros
       RegionEdge edge{r.edges[i].first, names_[r.edges[i].second], Vector2d::Zero(), {}};
       if (const auto it = free_sources_.find(r.edges[i].second); it != free_sources_.end()) {
-        edge.source = rot_.InvertExact(it->second) + Vector2d::Zero();
+        edge.source = rot_.InvertExact(it->second.point) + Vector2d::Zero();
+        edge.sign = it->second.sign;
       } else if (const auto st = static_lines.find(r.edges[i].second); st != static_lines.end()) {
         edge.line = {rot_.InvertExact(st->second->a) + Vector2d::Zero(),
                      rot_.InvertExact(st->second->b) + Vector2d::Zero()};

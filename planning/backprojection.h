@@ -75,6 +75,9 @@ struct RegionEdge {
   /// Any other edge: the static segment it lies on (a C-obstacle, goal or bounds edge, a CVC ray's free segment; world
   /// frame), whose line does not move with θ. Both zero for a free edge.
   std::array<Eigen::Vector2d, 2> line{Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
+  /// A free edge: which of its source's two free edges it is, +1 direction θ + π + ε_v (ref `…/+eps`), −1 θ + π − ε_v
+  /// (`…/-eps`). 0 for the other kinds.
+  std::int8_t sign = 0;
 };
 
 /// A closed ring: edge i runs from vertices[i] to vertices[i + 1] (wrapping). Outer rings are counter-clockwise,

@@ -53,16 +53,6 @@ std::vector<std::string> RingSequence(const RegionRing& ring, const char* tag) {
   return out;
 }
 
-// Which of its source's two free edges a region's free edge is, from its reference (`REF/+eps`: direction
-// θ + π + ε_v, +1; `REF/-eps`: −1; 0 when the reference does not say).
-int FreeEdgeSign(const RegionEdge& e) {
-  const auto ends_with = [&](const char* tail) {
-    const std::string t(tail);
-    return e.ref.size() >= t.size() && e.ref.compare(e.ref.size() - t.size(), t.size(), t) == 0;
-  };
-  return ends_with("/+eps") ? 1 : ends_with("/-eps") ? -1 : 0;
-}
-
 std::string Join(const std::vector<std::string>& v) {
   std::string s;
   for (const auto& x : v) {
@@ -111,7 +101,7 @@ void AddEventPoints(const Region& region, std::vector<EventPoint>& out) {
   ForEachRing(region, [&](const RegionRing& ring) {
     for (size_t i = 0; i < ring.vertices.size(); ++i) {
       out.push_back({ring.vertices[i], 0});
-      if (ring.edges[i].kind == EdgeKind::kFree) out.push_back({ring.edges[i].source, FreeEdgeSign(ring.edges[i])});
+      if (ring.edges[i].kind == EdgeKind::kFree) out.push_back({ring.edges[i].source, ring.edges[i].sign});
     }
   });
 }
@@ -125,7 +115,7 @@ void AddFreeEdgePoints(const Region& region, std::vector<EventPoint>& out) {
     const size_t n = ring.vertices.size();
     for (size_t i = 0; i < n; ++i) {
       if (ring.edges[i].kind != EdgeKind::kFree) continue;
-      const int sign = FreeEdgeSign(ring.edges[i]);
+      const int sign = ring.edges[i].sign;
       out.push_back({ring.edges[i].source, sign});
       out.push_back({ring.vertices[i], sign});
       out.push_back({ring.vertices[(i + 1) % n], sign});
@@ -690,8 +680,7 @@ struct EdgeLine {
 EdgeLine LineOf(const RegionRing& ring, size_t i, double theta, double eps) {
   const RegionEdge& e = ring.edges[i];
   if (e.kind == EdgeKind::kFree) {
-    const bool plus = e.ref.size() >= 5 && e.ref.compare(e.ref.size() - 5, 5, "/+eps") == 0;
-    const double angle = theta + M_PI + (plus ? eps : -eps);
+    const double angle = theta + M_PI + (e.sign > 0 ? eps : -eps);
     return {e.source, Vector2d(std::cos(angle), std::sin(angle)), true};
   }
   // The static segment it lies on as the sweep recorded it (exact up to one rounding), else its own two ends (less

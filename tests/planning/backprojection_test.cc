@@ -71,8 +71,21 @@ TEST(Backprojection, GoalOnAFlatFloorIsATriangleOfFreeEdges) {
   EXPECT_EQ(CountKind(b, EdgeKind::kFree), 2);
   // Free edges are erected at the goal's top corners (vertex refs of goal[0]), one per side of the cone.
   std::vector<std::string> free_refs;
-  for (const auto& e : b.polygons[0].outer.edges) {
-    if (e.kind == EdgeKind::kFree) free_refs.push_back(e.ref);
+  const auto& ring = b.polygons[0].outer;
+  for (size_t i = 0; i < ring.edges.size(); ++i) {
+    const RegionEdge& e = ring.edges[i];
+    if (e.kind != EdgeKind::kFree) {
+      EXPECT_EQ(e.sign, 0) << e.ref;
+      continue;
+    }
+    free_refs.push_back(e.ref);
+    // Its sign says which free edge of its source it is: the edge runs along θ + π + sign·ε_v, away from or towards
+    // its source.
+    ASSERT_NE(e.sign, 0) << e.ref;
+    const double angle = pr.theta + M_PI + e.sign * eps;
+    const Vector2d d = ring.vertices[(i + 1) % ring.edges.size()] - ring.vertices[i];
+    EXPECT_NEAR(std::abs(d.x() * std::sin(angle) - d.y() * std::cos(angle)), 0.0, 1e-9 * d.norm()) << e.ref;
+    EXPECT_EQ(e.sign > 0, e.ref.ends_with("/+eps")) << e.ref;
   }
   std::sort(free_refs.begin(), free_refs.end());
   EXPECT_EQ(free_refs, (std::vector<std::string>{"goal[0].v[2]/+eps", "goal[0].v[3]/-eps"}));
