@@ -26,6 +26,7 @@
 #include <set>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/motion_model.h"
@@ -167,6 +168,14 @@ double NearestOtherCandidate(const std::vector<CriticalOrientation>& candidates,
     if (j != i) nearest = std::min(nearest, std::abs(WrapAngle(candidates[j].theta - candidates[i].theta)));
   }
   return nearest;
+}
+
+// The classic regions at θ − d and θ + d.
+std::pair<Region, Region> ClassicRegionsAround(const BackprojectionProblem& pr, double theta, double d) {
+  BackprojectionProblem before = pr, after = pr;
+  before.theta = WrapAngle(theta - d);
+  after.theta = WrapAngle(theta + d);
+  return {ClassicBackprojection(before), ClassicBackprojection(after)};
 }
 
 // The property of docs/formats.md `visco critical`: sampled at ¼, ½, ¾ of every interval between consecutive
@@ -618,10 +627,7 @@ TEST(NondirectionalExamples, ASlidingEventOnARampChangesTheStructure) {
     if (c.kind != CriticalKind::kSliding || c.refs[0] != "ramp") continue;
     const double nearest = NearestOtherCandidate(candidates, i);
     if (nearest < 1e-6) continue;
-    BackprojectionProblem before = pr, after = pr;
-    before.theta = WrapAngle(c.theta - 0.4 * nearest);
-    after.theta = WrapAngle(c.theta + 0.4 * nearest);
-    const Region b = ClassicBackprojection(before), a = ClassicBackprojection(after);
+    const auto [b, a] = ClassicRegionsAround(pr, c.theta, 0.4 * nearest);
     if (RegionStructure(b) == RegionStructure(a)) continue;
     ++alone_changing;
     EXPECT_TRUE(FeatureMeetsRegion(c.feature, b, 1e-9 * size)) << c.theta * 180 / M_PI;
@@ -669,10 +675,7 @@ TEST(NondirectionalExamples, AFreeEdgeTurningAcrossAGoalEdgeChangesTheStructure)
       if (o.refs != c.refs) nearest = std::min(nearest, std::abs(WrapAngle(o.theta - c.theta)));
     }
     if (nearest < 1e-6) continue;
-    BackprojectionProblem before = pr, after = pr;
-    before.theta = WrapAngle(c.theta - 0.4 * nearest);
-    after.theta = WrapAngle(c.theta + 0.4 * nearest);
-    const Region b = ClassicBackprojection(before), a = ClassicBackprojection(after);
+    const auto [b, a] = ClassicRegionsAround(pr, c.theta, 0.4 * nearest);
     if (RegionStructure(b) == RegionStructure(a)) continue;
     // Before the event the source starts no free edge of the region: the free-edge rule alone would skip it.
     auto starts_free_edge = [&](const Region& r) {

@@ -184,7 +184,7 @@ void BM_Nondirectional(benchmark::State& state) {
 }
 BENCHMARK(BM_Nondirectional)
     ->ArgsProduct({{0, 1, 2}, {10, 20, 40, 80}})
-    ->ArgsProduct({{0}, {160, 320, 640, 1280, 2000}})
+    ->ArgsProduct({{0}, {160, 320, 500, 640, 1280, 2000}})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1);
 
