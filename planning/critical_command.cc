@@ -241,6 +241,7 @@ void Run(const Args& a) {
                   {"r_critical", st.r_critical},
                   {"unexplained", st.unexplained},
                   {"found_by_probes", st.found_by_probes},
+                  {"rule_missed", st.rule_missed},
                   {"sweeps",
                    {{"walk", st.sweeps[0]},
                     {"locate", st.sweeps[1]},

@@ -221,6 +221,9 @@ class Builder {
       }
       changes.push_back(EventTheta(k));
       change_candidate.push_back(PickCandidate(k, before, after));
+      // The rule judged against the true structure before the event: a change it would skip was found only by the
+      // walk's later sweeps (docs/planning_nondirectional.md argues there is none).
+      if (options_.method == SliceMethod::kKinetic && !EventRelevant(k, WalkPointsOf(before), before)) ++rule_missed_;
     }
     Verify(changes, change_candidate);
     // Final slices.
@@ -277,6 +280,7 @@ class Builder {
     nd.stats.events = static_cast<std::int64_t>(events_.size());
     nd.stats.unexplained = unexplained_;
     nd.stats.found_by_probes = found_by_probes_;
+    nd.stats.rule_missed = rule_missed_;
     nd.stats.unexplained_at = unexplained_at_;
     for (auto& c : r_candidates) {
       const Slice& s = SliceAt(nd, c.theta);
@@ -627,6 +631,7 @@ class Builder {
   std::int64_t checked_ = 0;
   std::int64_t unexplained_ = 0;
   std::int64_t found_by_probes_ = 0;
+  std::int64_t rule_missed_ = 0;
   std::vector<double> unexplained_at_;
   std::map<double, std::vector<std::string>> selection_refs_;
   std::map<std::pair<double, double>, Slice> midpoints_;  // the last interval checks' midpoint slices, by (lo, hi)

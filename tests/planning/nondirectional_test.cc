@@ -46,7 +46,7 @@ using Eigen::Vector2d;
 
 struct Tally {
   int scenes = 0, intervals = 0, broken = 0, orientations = 0, changes = 0, not_changing = 0, unexplained = 0,
-      found_by_probes = 0;
+      found_by_probes = 0, rule_missed = 0;
   // Regions carried from the open slice to ¼ and ¾ of its interval (RegionAt) against the sweep there: how many, the
   // worst distance of a swept vertex to the carried ones and back (relative to the scene's size) and of the areas.
   int carried = 0;
@@ -188,6 +188,14 @@ void CheckStructure(const std::string& name, const BackprojectionProblem& pr, co
   EXPECT_EQ(nd.stats.unexplained, 0) << name << ": a change no candidate explains";
   t.found_by_probes += static_cast<int>(nd.stats.found_by_probes);
   EXPECT_EQ(nd.stats.found_by_probes, 0) << name << ": a change the kinetic walk skipped";
+  // The walk's rule is exact on whole scenes; on the strip problems, where the goal strip and the forbidden pieces
+  // share vertices, zero-length edges at such a vertex can come or go at an event elsewhere (strip seed 46: two of 338
+  // changes), which only the walk's later sweeps find: counted, not required to be 0 there.
+  t.rule_missed += static_cast<int>(nd.stats.rule_missed);
+  if (name.rfind("strip", 0) != 0) {
+    EXPECT_EQ(nd.stats.rule_missed, 0) << name
+                                       << ": a change at an event the walk's rule skips (a later sweep found it)";
+  }
   const auto& o = nd.orientations;
   const int not_changing_before = t.not_changing;
   t.orientations += static_cast<int>(o.size());
@@ -289,11 +297,12 @@ void StructureOnSeeds(std::uint64_t first, std::uint64_t last, Tally& t) {
   for (const auto& k : t.kinds_changing) kinds += k + " ";
   std::printf(
       "scenes %d, candidates %lld, orientations %d (%d checked across, %d change nothing), intervals %d "
-      "(broken %d), unexplained %d, skipped by the walk %d; kinds that change the structure: %s\n"
+      "(broken %d), unexplained %d, skipped by the walk %d, missed by its rule %d; kinds that change the structure: "
+      "%s\n"
       "regions carried to 1/4 and 3/4 of their interval: %d, worst vertex %.2e, worst area %.2e (of the scene's "
       "size)\n%s\n",
       t.scenes, static_cast<long long>(t.candidates), t.orientations, t.changes, t.not_changing, t.intervals, t.broken,
-      t.unexplained, t.found_by_probes, kinds.c_str(), t.carried, t.carried_vertex, t.carried_area,
+      t.unexplained, t.found_by_probes, t.rule_missed, kinds.c_str(), t.carried, t.carried_vertex, t.carried_area,
       EditSizes(t).c_str());
   if (testing::DesignedSeeds()) {
     EXPECT_GE(accepted * 10, tried * 9) << "the generator rejects too many seeds";
@@ -375,9 +384,10 @@ TEST(NondirectionalProperty, StructureIsConstantWithStripGoalsAndForbiddenStrips
     }
   }
   std::printf(
-      "strip problems %d, orientations %d, intervals %d (broken %d), unexplained %d, skipped by the walk %d, "
-      "against the baseline %d\n",
-      t.scenes, t.orientations, t.intervals, t.broken, t.unexplained, t.found_by_probes, kinetic_vs_baseline);
+      "strip problems %d, orientations %d, intervals %d (broken %d), unexplained %d, skipped by the walk %d, missed by "
+      "its rule %d, against the baseline %d\n",
+      t.scenes, t.orientations, t.intervals, t.broken, t.unexplained, t.found_by_probes, t.rule_missed,
+      kinetic_vs_baseline);
   EXPECT_GE(t.scenes, (FullProperty() ? 30 : 8) / static_cast<int>(kSeedStride));
   EXPECT_EQ(t.broken, 0);
 }
