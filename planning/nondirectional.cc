@@ -222,8 +222,12 @@ class Builder {
       changes.push_back(EventTheta(k));
       change_candidate.push_back(PickCandidate(k, before, after));
       // The rule judged against the true structure before the event: a change it would skip was found only by the
-      // walk's later sweeps (docs/planning_nondirectional.md argues there is none).
-      if (options_.method == SliceMethod::kKinetic && !EventRelevant(k, WalkPointsOf(before), before)) ++rule_missed_;
+      // walk's later sweeps (docs/planning_nondirectional.md argues there is none with the same chosen rays; a switch
+      // of the rays can follow from an event in a ray's trial region, outside the regions the rule looks at).
+      if (options_.method == SliceMethod::kKinetic && before.structure.active_rays == after.structure.active_rays &&
+          !EventRelevant(k, WalkPointsOf(before), before)) {
+        ++rule_missed_;
+      }
     }
     Verify(changes, change_candidate);
     // Final slices.

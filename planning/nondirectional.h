@@ -65,8 +65,10 @@ struct NondirectionalStats {
   /// Changes at a candidate that the kinetic walk skipped and the interval checks found (the walk's rule missed
   /// them; the result is still complete, the tests require none).
   std::int64_t found_by_probes = 0;
-  /// Changes the kinetic walk found at an event its rule does not take for the structure just before it (a later
-  /// sweep differed and the change was located): 0 where the rule is exact, as docs/planning_nondirectional.md argues.
+  /// Changes with the same chosen rays on both sides that the kinetic walk found at an event its rule does not take
+  /// for the structure just before it (a later sweep differed and the change was located): 0 where the rule is exact,
+  /// as docs/planning_nondirectional.md argues. (Switches of the chosen rays can follow from events the rule does not
+  /// see; they are found the same way and not counted.)
   std::int64_t rule_missed = 0;
   std::int64_t r_critical = 0;         ///< R-critical orientations reported (they bound where R fits)
   std::vector<double> unexplained_at;  ///< where those were found (radians)
