@@ -302,8 +302,9 @@ void RegisterCriticalCommand(CLI::App& app) {
                   "worker threads for the slices (default: the machine's cores; the result does not depend on it)")
       ->capture_default_str();
   cmd->add_option("--method", args->method,
-                  "kinetic (sweep again only at candidates whose free edges are the regions') or baseline (Donald's "
-                  "critical-slice method: a sweep at every candidate)")
+                  "kinetic (sweep again only at candidates that move the regions' free edges, and at sliding or "
+                  "along-a-segment candidates whose edge meets the regions) or baseline (Donald's critical-slice "
+                  "method: a sweep at every candidate)")
       ->check(CLI::IsMember({"kinetic", "baseline"}))
       ->capture_default_str();
   cmd->add_option("--resweep-period", args->resweep_period,
