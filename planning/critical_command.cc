@@ -242,6 +242,7 @@ void Run(const Args& a) {
                   {"unexplained", st.unexplained},
                   {"found_by_probes", st.found_by_probes},
                   {"rule_missed", st.rule_missed},
+                  {"rule_missed_sliding", st.rule_missed_sliding},
                   {"sweeps",
                    {{"walk", st.sweeps[0]},
                     {"locate", st.sweeps[1]},

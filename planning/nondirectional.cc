@@ -227,6 +227,11 @@ class Builder {
       if (options_.method == SliceMethod::kKinetic && before.structure.active_rays == after.structure.active_rays &&
           !EventRelevant(k, WalkPointsOf(before), before)) {
         ++rule_missed_;
+        bool sliding = false;
+        for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
+          sliding = sliding || structural_[i].kind == CriticalKind::kSliding;
+        }
+        if (sliding) ++rule_missed_sliding_;
       }
     }
     Verify(changes, change_candidate);
@@ -285,6 +290,7 @@ class Builder {
     nd.stats.unexplained = unexplained_;
     nd.stats.found_by_probes = found_by_probes_;
     nd.stats.rule_missed = rule_missed_;
+    nd.stats.rule_missed_sliding = rule_missed_sliding_;
     nd.stats.unexplained_at = unexplained_at_;
     for (auto& c : r_candidates) {
       const Slice& s = SliceAt(nd, c.theta);
@@ -636,6 +642,7 @@ class Builder {
   std::int64_t unexplained_ = 0;
   std::int64_t found_by_probes_ = 0;
   std::int64_t rule_missed_ = 0;
+  std::int64_t rule_missed_sliding_ = 0;
   std::vector<double> unexplained_at_;
   std::map<double, std::vector<std::string>> selection_refs_;
   std::map<std::pair<double, double>, Slice> midpoints_;  // the last interval checks' midpoint slices, by (lo, hi)

@@ -70,6 +70,9 @@ struct NondirectionalStats {
   /// as docs/planning_nondirectional.md argues. (Switches of the chosen rays can follow from events the rule does not
   /// see; they are found the same way and not counted.)
   std::int64_t rule_missed = 0;
+  /// Of those, the ones at events with a sliding candidate: the sliding rule's argument has a known gap (a motion
+  /// leaving an edge into free space at an interior point, docs/planning_nondirectional.md), the others' has none.
+  std::int64_t rule_missed_sliding = 0;
   std::int64_t r_critical = 0;         ///< R-critical orientations reported (they bound where R fits)
   std::vector<double> unexplained_at;  ///< where those were found (radians)
 };
