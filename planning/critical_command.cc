@@ -242,13 +242,10 @@ void Run(const Args& a) {
                   {"unexplained", st.unexplained},
                   {"found_by_probes", st.found_by_probes},
                   {"rule_missed", st.rule_missed},
-                  {"rule_missed_sliding", st.rule_missed_sliding},
-                  {"sweeps",
-                   {{"walk", st.sweeps[0]},
-                    {"locate", st.sweeps[1]},
-                    {"checks", st.sweeps[2]},
-                    {"bisect", st.sweeps[3]},
-                    {"slices", st.sweeps[4]}}}};
+                  {"rule_missed_sliding", st.rule_missed_sliding}};
+  for (int i = 0; i < kSweepPurposes; ++i) {
+    doc["stats"]["sweeps"][SweepPurposeName(static_cast<SweepPurpose>(i))] = st.sweeps[i];
+  }
   if (scene.start) {
     doc["start_intervals"] = {{"classic", IntervalsJson(IntervalsContaining(nd, pr, start, false))},
                               {"vc", IntervalsJson(IntervalsContaining(nd, pr, start, true))}};

@@ -89,8 +89,9 @@ struct EventPoint {
   int sign = 0;
 };
 
-// Where events can change `region`: at the static point a free edge of it is erected at (its source), involving that
-// free edge, and at every vertex, involving either free edge there. A free edge usually starts at its source, but not
+// Where events can change `region`, broadly (the R-critical cuts, the reported candidate, the walk's broad rule): at
+// the static point a free edge of it is erected at (its source), involving that free edge, and at every vertex,
+// involving either free edge there. A free edge usually starts at its source, but not
 // always: where the part next to the source lies outside the region (in a forbidden region beside a goal strip, or
 // beyond the bounds), the region's edge starts where the line leaves it, and events at the source move that edge all
 // the same (VISCO_SEED_OFFSET=19507001, strategy seed 11: the free vertex of a goal strip's two free edges crossed
@@ -246,7 +247,7 @@ class Builder {
     nd.slices.resize(n == 0 ? 1 : 2 * n);
     ParallelFor(nd.slices.size(), options_.threads, options_.progress, 0.85, 0.15, [&](size_t s) {
       if (n == 0) {
-        nd.slices[0] = Evaluate(0.0, kSlices);
+        nd.slices[0] = Evaluate(0.0, kSweepSlices);
         nd.slices[0].lo = -M_PI;
         nd.slices[0].hi = M_PI;
         return;
@@ -255,14 +256,14 @@ class Builder {
       const double lo = order[k].first;
       const double hi = k + 1 < n ? order[k + 1].first : order[0].first + 2 * M_PI;
       if (s % 2 == 0) {
-        nd.slices[s] = Evaluate(lo, kSlices);
+        nd.slices[s] = Evaluate(lo, kSweepSlices);
         nd.slices[s].lo = nd.slices[s].hi = lo;
         nd.slices[s].critical = true;
       } else {
         // The interval checks swept its midpoint already when it was last probed.
         const auto cached = midpoints_.find({lo, hi});
-        nd.slices[s] =
-            cached != midpoints_.end() ? std::move(cached->second) : Evaluate(WrapAngle(lo + 0.5 * (hi - lo)), kSlices);
+        nd.slices[s] = cached != midpoints_.end() ? std::move(cached->second)
+                                                  : Evaluate(WrapAngle(lo + 0.5 * (hi - lo)), kSweepSlices);
         nd.slices[s].lo = lo;
         nd.slices[s].hi = hi;
       }
@@ -282,9 +283,11 @@ class Builder {
       if (c < 0) ++nd.stats.selection;
     }
     // R-critical orientations of the start region where their sources are vertices of the regions there.
-    nd.stats.backprojections = backprojections_.load();
-    nd.stats.sweeps = {sweeps_[0].load(), sweeps_[1].load(), sweeps_[2].load(), sweeps_[3].load(), sweeps_[4].load()};
-    for (int i = 0; i < 5; ++i) nd.stats.sweep_seconds[i] = 1e-9 * static_cast<double>(sweep_ns_[i].load());
+    for (int i = 0; i < kSweepPurposes; ++i) {
+      nd.stats.sweeps[i] = sweeps_[i].load();
+      nd.stats.sweep_seconds[i] = 1e-9 * static_cast<double>(sweep_ns_[i].load());
+      nd.stats.backprojections += nd.stats.sweeps[i];
+    }
     nd.stats.checked = checked_;
     nd.stats.events = static_cast<std::int64_t>(events_.size());
     nd.stats.unexplained = unexplained_;
@@ -312,19 +315,8 @@ class Builder {
 
   double EventTheta(size_t k) const { return structural_[events_[k].begin].theta; }
 
-  // Why a sweep is made (counted in NondirectionalStats::sweeps).
-  enum Purpose { kWalk = 0, kLocate = 1, kChecks = 2, kBisect = 3, kSlices = 4 };
-
-  Slice Evaluate(double theta, Purpose purpose) {
-    ++sweeps_[purpose];
+  Slice Evaluate(double theta, SweepPurpose purpose) {
     const auto t0 = std::chrono::steady_clock::now();
-    struct Timer {
-      std::chrono::steady_clock::time_point t0;
-      std::atomic<std::int64_t>& ns;
-      ~Timer() {
-        ns += std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count();
-      }
-    } timer{t0, sweep_ns_[purpose]};
     BackprojectionProblem p = pr_;
     p.theta = theta;
     Slice s;
@@ -334,7 +326,9 @@ class Builder {
     s.structure.classic = RegionStructure(s.vc.classic);
     s.structure.vc = RegionStructure(s.vc.region);
     s.structure.active_rays = s.vc.active_rays;
-    ++backprojections_;
+    ++sweeps_[purpose];
+    sweep_ns_[purpose] +=
+        std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count();
     return s;
   }
 
@@ -368,14 +362,15 @@ class Builder {
   // Whether candidate c can change the structure of slice s (whose event points are `ends`): a sliding event only
   // where its edge or vertex meets the closure of a region, the others where their sources are event points.
   bool CanChange(const CriticalOrientation& c, const std::vector<EventPoint>& ends, const Slice& s) const {
-    const double tol = 1e-9 * size_;
-    if (c.kind == CriticalKind::kSliding && options_.local_sliding && !c.feature.empty()) {
+    const auto feature_meets_regions = [&] {
+      const double tol = 1e-9 * size_;
       return FeatureMeetsRegion(c.feature, s.vc.classic, tol) || FeatureMeetsRegion(c.feature, s.vc.region, tol);
-    }
+    };
+    if (c.kind == CriticalKind::kSliding && options_.local_sliding && !c.feature.empty())
+      return feature_meets_regions();
     if (Relevant(c, ends)) return true;
     // A free edge turning across the line of a static segment: a part of the region can appear along the segment.
-    return !options_.vertex_events && c.kind == CriticalKind::kVgraph && !c.feature.empty() &&
-           (FeatureMeetsRegion(c.feature, s.vc.classic, tol) || FeatureMeetsRegion(c.feature, s.vc.region, tol));
+    return !options_.vertex_events && c.kind == CriticalKind::kVgraph && !c.feature.empty() && feature_meets_regions();
   }
 
   // Whether event k can change the structure of `current` (the last swept slice, whose event points are `ends`).
@@ -400,12 +395,12 @@ class Builder {
     const size_t m = events_.size();
     source.resize(m);
     for (size_t k = 0; k < m; ++k) source[k] = k;
-    if (m <= 1) return m == 0 ? std::vector<Slice>{} : std::vector<Slice>{Evaluate(IntervalTheta(0), kWalk)};
+    if (m <= 1) return m == 0 ? std::vector<Slice>{} : std::vector<Slice>{Evaluate(IntervalTheta(0), kSweepWalk)};
     std::vector<Slice> out(m);
     if (options_.method == SliceMethod::kBaseline) {
       checked_ = static_cast<std::int64_t>(m);
       ParallelFor(m, options_.threads, options_.progress, 0.0, 0.7,
-                  [&](size_t k) { out[k] = Evaluate(IntervalTheta(k), kWalk); });
+                  [&](size_t k) { out[k] = Evaluate(IntervalTheta(k), kSweepWalk); });
       return out;
     }
     // Chunks of events walked independently (one per thread), each starting from a swept interval. An event is
@@ -418,7 +413,7 @@ class Builder {
     std::vector<char> swept(m, 0);
     ParallelFor(chunks, options_.threads, options_.progress, 0.0, 0.7, [&](size_t c) {
       const size_t begin = m * c / chunks, end = m * (c + 1) / chunks;
-      auto sweep = [&](size_t k, Purpose purpose) {
+      auto sweep = [&](size_t k, SweepPurpose purpose) {
         out[k] = Evaluate(IntervalTheta(k), purpose);
         swept[k] = 1;
         ++checked[c];
@@ -427,7 +422,7 @@ class Builder {
       std::function<void(size_t, size_t)> bisect = [&](size_t lo, size_t hi) {
         if (hi - lo <= 1) return;
         const size_t mid = lo + (hi - lo) / 2;
-        sweep(mid, kLocate);
+        sweep(mid, kSweepLocate);
         if (!(out[mid].structure == out[lo].structure)) bisect(lo, mid);
         if (!(out[mid].structure == out[hi].structure)) bisect(mid, hi);
       };
@@ -435,7 +430,7 @@ class Builder {
       // tells at once, instead of a bisection of the whole gap.
       auto locate = [&](size_t lo, size_t hi) {
         if (hi - lo <= 2) return bisect(lo, hi);
-        sweep(hi - 1, kLocate);
+        sweep(hi - 1, kSweepLocate);
         if (out[hi - 1].structure == out[lo].structure) return;  // the change is at event hi alone
         bisect(lo, hi - 1);
       };
@@ -462,19 +457,19 @@ class Builder {
         std::vector<EventPoint> ends = WalkPointsOf(out[lo]);
         for (size_t k = lo + 1; k < hi; ++k) {
           if (swept[k] || !EventRelevant(k, ends, out[last])) continue;
-          sweep(k, kWalk);
+          sweep(k, kSweepWalk);
           if (!(out[k].structure == out[last].structure)) resolve(last, k);
           last = k;
           ends = WalkPointsOf(out[k]);
         }
         if (last != lo && !(out[hi].structure == out[last].structure)) resolve(last, hi);
       };
-      sweep(begin, kWalk);
+      sweep(begin, kSweepWalk);
       std::vector<EventPoint> ends = WalkPointsOf(out[begin]);
       size_t last = begin;
       for (size_t k = begin + 1; k < end; ++k) {
         if (!EventRelevant(k, ends, out[last]) && k - last < period && k + 1 < end) continue;
-        sweep(k, kWalk);
+        sweep(k, kSweepWalk);
         if (!(out[k].structure == out[last].structure)) resolve(last, k);
         last = k;
         ends = WalkPointsOf(out[k]);
@@ -523,13 +518,13 @@ class Builder {
   Switch Bisect(double x, double y, const SliceStructure& sx) {
     for (int it = 0; it < 60 && y - x > 1e-12; ++it) {
       const double mid = 0.5 * (x + y);
-      if (Evaluate(WrapAngle(mid), kBisect).structure == sx) {
+      if (Evaluate(WrapAngle(mid), kSweepBisect).structure == sx) {
         x = mid;
       } else {
         y = mid;
       }
     }
-    return {WrapAngle(0.5 * (x + y)), sx, Evaluate(WrapAngle(y), kBisect).structure};
+    return {WrapAngle(0.5 * (x + y)), sx, Evaluate(WrapAngle(y), kSweepBisect).structure};
   }
 
   // The chosen rays can switch between two events (the choice compares areas; no event bounds it): the walk's slices
@@ -544,8 +539,8 @@ class Builder {
                                 EventTheta((k + 1) % m) - at + (k + 1 == m ? 2 * M_PI : 0.0));
     const double dt = std::min(1e-9, 0.25 * gap);
     if (!(dt > 0)) return std::nullopt;
-    const SliceStructure right = Evaluate(WrapAngle(at + dt), kBisect).structure;
-    if (!(Evaluate(WrapAngle(at - dt), kBisect).structure == right)) return std::nullopt;
+    const SliceStructure right = Evaluate(WrapAngle(at + dt), kSweepBisect).structure;
+    if (!(Evaluate(WrapAngle(at - dt), kSweepBisect).structure == right)) return std::nullopt;
     const Switch s = right == after.structure ? Bisect(Unwrap(before.theta, at - 2 * M_PI), at - dt, before.structure)
                                               : Bisect(at + dt, Unwrap(after.theta, at), right);
     if (s.before.active_rays == s.after.active_rays) return std::nullopt;
@@ -596,7 +591,7 @@ class Builder {
             order.empty() ? M_PI : (k + 1 < order.size() ? order[k + 1].first : order[0].first + 2 * M_PI);
         probes[k].lo = lo;
         probes[k].hi = hi;
-        probes[k].s[t % 3] = Evaluate(WrapAngle(lo + fractions[t % 3] * (hi - lo)), kChecks);
+        probes[k].s[t % 3] = Evaluate(WrapAngle(lo + fractions[t % 3] * (hi - lo)), kSweepChecks);
       });
       bool found = false;
       for (auto& p : probes) {
@@ -635,9 +630,8 @@ class Builder {
   double size_ = 1.0;
   std::vector<CriticalOrientation> structural_;
   std::vector<Event> events_;
-  std::atomic<std::int64_t> backprojections_{0};
-  std::array<std::atomic<std::int64_t>, 5> sweeps_{};
-  std::array<std::atomic<std::int64_t>, 5> sweep_ns_{};
+  std::array<std::atomic<std::int64_t>, kSweepPurposes> sweeps_{};
+  std::array<std::atomic<std::int64_t>, kSweepPurposes> sweep_ns_{};
   std::int64_t checked_ = 0;
   std::int64_t unexplained_ = 0;
   std::int64_t found_by_probes_ = 0;
@@ -662,6 +656,11 @@ std::vector<std::string> RegionStructure(const Region& region) {
   }
   std::sort(polys.begin(), polys.end());
   return polys;
+}
+
+const char* SweepPurposeName(SweepPurpose purpose) {
+  static const char* const kNames[kSweepPurposes] = {"walk", "locate", "checks", "bisect", "slices"};
+  return purpose < kSweepPurposes ? kNames[purpose] : "?";
 }
 
 NondirectionalBackprojection ComputeNondirectional(const BackprojectionProblem& problem, const NamedPolygon* start,

@@ -48,20 +48,25 @@ struct Slice {
   SliceStructure structure;
 };
 
+/// Why the nondirectional computation swept (NondirectionalStats::sweeps is indexed by it): after a relevant event
+/// (the kinetic walk) or in every interval (the baseline), to locate a change the walk found, the interval checks, a
+/// bisection for where a change lies (the checks' and switches of the chosen rays), and the final slices (critical
+/// ones, open ones the checks had not swept).
+enum SweepPurpose : std::uint8_t { kSweepWalk, kSweepLocate, kSweepChecks, kSweepBisect, kSweepSlices, kSweepPurposes };
+/// "walk", "locate", "checks", "bisect", "slices" (the keys of `visco critical`'s stats.sweeps, docs/formats.md).
+const char* SweepPurposeName(SweepPurpose purpose);
+
 struct NondirectionalStats {
   CriticalCounts counts;             ///< candidates by kind
   std::int64_t candidates = 0;       ///< candidate orientations (R-critical ones of the start region included)
   std::int64_t events = 0;           ///< distinct orientations of the structural candidates (the baseline sweeps each)
   std::int64_t checked = 0;          ///< events after which the structure was swept again
-  std::int64_t backprojections = 0;  ///< VC-enlarged backprojections computed (each several sweeps)
-  /// The backprojections by purpose: the walk's (an interval after a relevant event, or the baseline's every
-  /// interval), locating a change the walk found, the interval checks, bisections for where a change lies (the checks'
-  /// and switches of the chosen rays), and the final slices (critical ones, open ones the checks had not swept).
-  std::array<std::int64_t, 5> sweeps{};
-  std::array<double, 5> sweep_seconds{};  ///< their time (wall clock, summed over the threads)
-  std::int64_t changes = 0;               ///< orientations where the structure changes (reported, R-critical aside)
-  std::int64_t selection = 0;             ///< of which the chosen active rays alone change
-  std::int64_t unexplained = 0;           ///< changes found by the interval checks at no candidate (a bug if not 0)
+  std::int64_t backprojections = 0;  ///< VC-enlarged backprojections computed (each several sweeps): sum of `sweeps`
+  std::array<std::int64_t, kSweepPurposes> sweeps{};   ///< the backprojections by SweepPurpose
+  std::array<double, kSweepPurposes> sweep_seconds{};  ///< their time (wall clock, summed over the threads)
+  std::int64_t changes = 0;      ///< orientations where the structure changes (reported, R-critical aside)
+  std::int64_t selection = 0;    ///< of which the chosen active rays alone change
+  std::int64_t unexplained = 0;  ///< changes found by the interval checks at no candidate (a bug if not 0)
   /// Changes at a candidate that the kinetic walk skipped and the interval checks found (the walk's rule missed
   /// them; the result is still complete, the tests require none).
   std::int64_t found_by_probes = 0;

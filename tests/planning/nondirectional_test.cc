@@ -161,11 +161,14 @@ SliceStructure SweptAndCarried(const BackprojectionProblem& pr, const Nondirecti
   return StructureOf(swept);
 }
 
-// How far (radians) the nearest other candidate is from candidates[i].
-double NearestOtherCandidate(const std::vector<CriticalOrientation>& candidates, size_t i) {
+// How far (radians) the nearest other candidate is from candidates[i]; with `other_features`, the nearest one with
+// other refs (an along-a-segment event gives one candidate per end of the segment, at the same θ).
+double NearestOtherCandidate(const std::vector<CriticalOrientation>& candidates, size_t i,
+                             bool other_features = false) {
   double nearest = M_PI;
   for (size_t j = 0; j < candidates.size(); ++j) {
-    if (j != i) nearest = std::min(nearest, std::abs(WrapAngle(candidates[j].theta - candidates[i].theta)));
+    if (j == i || (other_features && candidates[j].refs == candidates[i].refs)) continue;
+    nearest = std::min(nearest, std::abs(WrapAngle(candidates[j].theta - candidates[i].theta)));
   }
   return nearest;
 }
@@ -683,10 +686,7 @@ TEST(NondirectionalExamples, AFreeEdgeTurningAcrossAGoalEdgeChangesTheStructure)
   for (size_t i = 0; i < candidates.size(); ++i) {
     const CriticalOrientation& c = candidates[i];
     if (c.kind != CriticalKind::kVgraph || c.feature.empty()) continue;  // along a static segment
-    double nearest = M_PI;  // the nearest candidate of other features (the segment's two ends each give one here)
-    for (const auto& o : candidates) {
-      if (o.refs != c.refs) nearest = std::min(nearest, std::abs(WrapAngle(o.theta - c.theta)));
-    }
+    const double nearest = NearestOtherCandidate(candidates, i, /*other_features=*/true);
     if (nearest < 1e-6) continue;
     const auto [b, a] = ClassicRegionsAround(pr, c.theta, 0.4 * nearest);
     if (RegionStructure(b) == RegionStructure(a)) continue;

@@ -175,11 +175,10 @@ void BM_Nondirectional(benchmark::State& state) {
       per_sweep_s * static_cast<double>(stats.events + 4 * static_cast<std::int64_t>(orientations));
   state.counters["backprojections"] = static_cast<double>(stats.backprojections);
   state.counters["orientations"] = static_cast<double>(orientations);
-  static const char* const kPurposes[] = {"sweeps_walk", "sweeps_locate", "sweeps_checks", "sweeps_bisect",
-                                          "sweeps_slices"};
-  for (size_t i = 0; i < stats.sweeps.size(); ++i) {
-    state.counters[kPurposes[i]] = static_cast<double>(stats.sweeps[i]);
-    state.counters[std::string(kPurposes[i]) + "_s"] = stats.sweep_seconds[i];
+  for (int i = 0; i < kSweepPurposes; ++i) {
+    const std::string name = std::string("sweeps_") + SweepPurposeName(static_cast<SweepPurpose>(i));
+    state.counters[name] = static_cast<double>(stats.sweeps[i]);
+    state.counters[name + "_s"] = stats.sweep_seconds[i];
   }
 }
 BENCHMARK(BM_Nondirectional)
