@@ -359,15 +359,16 @@ class Generator {
 
  private:
   void Add(double theta, CriticalKind kind, std::vector<std::string> refs, std::vector<Vector2d> sources = {},
-           std::vector<std::int8_t> signs = {}, std::vector<Vector2d> feature = {}) {
+           std::vector<std::int8_t> signs = {}, std::vector<Vector2d> feature = {}, std::vector<Vector2d> point = {}) {
     if (!std::isfinite(theta)) return;
     if (r_only_ && kind != CriticalKind::kR) return;
-    out_.push_back({theta, kind, std::move(refs), std::move(sources), std::move(signs), std::move(feature)});
+    out_.push_back(
+        {theta, kind, std::move(refs), std::move(sources), std::move(signs), std::move(feature), std::move(point)});
   }
 
   void AddSliding(double theta, const std::string& ref, std::vector<Vector2d> feature) {
     if (!std::isfinite(theta) || r_only_) return;
-    out_.push_back({theta, CriticalKind::kSliding, {ref}, {}, {}, std::move(feature)});
+    out_.push_back({theta, CriticalKind::kSliding, {ref}, {}, {}, std::move(feature), {}});
   }
 
   void Collect(const NamedPolygon* start) {
@@ -565,8 +566,11 @@ class Generator {
         if (along) feature = {points_[i].p, points_[j].p};
         for (double se : {-1.0, 1.0}) {
           const std::int8_t sign = se > 0 ? -1 : 1;
-          Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p}, {sign}, feature);
-          Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p}, {sign}, feature);
+          // Along a segment the feature decides; elsewhere the point the free edge passes through.
+          Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p}, {sign}, feature,
+              along ? std::vector<Vector2d>{} : std::vector<Vector2d>{points_[i].p});
+          Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p}, {sign}, feature,
+              along ? std::vector<Vector2d>{} : std::vector<Vector2d>{points_[j].p});
           if (along) {  // the other end's free edge of the same sign, parallel to the segment beyond that end
             Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p}, {sign}, feature);
             Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p}, {sign}, feature);
@@ -633,7 +637,7 @@ class Generator {
       if (s.kind == SegKind::kStart) kind = CriticalKind::kR;
       // A ray that cannot be relied on at θ is never active: its crossings change nothing.
       if (s.kind == SegKind::kRay && !IsReliableRay(s.a, s.b, theta, pr_.velocity_cone)) continue;
-      Add(theta, kind, {points_[i].ref, points_[j].ref, s.ref}, {a, b}, {1, -1});
+      Add(theta, kind, {points_[i].ref, points_[j].ref, s.ref}, {a, b}, {1, -1}, {}, {f});
     }
   }
 

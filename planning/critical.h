@@ -52,6 +52,12 @@ struct CriticalOrientation {
   /// where the feature meets the closure of a region (docs/planning_nondirectional.md, "Sliding events that matter").
   /// Empty for the other kinds.
   std::vector<Eigen::Vector2d> feature;
+  /// Where a free edge's or free vertex's event happens at θ: the point a free edge passes through (vgraph, R) or the
+  /// free vertex on the edge it crosses (vertex, free-edge, R). Such an event can change the structure only where
+  /// this point lies on the boundary of a region just before or after it (docs/planning_nondirectional.md, "Events on
+  /// the boundary"). Empty for the kinds that act on the whole region or on a feature (sliding, vc, and the vgraph
+  /// events along a static segment).
+  std::vector<Eigen::Vector2d> point;
 };
 
 /// Counts of the candidates by kind, before any filtering (indexed by CriticalKind).

@@ -82,6 +82,22 @@ void ForEachRing(const Region& region, F&& f) {
   }
 }
 
+// How near (relative to the scene's size) an event's point must be to a carried region's boundary to count as on
+// it: the carrying's error is about 1e-12 (NondirectionalProperty), and candidates up to 1e-10 rad apart are one
+// event.
+constexpr double kOnBoundary = 1e-7;
+
+// Whether p lies within `tolerance` of a ring of `region`.
+bool PointNearBoundary(const Vector2d& p, const Region& region, double tolerance) {
+  bool near = false;
+  ForEachRing(region, [&](const RegionRing& r) {
+    const size_t n = r.vertices.size();
+    for (size_t i = 0; i < n && !near; ++i)
+      near = PointSegmentDistance(p, r.vertices[i], r.vertices[(i + 1) % n]) <= tolerance;
+  });
+  return near;
+}
+
 // A point where an event can change a region, and which of the point's two free edges it must involve (+1:
 // direction θ + π + ε_v, −1: θ + π − ε_v, 0: either).
 struct EventPoint {
@@ -359,24 +375,50 @@ class Builder {
     return true;
   }
 
-  // Whether candidate c can change the structure of slice s (whose event points are `ends`): a sliding event only
-  // where its edge or vertex meets the closure of a region, the others where their sources are event points.
-  bool CanChange(const CriticalOrientation& c, const std::vector<EventPoint>& ends, const Slice& s) const {
+  // A slice's regions carried to an event's orientation, computed when first asked for (most events are decided by
+  // their sources alone).
+  class CarriedAt {
+   public:
+    CarriedAt(const Slice& s, double theta, double eps) : s_(s), theta_(theta), eps_(eps) {}
+    const std::array<Region, 2>& Get() {
+      if (!regions_) {
+        regions_ = {CarryRegion(s_.vc.classic, theta_, eps_), CarryRegion(s_.vc.region, theta_, eps_)};
+      }
+      return *regions_;
+    }
+
+   private:
+    const Slice& s_;
+    double theta_, eps_;
+    std::optional<std::array<Region, 2>> regions_;
+  };
+
+  // Whether candidate c can change the structure of slice s (whose event points are `ends`; `carried` is s carried to
+  // the event): a sliding event only where its edge or vertex meets the closure of a region, the others where their
+  // sources are event points and, with `boundary_events`, their point lies on the boundary of a carried region.
+  bool CanChange(const CriticalOrientation& c, const std::vector<EventPoint>& ends, const Slice& s,
+                 CarriedAt& carried) const {
     const auto feature_meets_regions = [&] {
       const double tol = 1e-9 * size_;
       return FeatureMeetsRegion(c.feature, s.vc.classic, tol) || FeatureMeetsRegion(c.feature, s.vc.region, tol);
     };
     if (c.kind == CriticalKind::kSliding && options_.local_sliding && !c.feature.empty())
       return feature_meets_regions();
-    if (Relevant(c, ends)) return true;
+    if (Relevant(c, ends)) {
+      if (!options_.boundary_events || options_.vertex_events || c.point.empty()) return true;
+      const double tol = kOnBoundary * size_;
+      const auto& regions = carried.Get();
+      return PointNearBoundary(c.point.front(), regions[0], tol) || PointNearBoundary(c.point.front(), regions[1], tol);
+    }
     // A free edge turning across the line of a static segment: a part of the region can appear along the segment.
     return !options_.vertex_events && c.kind == CriticalKind::kVgraph && !c.feature.empty() && feature_meets_regions();
   }
 
   // Whether event k can change the structure of `current` (the last swept slice, whose event points are `ends`).
   bool EventRelevant(size_t k, const std::vector<EventPoint>& ends, const Slice& current) const {
+    CarriedAt carried(current, EventTheta(k), pr_.velocity_cone);
     for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
-      if (CanChange(structural_[i], ends, current)) return true;
+      if (CanChange(structural_[i], ends, current, carried)) return true;
     }
     return false;
   }
@@ -489,13 +531,14 @@ class Builder {
   // The candidate of event k to report: the first whose sources are vertices on either side.
   int PickCandidate(size_t k, const Slice& before, const Slice& after) const {
     auto vb = EventPointsOf(before), va = EventPointsOf(after);
+    CarriedAt cb(before, EventTheta(k), pr_.velocity_cone), ca(after, EventTheta(k), pr_.velocity_cone);
     // Prefer the specific kinds (a free edge parallel to a ray is also parallel to the segment of its two ends).
     static const CriticalKind priority[] = {CriticalKind::kVc, CriticalKind::kFreeEdge, CriticalKind::kVertex,
                                             CriticalKind::kSliding, CriticalKind::kVgraph};
     for (CriticalKind kind : priority) {
       for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
         const auto& c = structural_[i];
-        if (c.kind == kind && (CanChange(c, vb, before) || CanChange(c, va, after))) return static_cast<int>(i);
+        if (c.kind == kind && (CanChange(c, vb, before, cb) || CanChange(c, va, after, ca))) return static_cast<int>(i);
       }
     }
     return static_cast<int>(events_[k].begin);

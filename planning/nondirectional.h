@@ -115,6 +115,10 @@ struct NondirectionalOptions {
   /// rule, kept to compare), instead of only where they are the sources or ends of its free edges, plus the `along`
   /// vgraph events whose static segment meets a region (default; docs/planning_nondirectional.md says why).
   bool vertex_events = false;
+  /// Kinetic walk: an event of a free edge passing a point, or of a free vertex crossing an edge, counts only where
+  /// that point lies on the boundary of the last swept slice's regions carried to the event (besides its sources
+  /// being the regions'); false: wherever its sources are (the rule before, kept to compare).
+  bool boundary_events = true;
   /// Called now and then with the fraction done (0..1), from the calling thread.
   std::function<void(double)> progress;
 };

@@ -7,7 +7,8 @@
 // BM_Nondirectional/method/n: the whole nondirectional backprojection, kinetic (method 0, the default: a sweep only
 //   where an event involves the regions' free edges, or a sliding or along-a-segment event's edge or vertex meets a
 //   region) against the critical-slice baseline (method 1: a sweep in every interval between candidates) and the
-//   kinetic walk with its broad rule (method 2: also every event at any vertex of the regions), same problem, same
+//   kinetic walk with its broad rule (method 2: also every event at any vertex of the regions) and with its sources
+//   rule alone (method 3: an event's point need not lie on the regions' boundary), same problem, same
 //   run: the ratio to the baseline is the kinetic method's gain; the counters give the candidates swept by the walk
 //   (checked), all sweeps (backprojections) by purpose (sweeps_*, with their time *_s) and the orientations found
 //   (equal for all three).
@@ -135,6 +136,7 @@ void BM_Nondirectional(benchmark::State& state) {
   NondirectionalOptions o;
   o.method = state.range(0) == 1 ? SliceMethod::kBaseline : SliceMethod::kKinetic;
   if (state.range(0) == 2) o.vertex_events = true;  // the walk's broad rule: an event at any vertex of the regions
+  if (state.range(0) == 3) o.boundary_events = false;  // the sources rule alone, wherever the event's point lies
   NondirectionalStats stats;
   size_t orientations = 0;
   ResetPeakMemory();
@@ -144,7 +146,8 @@ void BM_Nondirectional(benchmark::State& state) {
     orientations = nd.orientations.size();
     benchmark::DoNotOptimize(nd.slices.data());
   }
-  static const char* const kLabels[] = {"kinetic", "baseline", "kinetic, broad rule (every vertex of the regions)"};
+  static const char* const kLabels[] = {"kinetic", "baseline", "kinetic, broad rule (every vertex of the regions)",
+                                        "kinetic, sources rule (the event's point anywhere)"};
   state.SetLabel(kLabels[state.range(0)]);
   state.counters["peak_MiB"] = PeakMemoryMiB();
   state.counters["vertices"] = bench::Vertices(pr);
@@ -182,8 +185,9 @@ void BM_Nondirectional(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_Nondirectional)
-    ->ArgsProduct({{0, 1, 2}, {10, 20, 40, 80}})
-    ->ArgsProduct({{0}, {160, 320, 500, 640, 1280, 2000}})
+    ->ArgsProduct({{0, 1, 2, 3}, {10, 20, 40, 80}})
+    ->ArgsProduct({{0, 3}, {160, 320}})
+    ->ArgsProduct({{0}, {500, 640, 1280, 2000}})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1);
 
