@@ -4,6 +4,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -96,6 +97,146 @@ bool PointNearBoundary(const Vector2d& p, const Region& region, double tolerance
       near = PointSegmentDistance(p, r.vertices[i], r.vertices[(i + 1) % n]) <= tolerance;
   });
   return near;
+}
+
+// One ring's change across an event: the edges of `before` from b_begin (b_count of them, wrapping) replaced by those
+// of `after` from a_begin (a_count), the rest of the two rings equal.
+struct RingEdit {
+  const RegionRing* before = nullptr;
+  const RegionRing* after = nullptr;
+  size_t b_begin = 0, b_count = 0, a_begin = 0, a_count = 0;
+};
+
+bool SameEdge(const RegionEdge& x, const RegionEdge& y) { return x.kind == y.kind && x.ref == y.ref; }
+
+// The smallest contiguous edit turning ring `b` into ring `a` (both cyclic), found from three anchors (edges both
+// share: an anchor outside the edit gives it).
+std::optional<RingEdit> SmallestEdit(const RegionRing& b, const RegionRing& a) {
+  const size_t nb = b.edges.size(), na = a.edges.size();
+  if (nb == 0 || na == 0) return std::nullopt;
+  std::optional<RingEdit> best;
+  for (const size_t i : {size_t{0}, nb / 3, 2 * nb / 3}) {
+    for (size_t j = 0; j < na; ++j) {
+      if (!SameEdge(b.edges[i], a.edges[j])) continue;
+      const size_t most = std::min(nb, na);
+      size_t p = 0, q = 0;
+      while (p < most && SameEdge(b.edges[(i + p) % nb], a.edges[(j + p) % na])) ++p;
+      while (q + p < most && SameEdge(b.edges[(i + nb - 1 - q) % nb], a.edges[(j + na - 1 - q) % na])) ++q;
+      RingEdit e{&b, &a, (i + p) % nb, nb - p - q, (j + p) % na, na - p - q};
+      if (!best || e.b_count + e.a_count < best->b_count + best->a_count) best = e;
+    }
+  }
+  return best;
+}
+
+// The one ring of `before` and the one of `after` that differ (as cyclic sequences), when exactly one does on each
+// side and the polygons they belong to are the only ones that differ.
+std::optional<RingEdit> OneRingChanged(const Region& before, const Region& after,
+                                       const std::vector<std::string>& s_before,
+                                       const std::vector<std::string>& s_after) {
+  std::vector<std::string> only_b, only_a;
+  std::set_difference(s_before.begin(), s_before.end(), s_after.begin(), s_after.end(), std::back_inserter(only_b));
+  std::set_difference(s_after.begin(), s_after.end(), s_before.begin(), s_before.end(), std::back_inserter(only_a));
+  if (only_b.size() != 1 || only_a.size() != 1) return std::nullopt;
+  std::vector<std::pair<std::string, const RegionRing*>> rb, ra;
+  auto rings = [](const Region& r, std::vector<std::pair<std::string, const RegionRing*>>& out) {
+    ForEachRing(r, [&](const RegionRing& ring) { out.push_back({Join(RingSequence(ring, "ring")), &ring}); });
+    std::sort(out.begin(), out.end());
+  };
+  rings(before, rb);
+  rings(after, ra);
+  std::vector<const RegionRing*> changed_b, changed_a;
+  auto differ = [](const auto& x, const auto& y, std::vector<const RegionRing*>& out) {
+    size_t j = 0;
+    for (const auto& [key, ring] : x) {
+      while (j < y.size() && y[j].first < key) ++j;
+      if (j < y.size() && y[j].first == key) {
+        ++j;
+      } else {
+        out.push_back(ring);
+      }
+    }
+  };
+  differ(rb, ra, changed_b);
+  differ(ra, rb, changed_a);
+  if (changed_b.size() != 1 || changed_a.size() != 1) return std::nullopt;
+  return SmallestEdit(*changed_b[0], *changed_a[0]);
+}
+
+// Whether `edit` is the local change candidate c makes at its orientation (docs/planning_nondirectional.md, "How much
+// changes at a critical orientation"): a free vertex crossing a static edge inserts or removes that edge between its
+// two free edges; a free edge passing a static point b inserts or removes the static edge that ends at b next to it,
+// or the free edge itself next to the free edge erected at b; a free edge running along a static segment hands over
+// from one end's free edge to the other's and the segment between them. Refs and points both have to agree.
+bool MakesEdit(const CriticalOrientation& c, const RingEdit& e, double tol) {
+  const RegionRing &b = *e.before, &a = *e.after;
+  const size_t nb = b.edges.size();
+  const RegionEdge& prev = b.edges[(e.b_begin + nb - 1) % nb];
+  const RegionEdge& next = b.edges[(e.b_begin + e.b_count) % nb];
+  // The side that has the extra edges, and where they are in its ring.
+  const bool inserted = e.b_count == 0;
+  const RegionRing& ring = inserted ? a : b;
+  const size_t begin = inserted ? e.a_begin : e.b_begin, count = inserted ? e.a_count : e.b_count;
+  const size_t n = ring.edges.size();
+  auto edge = [&](size_t k) -> const RegionEdge& { return ring.edges[(begin + k) % n]; };
+  auto free_of = [&](const RegionEdge& x, const Vector2d& p, int sign) {
+    return x.kind == EdgeKind::kFree && x.sign == sign && (x.source - p).norm() <= tol;
+  };
+  auto on_segment = [&](const Vector2d& x, const Vector2d& p, const Vector2d& q) {
+    return PointSegmentDistance(x, p, q) <= tol;
+  };
+  switch (c.kind) {
+    case CriticalKind::kVertex:
+    case CriticalKind::kFreeEdge: {
+      // One static edge, on whose segment the free vertex is, between the two free edges.
+      if ((e.b_count != 0 && e.a_count != 0) || count != 1 || c.sources.size() != 2 || c.point.empty()) return false;
+      const RegionEdge& x = edge(0);
+      if (x.kind == EdgeKind::kFree || !on_segment(c.point[0], x.line[0], x.line[1])) return false;
+      const bool ab = free_of(prev, c.sources[0], 1) && free_of(next, c.sources[1], -1);
+      const bool ba = free_of(prev, c.sources[1], -1) && free_of(next, c.sources[0], 1);
+      return ab || ba;
+    }
+    case CriticalKind::kVgraph: {
+      if (c.sources.size() != 1 || c.source_signs.size() != 1) return false;
+      const Vector2d& src = c.sources[0];
+      const int sign = c.source_signs[0];
+      if (!c.point.empty() && (e.b_count == 0 || e.a_count == 0)) {
+        const Vector2d& pb = c.point[0];
+        // The free edge itself, next to the free edge erected at b.
+        if (count == 1 && free_of(edge(0), src, sign)) {
+          return (prev.kind == EdgeKind::kFree && (prev.source - pb).norm() <= tol) ||
+                 (next.kind == EdgeKind::kFree && (next.source - pb).norm() <= tol);
+        }
+        // A chain next to the free edge that hangs on b: b is one of its vertices (the free edge now ends on the
+        // chain beyond b, or no longer does).
+        if (!free_of(prev, src, sign) && !free_of(next, src, sign)) return false;
+        for (size_t k = 0; k <= count; ++k) {
+          if ((ring.vertices[(begin + k) % n] - pb).norm() <= tol) return true;
+        }
+        return false;
+      }
+      if (c.feature.size() == 2 && e.b_count + e.a_count == 3 && std::min(e.b_count, e.a_count) == 1) {
+        // Along the segment pq: [p's free edge] <-> [the segment, q's free edge] (either order, either way round).
+        const Vector2d &p = c.feature[0], &q = c.feature[1];
+        const RegionRing& one = e.b_count == 1 ? b : a;
+        const RegionRing& two = e.b_count == 1 ? a : b;
+        const RegionEdge& single = one.edges[e.b_count == 1 ? e.b_begin : e.a_begin];
+        const size_t t0 = e.b_count == 1 ? e.a_begin : e.b_begin, nt = two.edges.size();
+        const RegionEdge &u = two.edges[t0], &w = two.edges[(t0 + 1) % nt];
+        const RegionEdge& seg = u.kind == EdgeKind::kFree ? w : u;
+        const RegionEdge& other = u.kind == EdgeKind::kFree ? u : w;
+        if (seg.kind == EdgeKind::kFree || other.kind != EdgeKind::kFree) return false;
+        const size_t si = &seg == &u ? t0 : (t0 + 1) % nt;
+        if (!on_segment(two.vertices[si], p, q) || !on_segment(two.vertices[(si + 1) % nt], p, q)) return false;
+        const bool pq = free_of(single, p, sign) && free_of(other, q, sign);
+        const bool qp = free_of(single, q, sign) && free_of(other, p, sign);
+        return (pq || qp) && (free_of(single, src, sign) || free_of(other, src, sign));
+      }
+      return false;
+    }
+    default:
+      return false;
+  }
 }
 
 // A point where an event can change a region, and which of the point's two free edges it must involve (+1:
@@ -309,6 +450,7 @@ class Builder {
     nd.stats.unexplained = unexplained_;
     nd.stats.found_by_probes = found_by_probes_;
     nd.stats.rule_missed = rule_missed_;
+    nd.stats.explained = explained_;
     nd.stats.rule_missed_sliding = rule_missed_sliding_;
     nd.stats.unexplained_at = unexplained_at_;
     for (auto& c : r_candidates) {
@@ -423,6 +565,26 @@ class Builder {
     return false;
   }
 
+  // Whether the change between `before` and `after` (swept with no event but k between them that the rule takes) is
+  // a local edit event k makes (MakesEdit), in each region that changes, with the same active rays: then it happened
+  // at k, and no sweep just before k needs to say so. A change at a skipped event would add an edit of its own.
+  bool ExplainedAt(size_t k, const Slice& before, const Slice& after) const {
+    if (before.structure.active_rays != after.structure.active_rays) return false;
+    const double tol = 1e-9 * size_;
+    for (const bool vc : {false, true}) {
+      const auto& sb = vc ? before.structure.vc : before.structure.classic;
+      const auto& sa = vc ? after.structure.vc : after.structure.classic;
+      if (sb == sa) continue;
+      const auto edit =
+          OneRingChanged(vc ? before.vc.region : before.vc.classic, vc ? after.vc.region : after.vc.classic, sb, sa);
+      if (!edit) return false;
+      bool made = false;
+      for (size_t i = events_[k].begin; i < events_[k].end && !made; ++i) made = MakesEdit(structural_[i], *edit, tol);
+      if (!made) return false;
+    }
+    return true;
+  }
+
   // The representative θ of the interval after event k (up to event k + 1, wrapping).
   double IntervalTheta(size_t k) const {
     const size_t m = events_.size();
@@ -451,7 +613,7 @@ class Builder {
     // edges are the region's only after it is found that way).
     const size_t period = options_.resweep_period > 0 ? static_cast<size_t>(options_.resweep_period) : m;
     const size_t chunks = std::clamp<size_t>(static_cast<size_t>(std::max(1, options_.threads)), 1, m);
-    std::vector<std::int64_t> checked(chunks, 0);
+    std::vector<std::int64_t> checked(chunks, 0), explained(chunks, 0);
     std::vector<char> swept(m, 0);
     ParallelFor(chunks, options_.threads, options_.progress, 0.0, 0.7, [&](size_t c) {
       const size_t begin = m * c / chunks, end = m * (c + 1) / chunks;
@@ -471,6 +633,10 @@ class Builder {
       // Most changes are at the event just swept (it was swept because it is relevant): the interval before it
       // tells at once, instead of a bisection of the whole gap.
       auto locate = [&](size_t lo, size_t hi) {
+        if (hi - lo >= 2 && options_.local_edits && ExplainedAt(hi, out[lo], out[hi])) {
+          ++explained[c];
+          return;  // the change is event hi's own local edit
+        }
         if (hi - lo <= 2) return bisect(lo, hi);
         sweep(hi - 1, kSweepLocate);
         if (out[hi - 1].structure == out[lo].structure) return;  // the change is at event hi alone
@@ -525,6 +691,7 @@ class Builder {
       }
     });
     for (auto c : checked) checked_ += c;
+    for (auto c : explained) explained_ += c;
     return out;
   }
 
@@ -679,6 +846,7 @@ class Builder {
   std::int64_t unexplained_ = 0;
   std::int64_t found_by_probes_ = 0;
   std::int64_t rule_missed_ = 0;
+  std::int64_t explained_ = 0;
   std::int64_t rule_missed_sliding_ = 0;
   std::vector<double> unexplained_at_;
   std::map<double, std::vector<std::string>> selection_refs_;

@@ -78,6 +78,10 @@ struct NondirectionalStats {
   /// Of those, the ones at events with a sliding candidate: the sliding rule's argument has a known gap (a motion
   /// leaving an edge into free space at an interior point, docs/planning_nondirectional.md), the others' has none.
   std::int64_t rule_missed_sliding = 0;
+  /// Changes the kinetic walk found at the event it swept and that are that event's local edit (a static edge or a
+  /// free edge coming or going where the event's free vertex or free edge is, `NondirectionalOptions::local_edits`):
+  /// located without a sweep.
+  std::int64_t explained = 0;
   std::int64_t r_critical = 0;         ///< R-critical orientations reported (they bound where R fits)
   std::vector<double> unexplained_at;  ///< where those were found (radians)
 };
@@ -119,6 +123,10 @@ struct NondirectionalOptions {
   /// that point lies on the boundary of the last swept slice's regions carried to the event (besides its sources
   /// being the regions'); false: wherever its sources are (the rule before, kept to compare).
   bool boundary_events = true;
+  /// Kinetic walk: where a sweep after a relevant event differs from the last one by exactly the local edit that event
+  /// makes (one static or free edge coming or going at its point), the change is put there without sweeping just
+  /// before the event to confirm it; false: always confirmed by a sweep (kept to compare).
+  bool local_edits = true;
   /// Called now and then with the fraction done (0..1), from the calling thread.
   std::function<void(double)> progress;
 };

@@ -556,6 +556,53 @@ TEST(NondirectionalProperty, KineticAgreesWithTheCriticalSliceBaseline) {
   EXPECT_EQ(compared, to_compare);
 }
 
+// The kinetic walk's two economies change nothing but the sweeps: an event whose point is off the regions' boundary
+// is skipped (`boundary_events`), and a change that is the local edit of the event just swept is put there without a
+// sweep before it (`local_edits`). With either off, the same orientations (kind, refs, θ) and slice structures.
+TEST(NondirectionalProperty, TheWalksEconomiesChangeOnlyTheSweeps) {
+  int compared = 0;
+  std::int64_t explained = 0, sweeps = 0, sweeps_without[2] = {0, 0};
+  const int to_compare = kSanitizerDivisor > 1 ? 2 : 6;
+  for (std::uint64_t seed = 1; compared < to_compare && seed <= 60; ++seed) {
+    const auto random = MakeRandomCase(seed);
+    if (!random) continue;
+    const BackprojectionProblem& pr = random->problem;
+    const auto nd = ComputeNondirectional(pr, nullptr, Options());
+    explained += nd.stats.explained;
+    sweeps += nd.stats.backprojections;
+    for (int without = 0; without < 2; ++without) {
+      NondirectionalOptions o = Options();
+      (without == 0 ? o.boundary_events : o.local_edits) = false;
+      const auto other = ComputeNondirectional(pr, nullptr, o);
+      const std::string name = "seed " + std::to_string(seed) + (without == 0 ? " (boundary)" : " (local edits)");
+      sweeps_without[without] += other.stats.backprojections;
+      if (without == 1) {
+        EXPECT_EQ(other.stats.explained, 0) << name;
+      }
+      ASSERT_EQ(nd.orientations.size(), other.orientations.size()) << name;
+      for (size_t k = 0; k < nd.orientations.size(); ++k) {
+        EXPECT_NEAR(nd.orientations[k].theta, other.orientations[k].theta, 1e-9) << name;
+        EXPECT_EQ(nd.orientations[k].kind, other.orientations[k].kind) << name;
+        EXPECT_EQ(nd.orientations[k].refs, other.orientations[k].refs) << name;
+      }
+      ASSERT_EQ(nd.slices.size(), other.slices.size()) << name;
+      for (size_t k = 0; k < nd.slices.size(); ++k) {
+        EXPECT_EQ(nd.slices[k].structure, other.slices[k].structure) << name << " slice " << k;
+      }
+    }
+    ++compared;
+  }
+  std::printf(
+      "scenes %d: %lld sweeps, %lld without the boundary rule, %lld without local edits (%lld changes put at "
+      "their event by its local edit)\n",
+      compared, static_cast<long long>(sweeps), static_cast<long long>(sweeps_without[0]),
+      static_cast<long long>(sweeps_without[1]), static_cast<long long>(explained));
+  EXPECT_EQ(compared, to_compare);
+  EXPECT_GT(explained, 0) << "no change was a local edit: the rule is not exercised";
+  EXPECT_LT(sweeps, sweeps_without[1]);
+  EXPECT_LE(sweeps, sweeps_without[0]);
+}
+
 // The kinetic walk's local rule for sliding events (docs/planning_nondirectional.md, "Sliding events that matter"):
 // a sliding event whose edge or vertex meets neither region just before it changes nothing. Each sampled sliding
 // candidate with no other candidate within 2·gap is checked on both sides: where its feature is away from the

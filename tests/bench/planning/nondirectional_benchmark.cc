@@ -135,7 +135,7 @@ void BM_Nondirectional(benchmark::State& state) {
   const BackprojectionProblem pr = bench::PentagonGrid(static_cast<int>(state.range(1)) / 5);
   NondirectionalOptions o;
   o.method = state.range(0) == 1 ? SliceMethod::kBaseline : SliceMethod::kKinetic;
-  if (state.range(0) == 2) o.vertex_events = true;  // the walk's broad rule: an event at any vertex of the regions
+  if (state.range(0) == 2) o.vertex_events = true;     // the walk's broad rule: an event at any vertex of the regions
   if (state.range(0) == 3) o.boundary_events = false;  // the sources rule alone, wherever the event's point lies
   NondirectionalStats stats;
   size_t orientations = 0;
@@ -178,6 +178,7 @@ void BM_Nondirectional(benchmark::State& state) {
       per_sweep_s * static_cast<double>(stats.events + 4 * static_cast<std::int64_t>(orientations));
   state.counters["backprojections"] = static_cast<double>(stats.backprojections);
   state.counters["orientations"] = static_cast<double>(orientations);
+  state.counters["explained"] = static_cast<double>(stats.explained);
   for (int i = 0; i < kSweepPurposes; ++i) {
     const std::string name = std::string("sweeps_") + SweepPurposeName(static_cast<SweepPurpose>(i));
     state.counters[name] = static_cast<double>(stats.sweeps[i]);
