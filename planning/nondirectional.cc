@@ -392,7 +392,7 @@ class Builder {
         if (sliding) ++rule_missed_sliding_;
       }
     }
-    Verify(changes, change_candidate);
+    Verify(changes, change_candidate, intervals, source);
     // Final slices.
     std::vector<std::pair<double, int>> order;
     for (size_t i = 0; i < changes.size(); ++i) order.push_back({changes[i], change_candidate[i]});
@@ -782,7 +782,43 @@ class Builder {
   }
 
   // Checks every interval between consecutive changes at three orientations and locates any change found there.
-  void Verify(std::vector<double>& changes, std::vector<int>& change_candidate) {
+  // The event interval containing θ (radians, any turn): k such that θ lies between events k and k + 1 (wrapping).
+  size_t EventIntervalAt(double theta) const {
+    const size_t m = events_.size();
+    theta = WrapAngle(theta);
+    if (m == 0 || EventTheta(0) >= theta) return m - 1;  // before the first event: the wrapping interval
+    size_t k = 0;
+    for (size_t lo = 0, hi = m; lo < hi;) {
+      const size_t mid = (lo + hi) / 2;
+      if (EventTheta(mid) < theta) {
+        k = mid;
+        lo = mid + 1;
+      } else {
+        hi = mid;
+      }
+    }
+    return k;
+  }
+
+  // Records the change located between two sweeps (a switch of the chosen rays, or a change at the nearest
+  // candidate, which the walk had skipped, or at none).
+  void AddFound(const Switch& s, std::vector<double>& changes, std::vector<int>& change_candidate) {
+    const int c = NearestCandidate(s.theta, 1e-7);
+    if (s.before.active_rays != s.after.active_rays) {
+      AddSelection(s, changes, change_candidate);
+      return;
+    }
+    changes.push_back(c >= 0 ? structural_[c].theta : s.theta);
+    change_candidate.push_back(c >= 0 ? c : (structural_.empty() ? -1 : 0));
+    if (c >= 0) ++found_by_probes_;
+    if (c < 0) {
+      ++unexplained_;
+      unexplained_at_.push_back(s.theta);
+    }
+  }
+
+  void Verify(std::vector<double>& changes, std::vector<int>& change_candidate, const std::vector<Slice>& intervals,
+              const std::vector<size_t>& source) {
     for (int round = 0; round < 4; ++round) {
       std::vector<std::pair<double, int>> order;
       for (size_t i = 0; i < changes.size(); ++i) order.push_back({changes[i], change_candidate[i]});
@@ -791,6 +827,7 @@ class Builder {
       struct Probe {
         double lo, hi;
         Slice s[3];
+        bool disagreed = false;
       };
       std::vector<Probe> probes(n);
       const double fractions[3] = {0.3, 0.5, 0.7};
@@ -805,24 +842,33 @@ class Builder {
       });
       bool found = false;
       for (auto& p : probes) {
+        // First round: each probe against the structure the walk gave its event interval (the walk swept there or
+        // at an earlier event of the same stretch). A difference is a change the walk missed between that sweep and
+        // the probe.
+        for (int a = 0; a < 3 && round == 0 && !p.disagreed && events_.size() > 1; ++a) {
+          const double theta = p.lo + fractions[a] * (p.hi - p.lo);
+          const size_t k = EventIntervalAt(theta);
+          // A switch of the chosen rays found inside this event interval: the walk's one structure for it holds
+          // on one side of the switch only.
+          const double from = Unwrap(EventTheta(k), theta - 2 * M_PI);
+          const double to = from + (k + 1 < events_.size() ? EventTheta(k + 1) - EventTheta(k)
+                                                           : EventTheta(0) + 2 * M_PI - EventTheta(k));
+          if (Unwrap(p.lo, from) < to || Unwrap(p.hi, from) < to) continue;
+          const Slice& walk = intervals[source[k]];
+          if (walk.structure == p.s[a].structure) continue;
+          const double swept = Unwrap(walk.theta, p.lo);
+          AddFound(swept < theta ? Bisect(swept, theta, walk.structure) : Bisect(theta, swept, p.s[a].structure),
+                   changes, change_candidate);
+          p.disagreed = true;
+          found = true;
+        }
+        if (p.disagreed) continue;
         for (int a = 0; a < 2; ++a) {
           if (p.s[a].structure == p.s[a + 1].structure) continue;
           // Bisect between the two probes for where the structure changes.
-          const Switch s =
-              Bisect(p.lo + fractions[a] * (p.hi - p.lo), p.lo + fractions[a + 1] * (p.hi - p.lo), p.s[a].structure);
-          const double theta = s.theta;
-          const int c = NearestCandidate(theta, 1e-7);
-          if (s.before.active_rays != s.after.active_rays) {
-            AddSelection(s, changes, change_candidate);
-          } else {
-            changes.push_back(c >= 0 ? structural_[c].theta : theta);
-            change_candidate.push_back(c >= 0 ? c : (structural_.empty() ? -1 : 0));
-            if (c >= 0) ++found_by_probes_;
-            if (c < 0) {
-              ++unexplained_;
-              unexplained_at_.push_back(theta);
-            }
-          }
+          AddFound(
+              Bisect(p.lo + fractions[a] * (p.hi - p.lo), p.lo + fractions[a + 1] * (p.hi - p.lo), p.s[a].structure),
+              changes, change_candidate);
           found = true;
           break;  // the rest of this interval is probed again next round
         }
