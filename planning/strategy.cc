@@ -312,7 +312,12 @@ NondirectionalOptions NdOptions(const PlanOptions& o) {
 }  // namespace
 
 NamedPolygon Strip(const Vector2d& a, const Vector2d& b, double half_width, const std::string& ref) {
-  const Vector2d d = (b - a).normalized();
+  return Strip(a, b, half_width, ref, b - a);
+}
+
+NamedPolygon Strip(const Vector2d& a, const Vector2d& b, double half_width, const std::string& ref,
+                   const Vector2d& direction) {
+  const Vector2d d = direction.normalized();
   const Vector2d n(-d.y() * half_width, d.x() * half_width);
   NamedPolygon p;
   p.vertices = {a - n, b - n, b + n, a + n};
@@ -440,16 +445,20 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
         // then the θ-interval where that strip lies inside the node's preimage.
         double best_len = 0;
         Vector2d pa{0, 0}, pb{0, 0};
-        for (const auto& seg : ray.segments) {
+        size_t best_seg = 0;
+        for (size_t k = 0; k < ray.segments.size(); ++k) {
           Vector2d x, y;
-          const double len = longest_piece(node, seg[0], seg[1], x, y);
-          if (len > best_len) best_len = len, pa = x, pb = y;
+          const double len = longest_piece(node, ray.segments[k][0], ray.segments[k][1], x, y);
+          if (len > best_len) best_len = len, pa = x, pb = y, best_seg = k;
         }
         const double shrink = 3 * kVcStripHalfWidth;
         if (best_len < 4 * shrink) continue;
         const Vector2d dir = (pb - pa) / best_len;
         const Vector2d ea = pa + shrink * dir, eb = pb - shrink * dir;
-        const NamedPolygon end_strip = Strip(ea, eb, kVcStripHalfWidth, ray.id + ".end");
+        // Every strip on the piece's segment is squared to the segment's direction, so that the goal strip and the
+        // forbidden rest beside it share their corners exactly.
+        const Vector2d seg_dir = ray.segments[best_seg][1] - ray.segments[best_seg][0];
+        const NamedPolygon end_strip = Strip(ea, eb, kVcStripHalfWidth, ray.id + ".end", seg_dir);
         const std::vector<ThetaInterval> fits = Fits(node, end_strip);
         const ThetaInterval* best = Best(fits);
         if (!best) continue;
@@ -474,16 +483,18 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
           const double ta = (ea - seg[0]).dot(d) / (len * len), tb = (eb - seg[0]).dot(d) / (len * len);
           const bool on = std::abs((ea - seg[0]).x() * d.y() - (ea - seg[0]).y() * d.x()) <= 1e-9 * size * len &&
                           ta >= -1e-9 && tb <= 1 + 1e-9;
-          std::vector<std::pair<double, double>> rest;
+          // The rest pieces end exactly at the piece's ends (ea, eb), on the segment's direction like the piece.
+          std::vector<std::pair<Vector2d, Vector2d>> rest;
           if (on) {
-            rest = {{0.0, std::min(ta, tb)}, {std::max(ta, tb), 1.0}};
+            const bool forward = ta <= tb;
+            rest = {{seg[0], forward ? ea : eb}, {forward ? eb : ea, seg[1]}};
           } else {
-            rest = {{0.0, 1.0}};
+            rest = {{seg[0], seg[1]}};
           }
           for (const auto& [r0, r1] : rest) {
-            if ((r1 - r0) * len <= 1e-9 * size) continue;
-            child.problem.forbidden.push_back(Strip(seg[0] + r0 * d, seg[0] + r1 * d, kVcStripHalfWidth,
-                                                    ray.id + ".rest" + std::to_string(child.problem.forbidden.size())));
+            if ((r1 - r0).dot(d) <= 1e-9 * size * len) continue;
+            child.problem.forbidden.push_back(
+                Strip(r0, r1, kVcStripHalfWidth, ray.id + ".rest" + std::to_string(child.problem.forbidden.size()), d));
           }
         }
         // The guarded motion towards the ray complies to no ray (its own would carry it along, others could carry it

@@ -42,6 +42,12 @@ inline constexpr double kVcStripHalfWidth = 0.01;
 /// forbidden rest of its ray.
 NamedPolygon Strip(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double half_width, const std::string& ref);
 
+/// The same with the strip's sides parallel to `direction` instead of b − a: consecutive pieces of one segment given
+/// its direction share their corners exactly (with each piece's own b − a they differ by rounding, and the regions
+/// planned against them carry edges 10⁻¹⁶ long there).
+NamedPolygon Strip(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double half_width, const std::string& ref,
+                   const Eigen::Vector2d& direction);
+
 /// Depth of the target region at a contact feature (metres): a motion that enters it sticks within the feature's piece
 /// (the piece is shrunk by the lateral drift the friction cone allows over this depth).
 inline constexpr double kContactDepth = 0.01;
