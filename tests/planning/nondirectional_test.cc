@@ -389,9 +389,9 @@ TEST(NondirectionalProperty, StructureIsConstantWithStripGoalsAndForbiddenStrips
   }
   std::printf(
       "strip problems %d, orientations %d, intervals %d (broken %d), unexplained %d, skipped by the walk %d, missed by "
-      "its rule %d, against the baseline %d\n",
+      "its rule %d (at sliding events %d), against the baseline %d\n",
       t.scenes, t.orientations, t.intervals, t.broken, t.unexplained, t.found_by_probes, t.rule_missed,
-      kinetic_vs_baseline);
+      t.rule_missed_sliding, kinetic_vs_baseline);
   EXPECT_GE(t.scenes, (FullProperty() ? 30 : 8) / static_cast<int>(kSeedStride));
   EXPECT_EQ(t.broken, 0);
 }
