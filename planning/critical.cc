@@ -362,13 +362,13 @@ class Generator {
            std::vector<std::int8_t> signs = {}, std::vector<Vector2d> feature = {}, std::vector<Vector2d> point = {}) {
     if (!std::isfinite(theta)) return;
     if (r_only_ && kind != CriticalKind::kR) return;
-    out_.push_back(
-        {theta, kind, std::move(refs), std::move(sources), std::move(signs), std::move(feature), std::move(point)});
+    out_.push_back({theta, kind, std::move(refs), std::move(sources), std::move(signs), std::move(feature),
+                    std::move(point), SlidingCause::kNone});
   }
 
-  void AddSliding(double theta, const std::string& ref, std::vector<Vector2d> feature) {
+  void AddSliding(double theta, const std::string& ref, std::vector<Vector2d> feature, SlidingCause cause) {
     if (!std::isfinite(theta) || r_only_) return;
-    out_.push_back({theta, CriticalKind::kSliding, {ref}, {}, {}, std::move(feature), {}});
+    out_.push_back({theta, CriticalKind::kSliding, {ref}, {}, {}, std::move(feature), {}, cause});
   }
 
   void Collect(const NamedPolygon* start) {
@@ -486,14 +486,23 @@ class Generator {
       if (s.kind != SegKind::kObstacle) continue;
       const Vector2d d = s.b - s.a;
       const double dir = std::atan2(d.y(), d.x());
+      const Vector2d mid = 0.5 * (s.a + s.b);
+      const double h = 1e-7 * d.norm();
       for (double normal : {dir + M_PI / 2, dir - M_PI / 2}) {
+        // Whether this normal points out of CB (the obstacle on the other side): then a cone edge reaching n ± φ
+        // points away from the obstacle, and nothing about contact changes there.
+        const Vector2d nv(std::cos(normal), std::sin(normal));
+        const bool away = !cb_.StrictlyInside(mid + h * nv) && cb_.StrictlyInside(mid - h * nv);
         // θ ± ε_v = ±n ± φ: an edge of the velocity cone parallel or antiparallel to an edge of the friction cone.
         for (double sf : {-1.0, 1.0})
-          for (double se : {-1.0, 1.0}) AddSliding(normal + sf * phi_ + se * eps_, s.ref, {s.a, s.b});
+          for (double se : {-1.0, 1.0})
+            AddSliding(normal + sf * phi_ + se * eps_, s.ref, {s.a, s.b},
+                       away ? SlidingCause::kAway : SlidingCause::kSticking);
         // The cone reaches the edge's direction (pushing into it or not): θ ± ε_v = the edge's direction.
-        for (double se : {-1.0, 1.0}) AddSliding(normal + M_PI / 2 + se * eps_, s.ref, {s.a, s.b});
+        for (double se : {-1.0, 1.0})
+          AddSliding(normal + M_PI / 2 + se * eps_, s.ref, {s.a, s.b}, SlidingCause::kContact);
         // The commanded direction along the edge (the sliding direction of its central velocity flips).
-        AddSliding(normal + M_PI / 2, s.ref, {s.a, s.b});
+        AddSliding(normal + M_PI / 2, s.ref, {s.a, s.b}, SlidingCause::kAlong);
       }
     }
     for (size_t i = 0; i < ring_vertices_.size(); ++i) {
@@ -503,8 +512,15 @@ class Generator {
       const Vector2d bis = u1 + u2;
       if (bis.norm() < 1e-12) continue;
       const double b = std::atan2(bis.y(), bis.x());
-      for (double base : {b, b + M_PI})
-        for (double se : {-1.0, 1.0}) AddSliding(base + se * eps_, ring_vertex_refs_[i], {v});
+      const double h = 1e-7 * std::min((prev - v).norm(), (next - v).norm());
+      for (double base : {b, b + M_PI}) {
+        // Out of CB along the bisector (the other way into it): velocities beside it push into neither edge.
+        const Vector2d w(std::cos(base), std::sin(base));
+        const bool away = !cb_.StrictlyInside(v + h * w) && cb_.StrictlyInside(v - h * w);
+        for (double se : {-1.0, 1.0})
+          AddSliding(base + se * eps_, ring_vertex_refs_[i], {v},
+                     away ? SlidingCause::kVertexAway : SlidingCause::kVertexRule);
+      }
     }
   }
 

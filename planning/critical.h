@@ -34,6 +34,16 @@ enum class CriticalKind : std::uint8_t { kVgraph, kSliding, kVertex, kR, kFreeEd
 /// "vgraph", "sliding", "vertex", "R", "free-edge", "vc", "selection" (docs/formats.md).
 const char* CriticalKindName(CriticalKind kind);
 
+/// What a sliding candidate is, by the contact model (docs/semantics.md "Uncertainty and contact"; n is the edge's
+/// outward normal): a cone edge reaching the friction cone's edge −n ± φ, where sticking starts or stops
+/// (kSticking; also where the outward side could not be told); one reaching n ± φ, the papers' "parallel" case,
+/// where the cone points away from the obstacle and no velocity touches the edge (kAway); the cone reaching the edge's
+/// direction, where velocities start or stop pushing into it (kContact); θ itself along the edge (kAlong); a cone edge
+/// reaching the vertex rule's bisector where it points into CB, so that velocities beside it push into both edges
+/// (kVertexRule; also where the side could not be told), or out of CB, where no velocity beside it pushes into
+/// either (kVertexAway).
+enum class SlidingCause : std::uint8_t { kNone, kSticking, kAway, kContact, kAlong, kVertexRule, kVertexAway };
+
 /// One critical orientation: θ in [−π, π) and the features that cause it (vertex, edge and ray refs as in the
 /// region JSON).
 struct CriticalOrientation {
@@ -58,6 +68,8 @@ struct CriticalOrientation {
   /// the boundary"). Empty for the kinds that act on the whole region or on a feature (sliding, vc, and the vgraph
   /// events along a static segment).
   std::vector<Eigen::Vector2d> point;
+  /// A sliding candidate's cause (kNone for the other kinds).
+  SlidingCause sliding = SlidingCause::kNone;
 };
 
 /// Counts of the candidates by kind, before any filtering (indexed by CriticalKind).

@@ -544,8 +544,14 @@ class Builder {
       const double tol = 1e-9 * size_;
       return FeatureMeetsRegion(c.feature, s.vc.classic, tol) || FeatureMeetsRegion(c.feature, s.vc.region, tol);
     };
-    if (c.kind == CriticalKind::kSliding && options_.local_sliding && !c.feature.empty())
+    if (c.kind == CriticalKind::kSliding && options_.local_sliding && !c.feature.empty()) {
+      // The cone pointing away from the obstacle, θ itself along the edge, the vertex rule's bisector pointing out
+      // of CB: no velocity's contact changes.
+      if (c.sliding == SlidingCause::kAway || c.sliding == SlidingCause::kAlong ||
+          c.sliding == SlidingCause::kVertexAway)
+        return false;
       return feature_meets_regions();
+    }
     if (Relevant(c, ends)) {
       if (!options_.boundary_events || options_.vertex_events || c.point.empty()) return true;
       const double tol = kOnBoundary * size_;

@@ -107,7 +107,8 @@ struct NondirectionalOptions {
   VcSelectionOptions selection;
   int threads = 1;  ///< worker threads for the slices (each runs whole backprojections)
   /// Kinetic walk: sweep again at a sliding event only when its edge or vertex meets the closure of the last swept
-  /// slice's regions (classic or VC); false sweeps at every sliding event (the rule before; kept to compare).
+  /// slice's regions (classic or VC), and never where no velocity's contact changes (SlidingCause kAway, kAlong);
+  /// false sweeps at every sliding event (the rule before; kept to compare).
   bool local_sliding = true;
   /// Kinetic walk: sweep at least every this many events even where none is relevant (then bisect the skipped ones
   /// if the structure differs); 0 (default) = only at relevant events and the ends of each thread's chunk. A safety

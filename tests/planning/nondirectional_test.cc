@@ -662,6 +662,77 @@ TEST(NondirectionalProperty, ASlidingEventAwayFromTheRegionsChangesNothing) {
   EXPECT_EQ(changed_away, 0);
 }
 
+// The sliding causes the kinetic walk never sweeps at, even where their edge meets a region (CriticalOrientation::
+// sliding): a cone edge reaching n ± φ (the cone points away from the obstacle, so no velocity touches the edge), and
+// θ itself along the edge (the contact model depends on the cone of velocities, not on the commanded one). Sampled
+// like the test above, but only where the feature meets a region: the structure is the same on both sides.
+TEST(NondirectionalProperty, SlidingEventsThatTouchNoVelocityChangeNothing) {
+  std::map<SlidingCause, int> sampled, changed;
+  int selection_only = 0;
+  const int per_scene = kSanitizerDivisor > 1 ? 4 : 12;
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(kSanitizerDivisor > 1 ? 8 : 40); ++seed) {
+    const auto random = MakeRandomCase(seed);
+    if (!random) continue;
+    const BackprojectionProblem& pr = random->problem;
+    const auto candidates = CriticalCandidates(pr, nullptr);
+    const double size = (pr.bounds_max - pr.bounds_min).norm();
+    std::vector<size_t> picked;
+    for (size_t i = 0; i < candidates.size(); ++i) {
+      const SlidingCause cause = candidates[i].sliding;
+      if (cause == SlidingCause::kAway || cause == SlidingCause::kAlong || cause == SlidingCause::kVertexAway)
+        picked.push_back(i);
+    }
+    std::mt19937_64 rng(seed * 257);
+    std::shuffle(picked.begin(), picked.end(), rng);
+    int tried = 0;
+    for (size_t i : picked) {
+      if (tried >= per_scene) break;
+      const double theta = candidates[i].theta;
+      // Isolated from every candidate of another cause (others of these two causes at the same θ, on collinear
+      // pieces of one edge, say, are covered by the same claim).
+      double nearest = M_PI;
+      for (size_t j = 0; j < candidates.size(); ++j) {
+        const SlidingCause other = candidates[j].sliding;
+        if (j == i || other == SlidingCause::kAway || other == SlidingCause::kAlong ||
+            other == SlidingCause::kVertexAway)
+          continue;
+        nearest = std::min(nearest, std::abs(WrapAngle(candidates[j].theta - theta)));
+      }
+      const double gap = std::min(1e-6, 0.4 * nearest);
+      if (gap < 1e-11) continue;
+      BackprojectionProblem before = pr, after = pr;
+      before.theta = WrapAngle(theta - gap);
+      after.theta = WrapAngle(theta + gap);
+      const VcBackprojection b = VcEnlargedBackprojection(before), a = VcEnlargedBackprojection(after);
+      const bool meets = FeatureMeetsRegion(candidates[i].feature, b.classic, 1e-9 * size) ||
+                         FeatureMeetsRegion(candidates[i].feature, b.region, 1e-9 * size);
+      if (!meets) continue;  // the rule of the test above skips those anyway
+      ++tried;
+      ++sampled[candidates[i].sliding];
+      const SliceStructure sb = StructureOf(b), sa = StructureOf(a);
+      if (sb.active_rays != sa.active_rays) {
+        ++selection_only;
+        continue;
+      }
+      if (!(sb == sa)) {
+        ++changed[candidates[i].sliding];
+        ADD_FAILURE() << "seed " << seed << ": the sliding event of " << candidates[i].refs[0] << " at "
+                      << theta * 180 / M_PI << "° (cause " << static_cast<int>(candidates[i].sliding)
+                      << ") changes the structure";
+      }
+    }
+  }
+  std::printf(
+      "sliding events meeting a region: %d with the cone pointing away (%d changed), %d with θ along the edge (%d "
+      "changed), %d at a vertex rule's bisector pointing out of CB (%d changed), %d changed the chosen rays only\n",
+      sampled[SlidingCause::kAway], changed[SlidingCause::kAway], sampled[SlidingCause::kAlong],
+      changed[SlidingCause::kAlong], sampled[SlidingCause::kVertexAway], changed[SlidingCause::kVertexAway],
+      selection_only);
+  EXPECT_GT(sampled[SlidingCause::kAway], 10 / kSanitizerDivisor);
+  EXPECT_GT(sampled[SlidingCause::kAlong], 5 / kSanitizerDivisor);
+  EXPECT_GT(sampled[SlidingCause::kVertexAway], 5 / kSanitizerDivisor);
+}
+
 // A sliding event alone at its θ changes the structure: a ramp whose lower end touches the goal, the robot pushed
 // down into it. Where some velocity of the cone sticks on the ramp, the ramp is not in B_θ(G); where every velocity
 // slides down it, the ramp and the points above it that fall onto it are. The kinetic walk, with its local rule,
