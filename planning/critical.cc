@@ -693,6 +693,26 @@ const char* CriticalKindName(CriticalKind kind) {
   return "?";
 }
 
+const char* SlidingCauseName(SlidingCause cause) {
+  switch (cause) {
+    case SlidingCause::kNone:
+      return "";
+    case SlidingCause::kSticking:
+      return "sticking";
+    case SlidingCause::kAway:
+      return "away";
+    case SlidingCause::kContact:
+      return "contact";
+    case SlidingCause::kAlong:
+      return "along";
+    case SlidingCause::kVertexRule:
+      return "vertex-rule";
+    case SlidingCause::kVertexAway:
+      return "vertex-away";
+  }
+  return "?";
+}
+
 std::int64_t CriticalCounts::total() const {
   std::int64_t t = 0;
   for (auto c : by_kind) t += c;

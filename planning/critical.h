@@ -43,6 +43,9 @@ const char* CriticalKindName(CriticalKind kind);
 /// (kVertexRule; also where the side could not be told), or out of CB, where no velocity beside it pushes into
 /// either (kVertexAway).
 enum class SlidingCause : std::uint8_t { kNone, kSticking, kAway, kContact, kAlong, kVertexRule, kVertexAway };
+/// "", "sticking", "away", "contact", "along", "vertex-rule", "vertex-away" (the `cause` of a sliding orientation in
+/// `visco critical`'s JSON).
+const char* SlidingCauseName(SlidingCause cause);
 
 /// One critical orientation: θ in [−π, π) and the features that cause it (vertex, edge and ray refs as in the
 /// region JSON).

@@ -66,7 +66,9 @@ class ProgressBar {
 nlohmann::json OrientationsJson(const std::vector<CriticalOrientation>& orientations) {
   nlohmann::json out = nlohmann::json::array();
   for (const auto& o : orientations) {
-    out.push_back({{"theta_deg", Deg(o.theta)}, {"kind", CriticalKindName(o.kind)}, {"refs", o.refs}});
+    nlohmann::json j = {{"theta_deg", Deg(o.theta)}, {"kind", CriticalKindName(o.kind)}, {"refs", o.refs}};
+    if (o.kind == CriticalKind::kSliding) j["cause"] = SlidingCauseName(o.sliding);
+    out.push_back(std::move(j));
   }
   return out;
 }

@@ -431,6 +431,7 @@ class Builder {
       if (c >= 0) {
         o.kind = structural_[c].kind;
         o.refs = structural_[c].refs;
+        o.sliding = structural_[c].sliding;
       } else {
         o.kind = CriticalKind::kSelection;
         o.refs = selection_refs_[theta];

@@ -25,6 +25,8 @@ for d in (k, b):
     for x in o:
         assert x["kind"] in kinds, x
         assert x["refs"] and all(isinstance(r, str) and r for r in x["refs"]), x
+        assert ("cause" in x) == (x["kind"] == "sliding"), x
+        assert x.get("cause", "sticking") in ("sticking", "contact", "vertex-rule"), x
     st = d["stats"]
     assert st["unexplained"] == 0 and st["found_by_probes"] == 0, st
     assert st["rule_missed"] - st["rule_missed_sliding"] == 0, st
