@@ -669,8 +669,9 @@ TEST(NondirectionalProperty, ASlidingEventAwayFromTheRegionsChangesNothing) {
 TEST(NondirectionalProperty, SlidingEventsThatTouchNoVelocityChangeNothing) {
   std::map<SlidingCause, int> sampled, changed;
   int selection_only = 0;
-  const int per_scene = kSanitizerDivisor > 1 ? 4 : 12;
-  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(kSanitizerDivisor > 1 ? 8 : 40); ++seed) {
+  // Per scene: at most `per_cause` sampled events of each cause, and `evaluations` pairs of sweeps in all.
+  const int per_cause = kSanitizerDivisor > 1 ? 2 : 5, evaluations = kSanitizerDivisor > 1 ? 24 : 60;
+  for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(kSanitizerDivisor > 1 ? 14 : 40); ++seed) {
     const auto random = MakeRandomCase(seed);
     if (!random) continue;
     const BackprojectionProblem& pr = random->problem;
@@ -684,9 +685,11 @@ TEST(NondirectionalProperty, SlidingEventsThatTouchNoVelocityChangeNothing) {
     }
     std::mt19937_64 rng(seed * 257);
     std::shuffle(picked.begin(), picked.end(), rng);
-    int tried = 0;
+    std::map<SlidingCause, int> tried;
+    int evaluated = 0;
     for (size_t i : picked) {
-      if (tried >= per_scene) break;
+      if (evaluated >= evaluations) break;
+      if (tried[candidates[i].sliding] >= per_cause) continue;
       const double theta = candidates[i].theta;
       // Isolated from every candidate of another cause (others of these two causes at the same θ, on collinear
       // pieces of one edge, say, are covered by the same claim).
@@ -703,11 +706,12 @@ TEST(NondirectionalProperty, SlidingEventsThatTouchNoVelocityChangeNothing) {
       BackprojectionProblem before = pr, after = pr;
       before.theta = WrapAngle(theta - gap);
       after.theta = WrapAngle(theta + gap);
+      ++evaluated;
       const VcBackprojection b = VcEnlargedBackprojection(before), a = VcEnlargedBackprojection(after);
       const bool meets = FeatureMeetsRegion(candidates[i].feature, b.classic, 1e-9 * size) ||
                          FeatureMeetsRegion(candidates[i].feature, b.region, 1e-9 * size);
       if (!meets) continue;  // the rule of the test above skips those anyway
-      ++tried;
+      ++tried[candidates[i].sliding];
       ++sampled[candidates[i].sliding];
       const SliceStructure sb = StructureOf(b), sa = StructureOf(a);
       if (sb.active_rays != sa.active_rays) {
@@ -728,9 +732,14 @@ TEST(NondirectionalProperty, SlidingEventsThatTouchNoVelocityChangeNothing) {
       sampled[SlidingCause::kAway], changed[SlidingCause::kAway], sampled[SlidingCause::kAlong],
       changed[SlidingCause::kAlong], sampled[SlidingCause::kVertexAway], changed[SlidingCause::kVertexAway],
       selection_only);
-  EXPECT_GT(sampled[SlidingCause::kAway], 10 / kSanitizerDivisor);
-  EXPECT_GT(sampled[SlidingCause::kAlong], 5 / kSanitizerDivisor);
-  EXPECT_GT(sampled[SlidingCause::kVertexAway], 5 / kSanitizerDivisor);
+  // A sanitizer build samples a few (it checks the code, the release build the claim).
+  if (kSanitizerDivisor > 1) {
+    EXPECT_GT(sampled[SlidingCause::kAway] + sampled[SlidingCause::kAlong] + sampled[SlidingCause::kVertexAway], 0);
+  } else {
+    EXPECT_GT(sampled[SlidingCause::kAway], 10);
+    EXPECT_GT(sampled[SlidingCause::kAlong], 5);
+    EXPECT_GT(sampled[SlidingCause::kVertexAway], 5);
+  }
 }
 
 // A sliding event alone at its θ changes the structure: a ramp whose lower end touches the goal, the robot pushed
