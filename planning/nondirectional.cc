@@ -165,9 +165,9 @@ std::optional<RingEdit> OneRingChanged(const Region& before, const Region& after
 
 // Whether `edit` is the local change candidate c makes at its orientation (docs/planning_nondirectional.md, "How much
 // changes at a critical orientation"): a free vertex crossing a static edge inserts or removes that edge between its
-// two free edges; a free edge passing a static point b inserts or removes the static edge that ends at b next to it,
-// or the free edge itself next to the free edge erected at b; a free edge running along a static segment hands over
-// from one end's free edge to the other's and the segment between them. Refs and points both have to agree.
+// two free edges; a free edge passing a point b inserts or removes a chain next to it that has b for a vertex, or the
+// free edge itself next to the free edge erected at b; a free edge running along a static segment hands over from
+// one end's free edge to the other's and the segment between them. Refs and points both have to agree.
 bool MakesEdit(const CriticalOrientation& c, const RingEdit& e, double tol) {
   const RegionRing &b = *e.before, &a = *e.after;
   const size_t nb = b.edges.size();
