@@ -494,10 +494,18 @@ class Generator {
         const Vector2d nv(std::cos(normal), std::sin(normal));
         const bool away = !cb_.StrictlyInside(mid + h * nv) && cb_.StrictlyInside(mid - h * nv);
         // θ ± ε_v = ±n ± φ: an edge of the velocity cone parallel or antiparallel to an edge of the friction cone.
+        // Where the normal points into CB, sticking needs some velocity within φ of it (docs/semantics.md): the
+        // edge's sticking starts or stops where a cone edge reaches the friction cone's far edge (se = sf); where it
+        // reaches the near one (se ≠ sf) the cone overlaps the friction cone on both sides, and the edge sticks
+        // throughout (with φ = 0 the two coincide: then sticking).
+        const bool into = !away && cb_.StrictlyInside(mid + h * nv) && !cb_.StrictlyInside(mid - h * nv);
         for (double sf : {-1.0, 1.0})
-          for (double se : {-1.0, 1.0})
-            AddSliding(normal + sf * phi_ + se * eps_, s.ref, {s.a, s.b},
-                       away ? SlidingCause::kAway : SlidingCause::kSticking);
+          for (double se : {-1.0, 1.0}) {
+            SlidingCause cause = SlidingCause::kSticking;
+            if (away) cause = SlidingCause::kAway;
+            if (into && se != sf && phi_ > 1e-9) cause = SlidingCause::kStickingHeld;
+            AddSliding(normal + sf * phi_ + se * eps_, s.ref, {s.a, s.b}, cause);
+          }
         // The cone reaches the edge's direction (pushing into it or not): θ ± ε_v = the edge's direction.
         for (double se : {-1.0, 1.0})
           AddSliding(normal + M_PI / 2 + se * eps_, s.ref, {s.a, s.b}, SlidingCause::kContact);
@@ -709,6 +717,8 @@ const char* SlidingCauseName(SlidingCause cause) {
       return "vertex-rule";
     case SlidingCause::kVertexAway:
       return "vertex-away";
+    case SlidingCause::kStickingHeld:
+      return "sticking-held";
   }
   return "?";
 }

@@ -36,15 +36,26 @@ const char* CriticalKindName(CriticalKind kind);
 
 /// What a sliding candidate is, by the contact model (docs/semantics.md "Uncertainty and contact"; n is the edge's
 /// outward normal): a cone edge reaching the friction cone's edge −n ± φ, where sticking starts or stops
-/// (kSticking; also where the outward side could not be told); one reaching n ± φ, the papers' "parallel" case,
+/// (kSticking; also where the outward side could not be told), or where the cone overlaps the friction cone on both
+/// sides of the event so that the edge sticks throughout (kStickingHeld: the cone edge reaches the friction cone's
+/// edge on its own side); one reaching n ± φ, the papers' "parallel" case,
 /// where the cone points away from the obstacle and no velocity touches the edge (kAway); the cone reaching the edge's
 /// direction, where velocities start or stop pushing into it (kContact); θ itself along the edge (kAlong); a cone edge
 /// reaching the vertex rule's bisector where it points into CB, so that velocities beside it push into both edges
 /// (kVertexRule; also where the side could not be told), or out of CB, where no velocity beside it pushes into
 /// either (kVertexAway).
-enum class SlidingCause : std::uint8_t { kNone, kSticking, kAway, kContact, kAlong, kVertexRule, kVertexAway };
-/// "", "sticking", "away", "contact", "along", "vertex-rule", "vertex-away" (the `cause` of a sliding orientation in
-/// `visco critical`'s JSON).
+enum class SlidingCause : std::uint8_t {
+  kNone,
+  kSticking,
+  kAway,
+  kContact,
+  kAlong,
+  kVertexRule,
+  kVertexAway,
+  kStickingHeld
+};
+/// "", "sticking", "away", "contact", "along", "vertex-rule", "vertex-away", "sticking-held" (the `cause` of a sliding
+/// orientation in `visco critical`'s JSON).
 const char* SlidingCauseName(SlidingCause cause);
 
 /// One critical orientation: θ in [−π, π) and the features that cause it (vertex, edge and ray refs as in the

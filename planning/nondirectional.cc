@@ -83,6 +83,12 @@ void ForEachRing(const Region& region, F&& f) {
   }
 }
 
+// The sliding causes where no velocity's contact changes (critical.h, SlidingCause).
+bool NoEffect(SlidingCause cause) {
+  return cause == SlidingCause::kAway || cause == SlidingCause::kAlong || cause == SlidingCause::kVertexAway ||
+         cause == SlidingCause::kStickingHeld;
+}
+
 // How near (relative to the scene's size) an event's point must be to a carried region's boundary to count as on
 // it: the carrying's error is about 1e-12 (NondirectionalProperty), and candidates up to 1e-10 rad apart are one
 // event.
@@ -547,10 +553,8 @@ class Builder {
     };
     if (c.kind == CriticalKind::kSliding && options_.local_sliding && !c.feature.empty()) {
       // The cone pointing away from the obstacle, θ itself along the edge, the vertex rule's bisector pointing out
-      // of CB: no velocity's contact changes.
-      if (c.sliding == SlidingCause::kAway || c.sliding == SlidingCause::kAlong ||
-          c.sliding == SlidingCause::kVertexAway)
-        return false;
+      // of CB, the edge sticking on both sides: no velocity's contact changes.
+      if (NoEffect(c.sliding)) return false;
       return feature_meets_regions();
     }
     if (Relevant(c, ends)) {
@@ -714,6 +718,10 @@ class Builder {
         const auto& c = structural_[i];
         if (c.kind == kind && (CanChange(c, vb, before, cb) || CanChange(c, va, after, ca))) return static_cast<int>(i);
       }
+    }
+    // No candidate the rules take (a change they missed): the first that can change anything at all.
+    for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
+      if (!NoEffect(structural_[i].sliding)) return static_cast<int>(i);
     }
     return static_cast<int>(events_[k].begin);
   }

@@ -670,7 +670,7 @@ TEST(NondirectionalProperty, SlidingEventsThatTouchNoVelocityChangeNothing) {
   std::map<SlidingCause, int> sampled, changed;
   int selection_only = 0;
   // Per scene: at most `per_cause` sampled events of each cause, and `evaluations` pairs of sweeps in all.
-  const int per_cause = kSanitizerDivisor > 1 ? 2 : 5, evaluations = kSanitizerDivisor > 1 ? 24 : 60;
+  const int per_cause = kSanitizerDivisor > 1 ? 2 : 5, evaluations = kSanitizerDivisor > 1 ? 24 : 100;
   for (std::uint64_t seed = 1; seed <= static_cast<std::uint64_t>(kSanitizerDivisor > 1 ? 14 : 40); ++seed) {
     const auto random = MakeRandomCase(seed);
     if (!random) continue;
@@ -680,7 +680,8 @@ TEST(NondirectionalProperty, SlidingEventsThatTouchNoVelocityChangeNothing) {
     std::vector<size_t> picked;
     for (size_t i = 0; i < candidates.size(); ++i) {
       const SlidingCause cause = candidates[i].sliding;
-      if (cause == SlidingCause::kAway || cause == SlidingCause::kAlong || cause == SlidingCause::kVertexAway)
+      if (cause == SlidingCause::kAway || cause == SlidingCause::kAlong || cause == SlidingCause::kVertexAway ||
+          cause == SlidingCause::kStickingHeld)
         picked.push_back(i);
     }
     std::mt19937_64 rng(seed * 257);
@@ -697,7 +698,7 @@ TEST(NondirectionalProperty, SlidingEventsThatTouchNoVelocityChangeNothing) {
       for (size_t j = 0; j < candidates.size(); ++j) {
         const SlidingCause other = candidates[j].sliding;
         if (j == i || other == SlidingCause::kAway || other == SlidingCause::kAlong ||
-            other == SlidingCause::kVertexAway)
+            other == SlidingCause::kVertexAway || other == SlidingCause::kStickingHeld)
           continue;
         nearest = std::min(nearest, std::abs(WrapAngle(candidates[j].theta - theta)));
       }
@@ -728,17 +729,21 @@ TEST(NondirectionalProperty, SlidingEventsThatTouchNoVelocityChangeNothing) {
   }
   std::printf(
       "sliding events meeting a region: %d with the cone pointing away (%d changed), %d with θ along the edge (%d "
-      "changed), %d at a vertex rule's bisector pointing out of CB (%d changed), %d changed the chosen rays only\n",
+      "changed), %d at a vertex rule's bisector pointing out of CB (%d changed), %d where the edge sticks on both "
+      "sides (%d changed), %d changed the chosen rays only\n",
       sampled[SlidingCause::kAway], changed[SlidingCause::kAway], sampled[SlidingCause::kAlong],
       changed[SlidingCause::kAlong], sampled[SlidingCause::kVertexAway], changed[SlidingCause::kVertexAway],
-      selection_only);
+      sampled[SlidingCause::kStickingHeld], changed[SlidingCause::kStickingHeld], selection_only);
   // A sanitizer build samples a few (it checks the code, the release build the claim).
   if (kSanitizerDivisor > 1) {
-    EXPECT_GT(sampled[SlidingCause::kAway] + sampled[SlidingCause::kAlong] + sampled[SlidingCause::kVertexAway], 0);
+    EXPECT_GT(sampled[SlidingCause::kAway] + sampled[SlidingCause::kAlong] + sampled[SlidingCause::kVertexAway] +
+                  sampled[SlidingCause::kStickingHeld],
+              0);
   } else {
     EXPECT_GT(sampled[SlidingCause::kAway], 10);
     EXPECT_GT(sampled[SlidingCause::kAlong], 5);
     EXPECT_GT(sampled[SlidingCause::kVertexAway], 5);
+    EXPECT_GT(sampled[SlidingCause::kStickingHeld], 5);
   }
 }
 
