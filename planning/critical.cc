@@ -480,7 +480,7 @@ class Generator {
     }
   }
 
-  // Sticking/sliding switches and the vertex rule's bisectors (docs/semantics.md "Uncertainty and contact").
+  // Sticking/sliding switches and the vertex rule's bisectors (docs/semantics.md "The motion model").
   void SlidingEvents() {
     for (const auto& s : segs_) {
       if (s.kind != SegKind::kObstacle) continue;

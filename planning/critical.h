@@ -34,7 +34,7 @@ enum class CriticalKind : std::uint8_t { kVgraph, kSliding, kVertex, kR, kFreeEd
 /// "vgraph", "sliding", "vertex", "R", "free-edge", "vc", "selection" (docs/formats.md).
 const char* CriticalKindName(CriticalKind kind);
 
-/// What a sliding candidate is, by the contact model (docs/semantics.md "Uncertainty and contact"; n is the edge's
+/// What a sliding candidate is, by the contact model (docs/semantics.md "The motion model"; n is the edge's
 /// outward normal): a cone edge reaching the friction cone's edge −n ± φ, where sticking starts or stops
 /// (kSticking; also where the outward side could not be told), or where the cone overlaps the friction cone on both
 /// sides of the event so that the edge sticks throughout (kStickingHeld: the cone edge reaches the friction cone's
