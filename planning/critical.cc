@@ -490,15 +490,15 @@ class Generator {
       const double h = 1e-7 * d.norm();
       for (double normal : {dir + M_PI / 2, dir - M_PI / 2}) {
         // Whether this normal points out of CB (the obstacle on the other side): then a cone edge reaching n ± φ
-        // points away from the obstacle, and nothing about contact changes there.
+        // points away from the obstacle, and nothing about contact changes there. Or into it (the other way round).
         const Vector2d nv(std::cos(normal), std::sin(normal));
-        const bool away = !cb_.StrictlyInside(mid + h * nv) && cb_.StrictlyInside(mid - h * nv);
+        const bool in_plus = cb_.StrictlyInside(mid + h * nv), in_minus = cb_.StrictlyInside(mid - h * nv);
+        const bool away = !in_plus && in_minus, into = in_plus && !in_minus;
         // θ ± ε_v = ±n ± φ: an edge of the velocity cone parallel or antiparallel to an edge of the friction cone.
         // Where the normal points into CB, sticking needs some velocity within φ of it (docs/semantics.md): the
         // edge's sticking starts or stops where a cone edge reaches the friction cone's far edge (se = sf); where it
         // reaches the near one (se ≠ sf) the cone overlaps the friction cone on both sides, and the edge sticks
         // throughout (with φ = 0 the two coincide: then sticking).
-        const bool into = !away && cb_.StrictlyInside(mid + h * nv) && !cb_.StrictlyInside(mid - h * nv);
         for (double sf : {-1.0, 1.0})
           for (double se : {-1.0, 1.0}) {
             SlidingCause cause = SlidingCause::kSticking;
@@ -721,6 +721,11 @@ const char* SlidingCauseName(SlidingCause cause) {
       return "sticking-held";
   }
   return "?";
+}
+
+bool SlidingCauseChangesNothing(SlidingCause cause) {
+  return cause == SlidingCause::kAway || cause == SlidingCause::kAlong || cause == SlidingCause::kVertexAway ||
+         cause == SlidingCause::kStickingHeld;
 }
 
 std::int64_t CriticalCounts::total() const {

@@ -57,6 +57,9 @@ enum class SlidingCause : std::uint8_t {
 /// "", "sticking", "away", "contact", "along", "vertex-rule", "vertex-away", "sticking-held" (the `cause` of a sliding
 /// orientation in `visco critical`'s JSON).
 const char* SlidingCauseName(SlidingCause cause);
+/// Whether a sliding candidate of this cause changes no velocity's contact, so never the structure (kAway, kAlong,
+/// kVertexAway, kStickingHeld; docs/planning_nondirectional.md, "Sliding events that matter").
+bool SlidingCauseChangesNothing(SlidingCause cause);
 
 /// One critical orientation: θ in [−π, π) and the features that cause it (vertex, edge and ray refs as in the
 /// region JSON).

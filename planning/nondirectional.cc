@@ -83,12 +83,6 @@ void ForEachRing(const Region& region, F&& f) {
   }
 }
 
-// The sliding causes where no velocity's contact changes (critical.h, SlidingCause).
-bool NoEffect(SlidingCause cause) {
-  return cause == SlidingCause::kAway || cause == SlidingCause::kAlong || cause == SlidingCause::kVertexAway ||
-         cause == SlidingCause::kStickingHeld;
-}
-
 // How near (relative to the scene's size) an event's point must be to a carried region's boundary to count as on
 // it: the carrying's error is about 1e-12 (NondirectionalProperty), and candidates up to 1e-10 rad apart are one
 // event.
@@ -554,7 +548,7 @@ class Builder {
     if (c.kind == CriticalKind::kSliding && options_.local_sliding && !c.feature.empty()) {
       // The cone pointing away from the obstacle, θ itself along the edge, the vertex rule's bisector pointing out
       // of CB, the edge sticking on both sides: no velocity's contact changes.
-      if (NoEffect(c.sliding)) return false;
+      if (SlidingCauseChangesNothing(c.sliding)) return false;
       return feature_meets_regions();
     }
     if (Relevant(c, ends)) {
@@ -596,11 +590,14 @@ class Builder {
     return true;
   }
 
-  // The representative θ of the interval after event k (up to event k + 1, wrapping).
+  // The interval after event k: from its θ to event k + 1's (the last one wraps to the first, a turn on).
+  std::pair<double, double> EventInterval(size_t k) const {
+    return {EventTheta(k), k + 1 < events_.size() ? EventTheta(k + 1) : EventTheta(0) + 2 * M_PI};
+  }
+
+  // The representative θ of the interval after event k.
   double IntervalTheta(size_t k) const {
-    const size_t m = events_.size();
-    const double lo = EventTheta(k);
-    const double hi = k + 1 < m ? EventTheta(k + 1) : EventTheta(0) + 2 * M_PI;
+    const auto [lo, hi] = EventInterval(k);
     return WrapAngle(0.5 * (lo + hi));
   }
 
@@ -721,7 +718,7 @@ class Builder {
     }
     // No candidate the rules take (a change they missed): the first that can change anything at all.
     for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
-      if (!NoEffect(structural_[i].sliding)) return static_cast<int>(i);
+      if (!SlidingCauseChangesNothing(structural_[i].sliding)) return static_cast<int>(i);
     }
     return static_cast<int>(events_[k].begin);
   }
@@ -796,23 +793,14 @@ class Builder {
     return best;
   }
 
-  // Checks every interval between consecutive changes at three orientations and locates any change found there.
   // The event interval containing θ (radians, any turn): k such that θ lies between events k and k + 1 (wrapping).
   size_t EventIntervalAt(double theta) const {
-    const size_t m = events_.size();
     theta = WrapAngle(theta);
-    if (m == 0 || EventTheta(0) >= theta) return m - 1;  // before the first event: the wrapping interval
-    size_t k = 0;
-    for (size_t lo = 0, hi = m; lo < hi;) {
-      const size_t mid = (lo + hi) / 2;
-      if (EventTheta(mid) < theta) {
-        k = mid;
-        lo = mid + 1;
-      } else {
-        hi = mid;
-      }
-    }
-    return k;
+    const auto first_not_before = std::partition_point(
+        events_.begin(), events_.end(), [&](const Event& e) { return structural_[e.begin].theta < theta; });
+    // Before the first event: the wrapping interval after the last.
+    const size_t after = static_cast<size_t>(first_not_before - events_.begin());
+    return (after == 0 ? events_.size() : after) - 1;
   }
 
   // Records the change located between two sweeps (a switch of the chosen rays, or a change at the nearest
@@ -832,6 +820,7 @@ class Builder {
     }
   }
 
+  // Checks every interval between consecutive changes at three orientations and locates any change found there.
   void Verify(std::vector<double>& changes, std::vector<int>& change_candidate, const std::vector<Slice>& intervals,
               const std::vector<size_t>& source) {
     for (int round = 0; round < 4; ++round) {
@@ -865,9 +854,8 @@ class Builder {
           const size_t k = EventIntervalAt(theta);
           // A switch of the chosen rays found inside this event interval: the walk's one structure for it holds
           // on one side of the switch only.
-          const double from = Unwrap(EventTheta(k), theta - 2 * M_PI);
-          const double to = from + (k + 1 < events_.size() ? EventTheta(k + 1) - EventTheta(k)
-                                                           : EventTheta(0) + 2 * M_PI - EventTheta(k));
+          const auto [event_lo, event_hi] = EventInterval(k);
+          const double from = Unwrap(event_lo, theta - 2 * M_PI), to = from + (event_hi - event_lo);
           if (Unwrap(p.lo, from) < to || Unwrap(p.hi, from) < to) continue;
           const Slice& walk = intervals[source[k]];
           if (walk.structure == p.s[a].structure) continue;

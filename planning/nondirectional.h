@@ -107,7 +107,7 @@ struct NondirectionalOptions {
   VcSelectionOptions selection;
   int threads = 1;  ///< worker threads for the slices (each runs whole backprojections)
   /// Kinetic walk: sweep again at a sliding event only when its edge or vertex meets the closure of the last swept
-  /// slice's regions (classic or VC), and never where no velocity's contact changes (SlidingCause kAway, kAlong);
+  /// slice's regions (classic or VC), and never where no velocity's contact changes (SlidingCauseChangesNothing);
   /// false sweeps at every sliding event (the rule before; kept to compare).
   bool local_sliding = true;
   /// Kinetic walk: sweep at least every this many events even where none is relevant (then bisect the skipped ones
