@@ -238,6 +238,7 @@ class Sweep {
   void Run();
   std::vector<ExactRing> Assemble() const;
   Region ToRegion(const std::vector<ExactRing>& rings) const;
+  std::vector<RegionEdge> StaticEdges() const;
   // Active rays (indices into the problem's rays) with a piece whose track is bad: complying down from there fails.
   const std::set<int>& bad_track_rays() const { return bad_track_rays_; }
 
@@ -1639,6 +1640,22 @@ Region BackprojectionWithActiveRays(const BackprojectionProblem& problem, const 
   }
   SweepFrame frame(problem.theta);
   return RunSweep(problem, idx, frame).region;
+}
+
+std::vector<RegionEdge> Sweep::StaticEdges() const {
+  std::vector<RegionEdge> out;
+  for (const Source& src : sources_) {
+    if (src.kind == EdgeKind::kVc) continue;
+    // As ToRegion labels them.
+    out.push_back({src.kind, names_[src.name], Vector2d::Zero(),
+                   {rot_.InvertExact(src.a) + Vector2d::Zero(), rot_.InvertExact(src.b) + Vector2d::Zero()}, 0});
+  }
+  return out;
+}
+
+std::vector<RegionEdge> StaticRegionEdges(const BackprojectionProblem& problem) {
+  SweepFrame frame(problem.theta);
+  return Sweep(problem, {}, frame).StaticEdges();
 }
 
 const char* RaySelectionName(RaySelection selection) {

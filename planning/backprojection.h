@@ -147,6 +147,11 @@ Region ClassicBackprojection(const BackprojectionProblem& problem);
 /// B_θ(G) with exactly the given rays active (ids from problem.rays); used by VcBackprojection and by tests.
 Region BackprojectionWithActiveRays(const BackprojectionProblem& problem, const std::vector<std::string>& active);
 
+/// The static edges a region's rings can have besides CVC rays (C-obstacle, goal, bounds and forbidden edges), each
+/// with the kind, ref and RegionEdge::line a sweep gives it: where an event brings an edge into a region, the
+/// nondirectional walk takes it from here instead of sweeping (nondirectional.cc). @throws as ClassicBackprojection.
+std::vector<RegionEdge> StaticRegionEdges(const BackprojectionProblem& problem);
+
 /// B_vcθ(G). A region swept with an active set S is exactly what S guarantees (the rays are walls for the whole
 /// motion, from every start point), and the sweep's region is not monotone in S (a ray can divert trajectories away
 /// from the goal). The admissible sets are those whose region contains B_θ(G) (the region with no ray, exact

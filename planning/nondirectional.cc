@@ -333,6 +333,331 @@ void ParallelFor(size_t n, int threads, const std::function<void(double)>& progr
   if (progress) progress(base + span);
 }
 
+// The line an edge of a ring lies on at θ: a free edge's through its source, direction θ + π ± ε_v by its ref's
+// suffix; any other edge's is the line of the static segment it lies on (it does not move).
+struct EdgeLine {
+  Vector2d point, dir;
+  bool free = false;
+};
+
+EdgeLine LineOf(const RegionRing& ring, size_t i, double theta, double eps) {
+  const RegionEdge& e = ring.edges[i];
+  if (e.kind == EdgeKind::kFree) {
+    const double angle = theta + M_PI + (e.sign > 0 ? eps : -eps);
+    return {e.source, Vector2d(std::cos(angle), std::sin(angle)), true};
+  }
+  // The static segment it lies on as the sweep recorded it (exact up to one rounding), else its own two ends (less
+  // precise when the edge is short).
+  if (e.line[0] != e.line[1]) return {e.line[0], e.line[1] - e.line[0], false};
+  const Vector2d& a = ring.vertices[i];
+  const Vector2d& b = ring.vertices[(i + 1) % ring.vertices.size()];
+  return {a, b - a, false};
+}
+
+double RingArea2(const std::vector<Vector2d>& v) {
+  double a = 0;
+  for (size_t i = 0; i < v.size(); ++i) a += Cross(v[i], v[(i + 1) % v.size()]);
+  return a;
+}
+
+RegionRing CarryRing(const RegionRing& ring, double theta, double eps) {
+  RegionRing out = ring;
+  const size_t n = ring.vertices.size();
+  if (n == 0 || ring.edges.size() != n) return out;
+  std::vector<EdgeLine> lines(n);
+  for (size_t i = 0; i < n; ++i) lines[i] = LineOf(ring, i, theta, eps);
+  for (size_t i = 0; i < n; ++i) {
+    const EdgeLine& u = lines[(i + n - 1) % n];  // the edge into vertex i
+    const EdgeLine& w = lines[i];                // the edge out of it
+    if (!u.free && !w.free) continue;            // two edges that do not move meet where they did
+    const double den = Cross(u.dir, w.dir);
+    // Parallel lines meet nowhere: only at a critical orientation (a vgraph or vc event), where nothing is carried.
+    if (std::abs(den) <= 1e-15 * u.dir.norm() * w.dir.norm()) continue;
+    out.vertices[i] = u.point + (Cross(w.point - u.point, w.dir) / den) * u.dir;
+  }
+  return out;
+}
+
+// Updating a slice across an event without a sweep (docs/planning_nondirectional.md, "Computing the slice after a
+// change"): the local edits whose new edges follow from the event and the static arrangement alone.
+enum class Update : std::uint8_t { kUnchanged, kEdited, kUnknown };
+
+// Where the lines of two edges meet at θ, unless they are (nearly) parallel.
+std::optional<Vector2d> MeetAt(const RegionEdge& u, const RegionEdge& w, double theta, double eps) {
+  const RegionRing pair{{Vector2d::Zero(), Vector2d::Zero()}, {u, w}};
+  const EdgeLine a = LineOf(pair, 0, theta, eps), b = LineOf(pair, 1, theta, eps);
+  const double den = Cross(a.dir, b.dir);
+  if (!(std::abs(den) > 1e-12 * a.dir.norm() * b.dir.norm())) return std::nullopt;
+  return a.point + (Cross(b.point - a.point, b.dir) / den) * a.dir;
+}
+
+class RegionUpdater {
+ public:
+  RegionUpdater(const std::vector<RegionEdge>& statics, double tolerance, double eps)
+      : statics_(statics), tol_(tolerance), eps_(eps) {}
+
+  // The edit that candidate c (a free vertex crossing a static edge, or a free edge passing a C-obstacle vertex)
+  // makes to `region` (a slice's, at its own θ; `at_event` is it carried to the event), applied and carried to
+  // `theta_after` in `out`; kUnchanged where the event's point is off the region's boundary; kUnknown where the
+  // region near the event is not one of the shapes below or the result fails a check (the walk then sweeps).
+  // `rays`: the active CVC rays' segments (the VC region's; none for the classic one): an event whose point is on
+  // one also meets the ray, which the shapes below leave out.
+  Update Apply(const CriticalOrientation& c, const Region& region, const Region& at_event, double theta_after,
+               const std::vector<std::array<Vector2d, 2>>& rays, Region& out) const {
+    if (c.point.empty() || c.sources.empty()) return Update::kUnknown;
+    for (const auto& r : rays) {
+      if (PointSegmentDistance(c.point[0], r[0], r[1]) <= tol_) return Update::kUnknown;
+    }
+    std::optional<Site> site;
+    int sites = 0;
+    for (size_t p = 0; p < region.polygons.size(); ++p) {
+      for (int h = -1; h < static_cast<int>(region.polygons[p].holes.size()); ++h) {
+        const RegionRing& ring = RingOf(region, p, h);
+        const RegionRing& event_ring = RingOf(at_event, p, h);
+        if (event_ring.edges.size() != ring.edges.size()) return Update::kUnknown;
+        for (size_t i = 0; i < ring.edges.size(); ++i) {
+          std::optional<Site> s = c.kind == CriticalKind::kVertex ? VertexSite(c, ring, event_ring, i)
+                                  : c.kind == CriticalKind::kVgraph && c.feature.empty()
+                                      ? VgraphSite(c, ring, event_ring, i)
+                                      : std::nullopt;
+          if (!s) continue;
+          s->polygon = p;
+          s->hole = h;
+          site = std::move(s);
+          ++sites;
+        }
+      }
+    }
+    if (sites > 1) return Update::kUnknown;
+    if (sites == 0) return PointNearBoundary(c.point[0], at_event, tol_) ? Update::kUnknown : Update::kUnchanged;
+    Region edited = region;
+    RegionRing& ring = RingOf(edited, site->polygon, site->hole);
+    // The site at the ring's start: edges 0, 1, 2 are the ones it names.
+    std::rotate(ring.edges.begin(), ring.edges.begin() + static_cast<std::ptrdiff_t>(site->index), ring.edges.end());
+    std::rotate(ring.vertices.begin(), ring.vertices.begin() + static_cast<std::ptrdiff_t>(site->index),
+                ring.vertices.end());
+    const RegionRing before = ring;
+    switch (site->shape) {
+      case Shape::kFreeVertexCut:  // [a/+, b/-] -> [a/+, e, b/-]
+        ring.edges.insert(ring.edges.begin() + 1, site->edge);
+        ring.vertices.insert(ring.vertices.begin() + 2, Vector2d::Zero());
+        break;
+      case Shape::kFreeVertexFreed:  // [a/+, e, b/-] -> [a/+, b/-]
+        ring.edges.erase(ring.edges.begin() + 1);
+        ring.vertices.erase(ring.vertices.begin() + 2);
+        break;
+      case Shape::kHitPassesOn:  // [x, a/s] -> [x, e, a/s] (x and e meet at b)
+        ring.edges.insert(ring.edges.begin() + 1, site->edge);
+        ring.vertices[1] = site->b;
+        ring.vertices.insert(ring.vertices.begin() + 2, Vector2d::Zero());
+        break;
+      case Shape::kHitPassesOnReversed:  // [a/s, x] -> [a/s, e, x]
+        ring.edges.insert(ring.edges.begin() + 1, site->edge);
+        ring.vertices.insert(ring.vertices.begin() + 2, site->b);
+        break;
+      case Shape::kHitPassesBack:  // [a/s, x, y] -> [a/s, y] (x and y meet at b)
+        ring.edges.erase(ring.edges.begin() + 1);
+        ring.vertices.erase(ring.vertices.begin() + 2);
+        break;
+      case Shape::kHitPassesBackReversed:  // [y, x, a/s] -> [y, a/s]
+        ring.edges.erase(ring.edges.begin() + 1);
+        ring.vertices.erase(ring.vertices.begin() + 1);
+        break;
+    }
+    if (ring.edges.size() < 3) return Update::kUnknown;
+    out = CarryRegion(edited, theta_after, eps_);
+    const RegionRing& carried = RingOf(out, site->polygon, site->hole);
+    for (const auto& v : carried.vertices) {
+      if (!v.allFinite()) return Update::kUnknown;
+    }
+    return Confirmed(*site, before, carried, theta_after) ? Update::kEdited : Update::kUnknown;
+  }
+
+ private:
+  enum class Shape : std::uint8_t {
+    kFreeVertexCut,
+    kFreeVertexFreed,
+    kHitPassesOn,
+    kHitPassesOnReversed,
+    kHitPassesBack,
+    kHitPassesBackReversed
+  };
+  struct Site {
+    Shape shape = Shape::kFreeVertexCut;
+    size_t index = 0;  // where its first edge is in the ring
+    size_t polygon = 0;
+    int hole = -1;       // -1: the outer ring
+    RegionEdge edge;     // the static edge inserted
+    Vector2d b{0, 0};    // vgraph: the C-obstacle vertex the free edge passes
+    RegionEdge free, x;  // vgraph: the free edge, and the static edge it ended on before
+  };
+
+  static const RegionRing& RingOf(const Region& r, size_t p, int h) {
+    return h < 0 ? r.polygons[p].outer : r.polygons[p].holes[static_cast<size_t>(h)];
+  }
+  static RegionRing& RingOf(Region& r, size_t p, int h) {
+    return h < 0 ? r.polygons[p].outer : r.polygons[p].holes[static_cast<size_t>(h)];
+  }
+  bool FreeOf(const RegionEdge& e, const Vector2d& p, int sign) const {
+    return e.kind == EdgeKind::kFree && e.sign == sign && (e.source - p).norm() <= tol_;
+  }
+  static bool IsObstacle(const RegionEdge& e) { return e.kind == EdgeKind::kObstacle && e.line[0] != e.line[1]; }
+  static bool IsStatic(const RegionEdge& e) {
+    return e.kind != EdgeKind::kFree && e.kind != EdgeKind::kVc && e.line[0] != e.line[1];
+  }
+  double ToSegment(const Vector2d& p, const RegionEdge& e) const { return PointSegmentDistance(p, e.line[0], e.line[1]); }
+
+  // A free vertex f of a's +ε_v and b's −ε_v free edges crossing a static edge: with the region inside the corner at
+  // f (the corner is cut off by the edge), or the edge between them (it goes, the corner comes back).
+  std::optional<Site> VertexSite(const CriticalOrientation& c, const RegionRing& ring, const RegionRing& at_event,
+                                 size_t i) const {
+    if (c.sources.size() != 2) return std::nullopt;
+    const size_t n = ring.edges.size();
+    const Vector2d& f = c.point[0];
+    auto pair = [&](const RegionEdge& u, const RegionEdge& w) {
+      return (FreeOf(u, c.sources[0], 1) && FreeOf(w, c.sources[1], -1)) ||
+             (FreeOf(u, c.sources[1], -1) && FreeOf(w, c.sources[0], 1));
+    };
+    const RegionEdge &e0 = ring.edges[i], &e1 = ring.edges[(i + 1) % n], &e2 = ring.edges[(i + 2) % n];
+    Site s;
+    s.index = i;
+    if (pair(e0, e1) && (at_event.vertices[(i + 1) % n] - f).norm() <= tol_) {
+      // The region inside the corner (rings keep the region on their left: a left turn).
+      const Vector2d &p = ring.vertices[i], &q = ring.vertices[(i + 1) % n], &r = ring.vertices[(i + 2) % n];
+      if (!(Cross(q - p, r - q) > 0)) return std::nullopt;
+      const RegionEdge* crossed = nullptr;
+      for (const auto& e : statics_) {
+        if (ToSegment(f, e) > tol_) continue;
+        if (crossed != nullptr) return std::nullopt;  // at a vertex of the arrangement, or on two edges
+        crossed = &e;
+      }
+      if (crossed == nullptr || (f - crossed->line[0]).norm() <= tol_ || (f - crossed->line[1]).norm() <= tol_) {
+        return std::nullopt;
+      }
+      s.shape = Shape::kFreeVertexCut;
+      s.edge = *crossed;
+      return s;
+    }
+    if (n >= 4 && pair(e0, e2) && IsStatic(e1) && ToSegment(f, e1) <= tol_ &&
+        (at_event.vertices[(i + 1) % n] - f).norm() <= tol_ && (at_event.vertices[(i + 2) % n] - f).norm() <= tol_) {
+      s.shape = Shape::kFreeVertexFreed;
+      s.edge = e1;
+      return s;
+    }
+    return std::nullopt;
+  }
+
+  // The only other static edge ending at the C-obstacle vertex b, when b is a vertex of exactly two static edges
+  // (x and it) and no other static edge passes it.
+  const RegionEdge* OtherEdgeAt(const Vector2d& b, const RegionEdge& x) const {
+    const RegionEdge* other = nullptr;
+    for (const auto& e : statics_) {
+      if (ToSegment(b, e) > tol_) continue;
+      if (e.kind == x.kind && e.ref == x.ref) continue;
+      if (other != nullptr || !IsObstacle(e)) return nullptr;
+      if ((e.line[0] - b).norm() > tol_ && (e.line[1] - b).norm() > tol_) return nullptr;  // passes through b
+      other = &e;
+    }
+    return other;
+  }
+
+  // a's free edge (sign s) passing b, a vertex of CB where two C-obstacle edges x and y meet: the free edge ended on x
+  // next to b and goes on to y, or ended on y next to b and comes back to x.
+  std::optional<Site> VgraphSite(const CriticalOrientation& c, const RegionRing& ring, const RegionRing& at_event,
+                                 size_t i) const {
+    if (c.sources.size() != 1 || c.source_signs.size() != 1) return std::nullopt;
+    const size_t n = ring.edges.size();
+    const Vector2d& a = c.sources[0];
+    const int sign = c.source_signs[0];
+    const Vector2d& b = c.point[0];
+    const RegionEdge &e0 = ring.edges[i], &e1 = ring.edges[(i + 1) % n], &e2 = ring.edges[(i + 2) % n];
+    const Vector2d& hit1 = at_event.vertices[(i + 1) % n];
+    const Vector2d& hit2 = at_event.vertices[(i + 2) % n];
+    auto ends_at_b = [&](const RegionEdge& e) {
+      return IsObstacle(e) && ((e.line[0] - b).norm() <= tol_ || (e.line[1] - b).norm() <= tol_);
+    };
+    Site s;
+    s.index = i;
+    s.b = b;
+    // Before: [x, a/s] or [a/s, x] with the hit at b at the event.
+    const bool x_first = ends_at_b(e0) && FreeOf(e1, a, sign);
+    const bool free_first = FreeOf(e0, a, sign) && ends_at_b(e1);
+    // The hit moves towards b from the side away from x's part of the ring (where b is that part's other end, x
+    // shrinks instead: the shapes below).
+    const Vector2d& hit_now = ring.vertices[(i + 1) % n];
+    const Vector2d& other_end = x_first ? ring.vertices[i] : ring.vertices[(i + 2) % n];
+    if ((x_first || free_first) && (hit1 - b).norm() <= tol_ && (other_end - b).norm() > tol_ &&
+        (b - hit_now).dot(other_end - hit_now) < 0) {
+      s.x = x_first ? e0 : e1;
+      s.free = x_first ? e1 : e0;
+      const RegionEdge* y = OtherEdgeAt(b, s.x);
+      if (y == nullptr) return std::nullopt;
+      s.edge = *y;
+      s.b = (s.edge.line[0] - b).norm() <= tol_ ? s.edge.line[0] : s.edge.line[1];
+      s.shape = x_first ? Shape::kHitPassesOn : Shape::kHitPassesOnReversed;
+      return s;
+    }
+    // Before: [a/s, x, y] or [y, x, a/s] with x and y meeting at b, and the hit on x at b at the event.
+    if (n < 4) return std::nullopt;
+    if (FreeOf(e0, a, sign) && IsObstacle(e1) && IsObstacle(e2) && (ring.vertices[(i + 2) % n] - b).norm() <= tol_ &&
+        (hit1 - b).norm() <= tol_) {
+      s.free = e0;
+      s.x = e1;
+      s.edge = e2;
+      s.shape = Shape::kHitPassesBack;
+      return s;
+    }
+    if (IsObstacle(e0) && IsObstacle(e1) && FreeOf(e2, a, sign) && (ring.vertices[(i + 1) % n] - b).norm() <= tol_ &&
+        (hit2 - b).norm() <= tol_) {
+      s.free = e2;
+      s.x = e1;
+      s.edge = e0;
+      s.shape = Shape::kHitPassesBackReversed;
+      return s;
+    }
+    return std::nullopt;
+  }
+
+  // Whether the carried ring (the site at its start) is what the edit says, clearly (by more than the tolerance):
+  // the new vertices on their segments, the corner cut off or free again, the hit past b.
+  bool Confirmed(const Site& s, const RegionRing& before, const RegionRing& carried, double theta) const {
+    const size_t n = carried.vertices.size();
+    const auto& v = carried.vertices;
+    switch (s.shape) {
+      case Shape::kFreeVertexCut: {
+        const Vector2d &p1 = v[1], &p2 = v[2];
+        const auto tip = MeetAt(before.edges[0], before.edges[1], theta, eps_);
+        if (!tip || ToSegment(p1, s.edge) > tol_ || ToSegment(p2, s.edge) > tol_ || (p2 - p1).norm() <= tol_) {
+          return false;
+        }
+        return Cross((p2 - p1).normalized(), *tip - p1) < -tol_;  // the old corner beyond the edge
+      }
+      case Shape::kFreeVertexFreed: {
+        const Vector2d d = (before.vertices[2] - before.vertices[1]).normalized();  // the edge, region on its left
+        return d.allFinite() && Cross(d, v[1] - before.vertices[1]) > tol_;
+      }
+      case Shape::kHitPassesOn:
+      case Shape::kHitPassesOnReversed: {
+        const Vector2d& hit = s.shape == Shape::kHitPassesOn ? v[2] : v[1];
+        const auto old_hit = MeetAt(s.free, s.x, theta, eps_);
+        return ToSegment(hit, s.edge) <= tol_ && (hit - s.b).norm() > tol_ && old_hit && ToSegment(*old_hit, s.x) > tol_;
+      }
+      case Shape::kHitPassesBack:
+      case Shape::kHitPassesBackReversed: {
+        const Vector2d& hit = v[1];
+        const Vector2d& next = s.shape == Shape::kHitPassesBack ? v[2 % n] : v[0];  // y's other end in the ring
+        const auto old_hit = MeetAt(s.free, s.x, theta, eps_);
+        return ToSegment(hit, s.edge) <= tol_ && (hit - s.b).norm() > tol_ && (next - hit).norm() > tol_ &&
+               (next - s.b).norm() > (next - hit).norm() && old_hit && ToSegment(*old_hit, s.x) > tol_;
+      }
+    }
+    return false;
+  }
+
+  const std::vector<RegionEdge>& statics_;
+  double tol_, eps_;
+};
+
 class Builder {
  public:
   Builder(const BackprojectionProblem& problem, const NamedPolygon* start, const NondirectionalOptions& options)
@@ -343,6 +668,7 @@ class Builder {
   NondirectionalBackprojection Run() {
     NondirectionalBackprojection nd;
     nd.velocity_cone = pr_.velocity_cone;
+    if (options_.method == SliceMethod::kKinetic && options_.computed_updates) statics_ = StaticRegionEdges(pr_);
     auto candidates = CriticalCandidates(pr_, start_, &nd.stats.counts);
     nd.stats.candidates = static_cast<std::int64_t>(candidates.size());
     std::vector<CriticalOrientation> r_candidates;
@@ -452,6 +778,8 @@ class Builder {
     nd.stats.found_by_probes = found_by_probes_;
     nd.stats.rule_missed = rule_missed_;
     nd.stats.explained = explained_;
+    nd.stats.updated = updated_.load();
+    nd.stats.update_mismatches = update_mismatches_.load();
     nd.stats.rule_missed_sliding = rule_missed_sliding_;
     nd.stats.unexplained_at = unexplained_at_;
     for (auto& c : r_candidates) {
@@ -570,6 +898,55 @@ class Builder {
     return false;
   }
 
+  // The slice after event k computed from `last` (the last slice before it, swept or computed) without a sweep, where
+  // the event is one candidate whose local edit the updater knows and that edit is confirmed; nullopt otherwise.
+  std::optional<Slice> Updated(size_t k, const Slice& last) const {
+    const auto ends = WalkPointsOf(last);
+    CarriedAt carried(last, EventTheta(k), pr_.velocity_cone);
+    const CriticalOrientation* only = nullptr;
+    for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
+      if (!CanChange(structural_[i], ends, last, carried)) continue;
+      if (only != nullptr) return std::nullopt;  // several events at once
+      only = &structural_[i];
+    }
+    if (only == nullptr || (only->kind != CriticalKind::kVertex && only->kind != CriticalKind::kVgraph)) {
+      return std::nullopt;
+    }
+    const double theta = IntervalTheta(k);
+    const RegionUpdater updater(statics_, kOnBoundary * size_, pr_.velocity_cone);
+    Slice s;
+    s.theta = s.lo = s.hi = theta;
+    s.vc.active_rays = last.vc.active_rays;
+    s.vc.rejected_rays = last.vc.rejected_rays;
+    s.vc.unreliable_rays = last.vc.unreliable_rays;
+    s.vc.selection = last.vc.selection;
+    s.vc.candidates = last.vc.candidates;
+    // Every candidate ray, active or not: an event at a ray's end can also change which rays are chosen.
+    std::vector<std::array<Vector2d, 2>> rays;
+    for (const auto& ray : pr_.rays) rays.insert(rays.end(), ray.segments.begin(), ray.segments.end());
+    bool edited = false;
+    for (int r = 0; r < 2; ++r) {
+      const Region& region = r == 0 ? last.vc.classic : last.vc.region;
+      Region& out = r == 0 ? s.vc.classic : s.vc.region;
+      switch (updater.Apply(*only, region, carried.Get()[static_cast<size_t>(r)], theta,
+                            r == 0 ? std::vector<std::array<Vector2d, 2>>{} : rays, out)) {
+        case Update::kUnknown:
+          return std::nullopt;
+        case Update::kUnchanged:
+          out = CarryRegion(region, theta, pr_.velocity_cone);
+          break;
+        case Update::kEdited:
+          edited = true;
+          break;
+      }
+    }
+    if (!edited) return std::nullopt;
+    s.structure.classic = RegionStructure(s.vc.classic);
+    s.structure.vc = RegionStructure(s.vc.region);
+    s.structure.active_rays = s.vc.active_rays;
+    return s;
+  }
+
   // Whether the change between `before` and `after` (swept with no event but k between them that the rule takes) is
   // a local edit event k makes (MakesEdit), in each region that changes, with the same active rays: then it happened
   // at k, and no sweep just before k needs to say so. A change at a skipped event would add an edit of its own.
@@ -630,6 +1007,39 @@ class Builder {
         swept[k] = 1;
         ++checked[c];
       };
+      // The slice after relevant event k, from the last one: computed where the update knows the event's edit, else
+      // swept. With check_updates it is swept as well, and the walk goes on with the sweep.
+      auto advance = [&](size_t k, size_t last) {
+        if (options_.computed_updates && !statics_.empty()) {
+          if (auto updated = Updated(k, out[last])) {
+            ++updated_;
+            if (!options_.check_updates) {
+              out[k] = std::move(*updated);
+              swept[k] = 1;
+              return;
+            }
+            sweep(k, kSweepWalk);
+            const double tol = 1e-9 * size_ * size_;
+            if (!(updated->structure == out[k].structure) ||
+                std::abs(updated->vc.classic.area - out[k].vc.classic.area) > tol ||
+                std::abs(updated->vc.region.area - out[k].vc.region.area) > tol) {
+              ++update_mismatches_;
+              if (getenv("VISCO_DEBUG_UPDATES")) {
+                for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
+                  fprintf(stderr, "MISMATCH k=%zu theta=%.9f kind=%s refs=", k, EventTheta(k), CriticalKindName(structural_[i].kind));
+                  for (auto& r : structural_[i].refs) fprintf(stderr, "%s ", r.c_str());
+                  fprintf(stderr, "\n");
+                }
+                auto pr = [](const char* t, const SliceStructure& x) { fprintf(stderr, " %s classic:", t); for (auto& y : x.classic) fprintf(stderr, " {%s}", y.c_str()); fprintf(stderr, "\n %s vc:", t); for (auto& y : x.vc) fprintf(stderr, " {%s}", y.c_str()); fprintf(stderr, "\n"); };
+                pr("last", out[last].structure); pr("computed", updated->structure); pr("swept", out[k].structure);
+                fprintf(stderr, " areas classic %.12g %.12g vc %.12g %.12g\n", updated->vc.classic.area, out[k].vc.classic.area, updated->vc.region.area, out[k].vc.region.area);
+              }
+            }
+            return;
+          }
+        }
+        sweep(k, kSweepWalk);
+      };
       // Finds every change between swept intervals lo < hi whose structures differ.
       std::function<void(size_t, size_t)> bisect = [&](size_t lo, size_t hi) {
         if (hi - lo <= 1) return;
@@ -673,7 +1083,7 @@ class Builder {
         std::vector<EventPoint> ends = WalkPointsOf(out[lo]);
         for (size_t k = lo + 1; k < hi; ++k) {
           if (swept[k] || !EventRelevant(k, ends, out[last])) continue;
-          sweep(k, kSweepWalk);
+          advance(k, last);
           if (!(out[k].structure == out[last].structure)) resolve(last, k);
           last = k;
           ends = WalkPointsOf(out[k]);
@@ -685,7 +1095,7 @@ class Builder {
       size_t last = begin;
       for (size_t k = begin + 1; k < end; ++k) {
         if (!EventRelevant(k, ends, out[last]) && k - last < period && k + 1 < end) continue;
-        sweep(k, kSweepWalk);
+        advance(k, last);
         if (!(out[k].structure == out[last].structure)) resolve(last, k);
         last = k;
         ends = WalkPointsOf(out[k]);
@@ -900,6 +1310,8 @@ class Builder {
   std::vector<double> unexplained_at_;
   std::map<double, std::vector<std::string>> selection_refs_;
   std::map<std::pair<double, double>, Slice> midpoints_;  // the last interval checks' midpoint slices, by (lo, hi)
+  std::vector<RegionEdge> statics_;                        // the static edges events can bring (computed_updates)
+  std::atomic<std::int64_t> updated_{0}, update_mismatches_{0};
 };
 
 }  // namespace
@@ -942,55 +1354,6 @@ const Slice& SliceAt(const NondirectionalBackprojection& nd, double theta) {
   }
   return nd.slices.back();
 }
-
-namespace {
-
-// The line an edge of a ring lies on at θ: a free edge's through its source, direction θ + π ± ε_v by its ref's
-// suffix; any other edge's is the line of the static segment it lies on (it does not move).
-struct EdgeLine {
-  Vector2d point, dir;
-  bool free = false;
-};
-
-EdgeLine LineOf(const RegionRing& ring, size_t i, double theta, double eps) {
-  const RegionEdge& e = ring.edges[i];
-  if (e.kind == EdgeKind::kFree) {
-    const double angle = theta + M_PI + (e.sign > 0 ? eps : -eps);
-    return {e.source, Vector2d(std::cos(angle), std::sin(angle)), true};
-  }
-  // The static segment it lies on as the sweep recorded it (exact up to one rounding), else its own two ends (less
-  // precise when the edge is short).
-  if (e.line[0] != e.line[1]) return {e.line[0], e.line[1] - e.line[0], false};
-  const Vector2d& a = ring.vertices[i];
-  const Vector2d& b = ring.vertices[(i + 1) % ring.vertices.size()];
-  return {a, b - a, false};
-}
-
-double RingArea2(const std::vector<Vector2d>& v) {
-  double a = 0;
-  for (size_t i = 0; i < v.size(); ++i) a += Cross(v[i], v[(i + 1) % v.size()]);
-  return a;
-}
-
-RegionRing CarryRing(const RegionRing& ring, double theta, double eps) {
-  RegionRing out = ring;
-  const size_t n = ring.vertices.size();
-  if (n == 0 || ring.edges.size() != n) return out;
-  std::vector<EdgeLine> lines(n);
-  for (size_t i = 0; i < n; ++i) lines[i] = LineOf(ring, i, theta, eps);
-  for (size_t i = 0; i < n; ++i) {
-    const EdgeLine& u = lines[(i + n - 1) % n];  // the edge into vertex i
-    const EdgeLine& w = lines[i];                // the edge out of it
-    if (!u.free && !w.free) continue;            // two edges that do not move meet where they did
-    const double den = Cross(u.dir, w.dir);
-    // Parallel lines meet nowhere: only at a critical orientation (a vgraph or vc event), where nothing is carried.
-    if (std::abs(den) <= 1e-15 * u.dir.norm() * w.dir.norm()) continue;
-    out.vertices[i] = u.point + (Cross(w.point - u.point, w.dir) / den) * u.dir;
-  }
-  return out;
-}
-
-}  // namespace
 
 Region CarryRegion(const Region& region, double theta, double velocity_cone) {
   // θ₀ is not needed: the free edges' lines depend on θ only, and the other edges and the sources do not move.

@@ -82,6 +82,11 @@ struct NondirectionalStats {
   /// free edge coming or going where the event's free vertex or free edge is, `NondirectionalOptions::local_edits`):
   /// located without a sweep.
   std::int64_t explained = 0;
+  /// Slices after a relevant event the kinetic walk computed from the one before it instead of sweeping
+  /// (`NondirectionalOptions::computed_updates`; with `check_updates`, the ones it would have computed).
+  std::int64_t updated = 0;
+  /// With `check_updates`: computed slices whose structure or areas differ from the sweep's (the tests require 0).
+  std::int64_t update_mismatches = 0;
   std::int64_t r_critical = 0;         ///< R-critical orientations reported (they bound where R fits)
   std::vector<double> unexplained_at;  ///< where those were found (radians)
 };
@@ -128,6 +133,14 @@ struct NondirectionalOptions {
   /// makes (one static or free edge coming or going at its point), the change is put there without sweeping just
   /// before the event to confirm it; false: always confirmed by a sweep (kept to compare).
   bool local_edits = true;
+  /// Kinetic walk: at a relevant event that is one free vertex crossing a static edge, or one free edge passing the
+  /// C-obstacle vertex at the end of the edge it ends on, compute the slice after it from the last one (that edge
+  /// comes or goes, the rest is carried) instead of sweeping, where the region there has that shape
+  /// (docs/planning_nondirectional.md, "Computing the slice after a change"); false: always sweep (kept to compare).
+  bool computed_updates = true;
+  /// With computed_updates: sweep as well, count the computed slices that differ (stats.update_mismatches), and go on
+  /// with the sweep. For the tests.
+  bool check_updates = false;
   /// Called now and then with the fraction done (0..1), from the calling thread.
   std::function<void(double)> progress;
 };

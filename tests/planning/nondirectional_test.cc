@@ -601,6 +601,54 @@ TEST(NondirectionalProperty, TheWalksEconomiesChangeOnlyTheSweeps) {
   EXPECT_LE(sweeps, sweeps_without[0]);
 }
 
+// The kinetic walk's computed updates (docs/planning_nondirectional.md, "Computing the slice after a change"): every
+// slice it computes from the last one instead of sweeping has the swept slice's structure and areas (check_updates
+// sweeps as well and counts the differences), on random whole scenes; and with the updates the result is the one
+// without them.
+TEST(NondirectionalProperty, ComputedUpdatesAreTheSweptSlices) {
+  std::int64_t updated = 0, mismatches = 0, sweeps = 0, sweeps_without = 0;
+  int scenes = 0;
+  const std::uint64_t last = FullProperty() ? 100 : (kSanitizerDivisor > 1 ? 4 : 16);
+  for (std::uint64_t seed = 1; seed <= last; ++seed) {
+    const auto random = MakeRandomCase(seed);
+    if (!random) continue;
+    const BackprojectionProblem& pr = random->problem;
+    NondirectionalOptions check = Options();
+    check.check_updates = true;
+    const auto checked = ComputeNondirectional(pr, nullptr, check);
+    updated += checked.stats.updated;
+    mismatches += checked.stats.update_mismatches;
+    EXPECT_EQ(checked.stats.update_mismatches, 0) << "seed " << seed;
+    if (scenes < (kSanitizerDivisor > 1 ? 1 : 4)) {
+      const auto nd = ComputeNondirectional(pr, nullptr, Options());
+      NondirectionalOptions off = Options();
+      off.computed_updates = false;
+      const auto without = ComputeNondirectional(pr, nullptr, off);
+      EXPECT_EQ(without.stats.updated, 0);
+      sweeps += nd.stats.backprojections;
+      sweeps_without += without.stats.backprojections;
+      const std::string name = "seed " + std::to_string(seed);
+      ASSERT_EQ(nd.orientations.size(), without.orientations.size()) << name;
+      for (size_t k = 0; k < nd.orientations.size(); ++k) {
+        EXPECT_NEAR(nd.orientations[k].theta, without.orientations[k].theta, 1e-9) << name;
+        EXPECT_EQ(nd.orientations[k].kind, without.orientations[k].kind) << name;
+        EXPECT_EQ(nd.orientations[k].refs, without.orientations[k].refs) << name;
+      }
+      ASSERT_EQ(nd.slices.size(), without.slices.size()) << name;
+      for (size_t k = 0; k < nd.slices.size(); ++k) {
+        EXPECT_EQ(nd.slices[k].structure, without.slices[k].structure) << name << " slice " << k;
+      }
+    }
+    ++scenes;
+  }
+  std::printf("scenes %d: %lld slices computed instead of swept, %lld differ from the sweep; %lld sweeps against "
+              "%lld without the updates on the first scenes\n",
+              scenes, static_cast<long long>(updated), static_cast<long long>(mismatches),
+              static_cast<long long>(sweeps), static_cast<long long>(sweeps_without));
+  EXPECT_GT(updated, 0) << "no slice was computed: the updates are not exercised";
+  EXPECT_LT(sweeps, sweeps_without);
+}
+
 // The kinetic walk's local rule for sliding events (docs/planning_nondirectional.md, "Sliding events that matter"):
 // a sliding event whose edge or vertex meets neither region just before it changes nothing. Each sampled sliding
 // candidate with no other candidate within 2·gap is checked on both sides: where its feature is away from the

@@ -137,6 +137,7 @@ void BM_Nondirectional(benchmark::State& state) {
   o.method = state.range(0) == 1 ? SliceMethod::kBaseline : SliceMethod::kKinetic;
   if (state.range(0) == 2) o.vertex_events = true;     // the walk's broad rule: an event at any vertex of the regions
   if (state.range(0) == 3) o.boundary_events = false;  // the sources rule alone, wherever the event's point lies
+  if (state.range(0) == 4) o.computed_updates = false;  // every relevant event swept, none computed from its edit
   NondirectionalStats stats;
   size_t orientations = 0;
   ResetPeakMemory();
@@ -147,7 +148,8 @@ void BM_Nondirectional(benchmark::State& state) {
     benchmark::DoNotOptimize(nd.slices.data());
   }
   static const char* const kLabels[] = {"kinetic", "baseline", "kinetic, broad rule (every vertex of the regions)",
-                                        "kinetic, sources rule (the event's point anywhere)"};
+                                        "kinetic, sources rule (the event's point anywhere)",
+                                        "kinetic, no computed updates (every relevant event swept)"};
   state.SetLabel(kLabels[state.range(0)]);
   state.counters["peak_MiB"] = PeakMemoryMiB();
   state.counters["vertices"] = bench::Vertices(pr);
@@ -179,6 +181,7 @@ void BM_Nondirectional(benchmark::State& state) {
   state.counters["backprojections"] = static_cast<double>(stats.backprojections);
   state.counters["orientations"] = static_cast<double>(orientations);
   state.counters["explained"] = static_cast<double>(stats.explained);
+  state.counters["updated"] = static_cast<double>(stats.updated);
   for (int i = 0; i < kSweepPurposes; ++i) {
     const std::string name = std::string("sweeps_") + SweepPurposeName(static_cast<SweepPurpose>(i));
     state.counters[name] = static_cast<double>(stats.sweeps[i]);
@@ -186,8 +189,8 @@ void BM_Nondirectional(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_Nondirectional)
-    ->ArgsProduct({{0, 1, 2, 3}, {10, 20, 40, 80}})
-    ->ArgsProduct({{0, 3}, {160, 320}})
+    ->ArgsProduct({{0, 1, 2, 3, 4}, {10, 20, 40, 80}})
+    ->ArgsProduct({{0, 3, 4}, {160, 320}})
     ->ArgsProduct({{0}, {500, 640, 1280, 2000}})
     ->Unit(benchmark::kMillisecond)
     ->Iterations(1);
