@@ -1647,8 +1647,11 @@ std::vector<RegionEdge> Sweep::StaticEdges() const {
   for (const Source& src : sources_) {
     if (src.kind == EdgeKind::kVc) continue;
     // As ToRegion labels them.
-    out.push_back({src.kind, names_[src.name], Vector2d::Zero(),
-                   {rot_.InvertExact(src.a) + Vector2d::Zero(), rot_.InvertExact(src.b) + Vector2d::Zero()}, 0});
+    out.push_back({src.kind,
+                   names_[src.name],
+                   Vector2d::Zero(),
+                   {rot_.InvertExact(src.a) + Vector2d::Zero(), rot_.InvertExact(src.b) + Vector2d::Zero()},
+                   0});
   }
   return out;
 }

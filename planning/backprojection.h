@@ -148,7 +148,7 @@ Region ClassicBackprojection(const BackprojectionProblem& problem);
 Region BackprojectionWithActiveRays(const BackprojectionProblem& problem, const std::vector<std::string>& active);
 
 /// The static edges a region's rings can have besides CVC rays (C-obstacle, goal, bounds and forbidden edges), each
-/// with the kind, ref and RegionEdge::line a sweep gives it: where an event brings an edge into a region, the
+/// with the kind, ref and RegionEdge::line a sweep gives it: where an event brings one into a region, the
 /// nondirectional walk takes it from here instead of sweeping (nondirectional.cc). @throws as ClassicBackprojection.
 std::vector<RegionEdge> StaticRegionEdges(const BackprojectionProblem& problem);
 

@@ -9,6 +9,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <thread>
 
 #include "planning/geometry.h"
@@ -393,103 +394,110 @@ std::optional<Vector2d> MeetAt(const RegionEdge& u, const RegionEdge& w, double 
 
 class RegionUpdater {
  public:
-  RegionUpdater(const std::vector<RegionEdge>& statics, double tolerance, double eps)
-      : statics_(statics), tol_(tolerance), eps_(eps) {}
+  // `crossed`: the static edges another one meets away from their shared ends (overlapping obstacles, a goal on
+  // CB): the region's boundary there is not the polygon's, and no shape below is taken along them.
+  RegionUpdater(const std::vector<RegionEdge>& statics, const std::set<std::string>& crossed, double tolerance,
+                double eps)
+      : statics_(statics), crossed_(crossed), tol_(tolerance), eps_(eps) {}
+
+  // The static edges another static edge meets away from their shared ends (within `tolerance`).
+  static std::set<std::string> Crossed(const std::vector<RegionEdge>& statics, double tolerance) {
+    std::set<std::string> out;
+    const auto& e = statics;
+    for (size_t i = 0; i < e.size(); ++i) {
+      for (size_t j = i + 1; j < e.size(); ++j) {
+        const auto &p = e[i].line, &q = e[j].line;
+        if (SegmentsDistance(p[0], p[1], q[0], q[1]) > tolerance) continue;
+        // Sharing an end only (two edges of one polygon) is not crossing; anything more is.
+        bool only_an_end = false;
+        for (int a = 0; a < 2 && !only_an_end; ++a) {
+          for (int b = 0; b < 2 && !only_an_end; ++b) {
+            if ((p[a] - q[b]).norm() > tolerance) continue;
+            only_an_end = PointSegmentDistance(p[1 - a], q[0], q[1]) > tolerance &&
+                          PointSegmentDistance(q[1 - b], p[0], p[1]) > tolerance;
+          }
+        }
+        if (only_an_end) continue;
+        out.insert(Key(e[i]));
+        out.insert(Key(e[j]));
+      }
+    }
+    return out;
+  }
 
   // The edit that candidate c (a free vertex crossing a static edge, or a free edge passing a C-obstacle vertex)
   // makes to `region` (a slice's, at its own θ; `at_event` is it carried to the event), applied and carried to
   // `theta_after` in `out`; kUnchanged where the event's point is off the region's boundary; kUnknown where the
-  // region near the event is not one of the shapes below or the result fails a check (the walk then sweeps).
-  // `rays`: the active CVC rays' segments (the VC region's; none for the classic one): an event whose point is on
-  // one also meets the ray, which the shapes below leave out.
+  // region near the event is not one of the shapes below, or is in more than one place, or no shape's result passes
+  // its checks (the walk then sweeps). `rays`: every candidate ray's segments for the VC region (none for the
+  // classic one): an event at a ray, or an edit that reaches one, can change the rays chosen, which no shape covers.
   Update Apply(const CriticalOrientation& c, const Region& region, const Region& at_event, double theta_after,
                const std::vector<std::array<Vector2d, 2>>& rays, Region& out) const {
     if (c.point.empty() || c.sources.empty()) return Update::kUnknown;
-    for (const auto& r : rays) {
-      if (PointSegmentDistance(c.point[0], r[0], r[1]) <= tol_) return Update::kUnknown;
+    if (NearRay(c.point[0], rays)) return Update::kUnknown;
+    for (const auto& source : c.sources) {
+      if (NearRay(source, rays))
+        return Update::kUnknown;  // a ray's end or cut point: its free edges are the VC region's
     }
-    std::optional<Site> site;
-    int sites = 0;
+    std::vector<Site> sites;
     for (size_t p = 0; p < region.polygons.size(); ++p) {
       for (int h = -1; h < static_cast<int>(region.polygons[p].holes.size()); ++h) {
         const RegionRing& ring = RingOf(region, p, h);
         const RegionRing& event_ring = RingOf(at_event, p, h);
         if (event_ring.edges.size() != ring.edges.size()) return Update::kUnknown;
         for (size_t i = 0; i < ring.edges.size(); ++i) {
-          std::optional<Site> s = c.kind == CriticalKind::kVertex ? VertexSite(c, ring, event_ring, i)
-                                  : c.kind == CriticalKind::kVgraph && c.feature.empty()
-                                      ? VgraphSite(c, ring, event_ring, i)
-                                      : std::nullopt;
-          if (!s) continue;
-          s->polygon = p;
-          s->hole = h;
-          site = std::move(s);
-          ++sites;
+          const size_t before = sites.size();
+          if (c.kind == CriticalKind::kVertex) {
+            VertexSites(c, ring, event_ring, i, sites);
+          } else if (c.kind == CriticalKind::kVgraph && c.feature.empty()) {
+            VgraphSites(c, ring, event_ring, i, sites);
+          }
+          for (size_t k = before; k < sites.size(); ++k) {
+            sites[k].polygon = p;
+            sites[k].hole = h;
+            sites[k].index = i;
+          }
         }
       }
     }
-    if (sites > 1) return Update::kUnknown;
-    if (sites == 0) return PointNearBoundary(c.point[0], at_event, tol_) ? Update::kUnknown : Update::kUnchanged;
-    Region edited = region;
-    RegionRing& ring = RingOf(edited, site->polygon, site->hole);
-    // The site at the ring's start: edges 0, 1, 2 are the ones it names.
-    std::rotate(ring.edges.begin(), ring.edges.begin() + static_cast<std::ptrdiff_t>(site->index), ring.edges.end());
-    std::rotate(ring.vertices.begin(), ring.vertices.begin() + static_cast<std::ptrdiff_t>(site->index),
-                ring.vertices.end());
-    const RegionRing before = ring;
-    switch (site->shape) {
-      case Shape::kFreeVertexCut:  // [a/+, b/-] -> [a/+, e, b/-]
-        ring.edges.insert(ring.edges.begin() + 1, site->edge);
-        ring.vertices.insert(ring.vertices.begin() + 2, Vector2d::Zero());
-        break;
-      case Shape::kFreeVertexFreed:  // [a/+, e, b/-] -> [a/+, b/-]
-        ring.edges.erase(ring.edges.begin() + 1);
-        ring.vertices.erase(ring.vertices.begin() + 2);
-        break;
-      case Shape::kHitPassesOn:  // [x, a/s] -> [x, e, a/s] (x and e meet at b)
-        ring.edges.insert(ring.edges.begin() + 1, site->edge);
-        ring.vertices[1] = site->b;
-        ring.vertices.insert(ring.vertices.begin() + 2, Vector2d::Zero());
-        break;
-      case Shape::kHitPassesOnReversed:  // [a/s, x] -> [a/s, e, x]
-        ring.edges.insert(ring.edges.begin() + 1, site->edge);
-        ring.vertices.insert(ring.vertices.begin() + 2, site->b);
-        break;
-      case Shape::kHitPassesBack:  // [a/s, x, y] -> [a/s, y] (x and y meet at b)
-        ring.edges.erase(ring.edges.begin() + 1);
-        ring.vertices.erase(ring.vertices.begin() + 2);
-        break;
-      case Shape::kHitPassesBackReversed:  // [y, x, a/s] -> [y, a/s]
-        ring.edges.erase(ring.edges.begin() + 1);
-        ring.vertices.erase(ring.vertices.begin() + 1);
-        break;
+    if (sites.empty()) return PointNearBoundary(c.point[0], at_event, tol_) ? Update::kUnknown : Update::kUnchanged;
+    // Several shapes can match at one place (only one passes its checks); matches in two places are two events.
+    for (const auto& s : sites) {
+      if (s.polygon != sites[0].polygon || s.hole != sites[0].hole || s.index != sites[0].index) {
+        return Update::kUnknown;
+      }
     }
-    if (ring.edges.size() < 3) return Update::kUnknown;
-    out = CarryRegion(edited, theta_after, eps_);
-    const RegionRing& carried = RingOf(out, site->polygon, site->hole);
-    for (const auto& v : carried.vertices) {
-      if (!v.allFinite()) return Update::kUnknown;
+    int confirmed = 0;
+    for (const auto& s : sites) {
+      Region edited;
+      if (!Edit(s, region, theta_after, rays, edited)) continue;
+      if (++confirmed > 1) return Update::kUnknown;
+      out = std::move(edited);
     }
-    return Confirmed(*site, before, carried, theta_after) ? Update::kEdited : Update::kUnknown;
+    return confirmed == 1 ? Update::kEdited : Update::kUnknown;
   }
 
  private:
   enum class Shape : std::uint8_t {
-    kFreeVertexCut,
-    kFreeVertexFreed,
-    kHitPassesOn,
-    kHitPassesOnReversed,
-    kHitPassesBack,
-    kHitPassesBackReversed
+    kFreeVertexCut,    // [a/+, b/-] -> [a/+, e, b/-]: the corner at the free vertex cut off by e
+    kFreeVertexFreed,  // [a/+, e, b/-] -> [a/+, b/-]
+    kHitPassesOn,      // [x, a/s] -> [x, y, a/s] (or mirrored): the free edge's end passes b from x onto y
+    kHitPassesBack,    // [a/s, x, y] -> [a/s, y] (or mirrored): from x back onto y, x's part gone
+    kUnblocked,        // [x, b'/s, chain, y, a/s] -> [x, a/s] (or mirrored): the free edge no longer ends on b's
+                       // obstacle, and the obstacle's chain and the free edge b'/s beside it go
   };
+  // An edit of a ring, at its edge `index` (the anchor, which stays): the `remove` edges after it replaced by
+  // `insert`. `forward`: the shape as written above (else mirrored: the ring runs the other way round the site).
   struct Site {
     Shape shape = Shape::kFreeVertexCut;
-    size_t index = 0;  // where its first edge is in the ring
-    size_t polygon = 0;
-    int hole = -1;       // -1: the outer ring
-    RegionEdge edge;     // the static edge inserted
-    Vector2d b{0, 0};    // vgraph: the C-obstacle vertex the free edge passes
-    RegionEdge free, x;  // vgraph: the free edge, and the static edge it ended on before
+    size_t polygon = 0, index = 0;
+    int hole = -1;  // -1: the outer ring
+    size_t remove = 0;
+    std::vector<RegionEdge> insert;
+    bool forward = true;
+    Vector2d b{0, 0};    // the point of the event (b, or the free vertex f)
+    RegionEdge free, x;  // vgraph: the free edge, and the edge it ends on before the event
+    RegionEdge y;        // the edge it ends on after (kHitPassesOn/Back) or before (kUnblocked), or the crossed edge
   };
 
   static const RegionRing& RingOf(const Region& r, size_t p, int h) {
@@ -498,20 +506,74 @@ class RegionUpdater {
   static RegionRing& RingOf(Region& r, size_t p, int h) {
     return h < 0 ? r.polygons[p].outer : r.polygons[p].holes[static_cast<size_t>(h)];
   }
+  bool NearRay(const Vector2d& p, const std::vector<std::array<Vector2d, 2>>& rays) const {
+    return std::any_of(rays.begin(), rays.end(),
+                       [&](const auto& r) { return PointSegmentDistance(p, r[0], r[1]) <= tol_; });
+  }
   bool FreeOf(const RegionEdge& e, const Vector2d& p, int sign) const {
     return e.kind == EdgeKind::kFree && e.sign == sign && (e.source - p).norm() <= tol_;
   }
-  static bool IsObstacle(const RegionEdge& e) { return e.kind == EdgeKind::kObstacle && e.line[0] != e.line[1]; }
+  bool IsObstacle(const RegionEdge& e) const {
+    return e.kind == EdgeKind::kObstacle && e.line[0] != e.line[1] && Clean(e);
+  }
   static bool IsStatic(const RegionEdge& e) {
     return e.kind != EdgeKind::kFree && e.kind != EdgeKind::kVc && e.line[0] != e.line[1];
   }
-  double ToSegment(const Vector2d& p, const RegionEdge& e) const { return PointSegmentDistance(p, e.line[0], e.line[1]); }
+  static bool Same(const RegionEdge& u, const RegionEdge& w) { return u.kind == w.kind && u.ref == w.ref; }
+  double ToSegment(const Vector2d& p, const RegionEdge& e) const {
+    return PointSegmentDistance(p, e.line[0], e.line[1]);
+  }
+  bool EndsAt(const RegionEdge& e, const Vector2d& p) const {
+    return (e.line[0] - p).norm() <= tol_ || (e.line[1] - p).norm() <= tol_;
+  }
+  // The direction of a's free edge of sign s at θ (upstream: θ + π ± ε_v).
+  Vector2d FreeDirection(int sign, double theta) const {
+    const double angle = theta + M_PI + (sign > 0 ? eps_ : -eps_);
+    return {std::cos(angle), std::sin(angle)};
+  }
+  // Whether the segment pq crosses a static edge or a ray in its interior (away from its ends).
+  bool Crosses(const Vector2d& p, const Vector2d& q, const std::vector<std::array<Vector2d, 2>>& rays) const {
+    const Vector2d d = q - p;
+    auto crosses = [&](const Vector2d& a, const Vector2d& b) {
+      const Vector2d e = b - a;
+      const double den = Cross(d, e);
+      if (std::abs(den) <= 1e-12 * d.norm() * e.norm()) return false;  // parallel: touching at most
+      const double t = Cross(a - p, e) / den, u = Cross(a - p, d) / den;
+      const double margin = tol_ / std::max(d.norm(), tol_);
+      return t > margin && t < 1 - margin && u >= 0 && u <= 1;
+    };
+    for (const auto& g : statics_) {
+      if (crosses(g.line[0], g.line[1])) return true;
+    }
+    return std::any_of(rays.begin(), rays.end(), [&](const auto& r) { return crosses(r[0], r[1]); });
+  }
 
-  // A free vertex f of a's +ε_v and b's −ε_v free edges crossing a static edge: with the region inside the corner at
-  // f (the corner is cut off by the edge), or the edge between them (it goes, the corner comes back).
-  std::optional<Site> VertexSite(const CriticalOrientation& c, const RegionRing& ring, const RegionRing& at_event,
-                                 size_t i) const {
-    if (c.sources.size() != 2) return std::nullopt;
+  // The two C-obstacle edges that end at b, when b is a vertex of exactly those and no other static edge passes it.
+  std::optional<std::array<const RegionEdge*, 2>> EdgesAt(const Vector2d& b) const {
+    std::array<const RegionEdge*, 2> at{nullptr, nullptr};
+    int found = 0;
+    for (const auto& e : statics_) {
+      if (ToSegment(b, e) > tol_) continue;
+      if (found == 2 || !IsObstacle(e) || !EndsAt(e, b)) return std::nullopt;
+      at[static_cast<size_t>(found++)] = &e;
+    }
+    if (found != 2) return std::nullopt;
+    return at;
+  }
+  // The other C-obstacle edge at b (b a vertex of exactly two, x one of them).
+  const RegionEdge* OtherEdgeAt(const Vector2d& b, const RegionEdge& x) const {
+    const auto at = EdgesAt(b);
+    if (!at) return nullptr;
+    if (Same(*(*at)[0], x)) return (*at)[1];
+    if (Same(*(*at)[1], x)) return (*at)[0];
+    return nullptr;
+  }
+
+  // A free vertex f of a's +ε_v and b's −ε_v free edges crossing a static edge e: with the region inside the corner
+  // at f (the corner is cut off by e), or e between them (e goes, the corner comes back).
+  void VertexSites(const CriticalOrientation& c, const RegionRing& ring, const RegionRing& at_event, size_t i,
+                   std::vector<Site>& out) const {
+    if (c.sources.size() != 2) return;
     const size_t n = ring.edges.size();
     const Vector2d& f = c.point[0];
     auto pair = [&](const RegionEdge& u, const RegionEdge& w) {
@@ -520,141 +582,222 @@ class RegionUpdater {
     };
     const RegionEdge &e0 = ring.edges[i], &e1 = ring.edges[(i + 1) % n], &e2 = ring.edges[(i + 2) % n];
     Site s;
-    s.index = i;
+    s.b = f;
     if (pair(e0, e1) && (at_event.vertices[(i + 1) % n] - f).norm() <= tol_) {
       // The region inside the corner (rings keep the region on their left: a left turn).
       const Vector2d &p = ring.vertices[i], &q = ring.vertices[(i + 1) % n], &r = ring.vertices[(i + 2) % n];
-      if (!(Cross(q - p, r - q) > 0)) return std::nullopt;
+      if (!(Cross(q - p, r - q) > 0)) return;
       const RegionEdge* crossed = nullptr;
       for (const auto& e : statics_) {
         if (ToSegment(f, e) > tol_) continue;
-        if (crossed != nullptr) return std::nullopt;  // at a vertex of the arrangement, or on two edges
+        if (crossed != nullptr) return;  // at a vertex of the arrangement, or on two edges
         crossed = &e;
       }
-      if (crossed == nullptr || (f - crossed->line[0]).norm() <= tol_ || (f - crossed->line[1]).norm() <= tol_) {
-        return std::nullopt;
-      }
+      if (crossed == nullptr || EndsAt(*crossed, f) || !Clean(*crossed)) return;
       s.shape = Shape::kFreeVertexCut;
-      s.edge = *crossed;
-      return s;
+      s.y = *crossed;
+      s.insert = {*crossed};
+      s.free = e0;
+      s.x = e1;
+      out.push_back(s);
+      return;
     }
-    if (n >= 4 && pair(e0, e2) && IsStatic(e1) && ToSegment(f, e1) <= tol_ &&
+    if (n >= 4 && pair(e0, e2) && IsStatic(e1) && Clean(e1) && ToSegment(f, e1) <= tol_ &&
         (at_event.vertices[(i + 1) % n] - f).norm() <= tol_ && (at_event.vertices[(i + 2) % n] - f).norm() <= tol_) {
       s.shape = Shape::kFreeVertexFreed;
-      s.edge = e1;
-      return s;
+      s.remove = 1;
+      s.y = e1;
+      s.free = e0;
+      s.x = e2;
+      out.push_back(s);
     }
-    return std::nullopt;
   }
 
-  // The only other static edge ending at the C-obstacle vertex b, when b is a vertex of exactly two static edges
-  // (x and it) and no other static edge passes it.
-  const RegionEdge* OtherEdgeAt(const Vector2d& b, const RegionEdge& x) const {
-    const RegionEdge* other = nullptr;
-    for (const auto& e : statics_) {
-      if (ToSegment(b, e) > tol_) continue;
-      if (e.kind == x.kind && e.ref == x.ref) continue;
-      if (other != nullptr || !IsObstacle(e)) return nullptr;
-      if ((e.line[0] - b).norm() > tol_ && (e.line[1] - b).norm() > tol_) return nullptr;  // passes through b
-      other = &e;
-    }
-    return other;
-  }
-
-  // a's free edge (sign s) passing b, a vertex of CB where two C-obstacle edges x and y meet: the free edge ended on x
-  // next to b and goes on to y, or ended on y next to b and comes back to x.
-  std::optional<Site> VgraphSite(const CriticalOrientation& c, const RegionRing& ring, const RegionRing& at_event,
-                                 size_t i) const {
-    if (c.sources.size() != 1 || c.source_signs.size() != 1) return std::nullopt;
+  // a's free edge (sign s) passing b, a vertex of CB where two C-obstacle edges meet (docs: the shapes above).
+  void VgraphSites(const CriticalOrientation& c, const RegionRing& ring, const RegionRing& at_event, size_t i,
+                   std::vector<Site>& out) const {
+    if (c.sources.size() != 1 || c.source_signs.size() != 1) return;
     const size_t n = ring.edges.size();
     const Vector2d& a = c.sources[0];
     const int sign = c.source_signs[0];
     const Vector2d& b = c.point[0];
-    const RegionEdge &e0 = ring.edges[i], &e1 = ring.edges[(i + 1) % n], &e2 = ring.edges[(i + 2) % n];
-    const Vector2d& hit1 = at_event.vertices[(i + 1) % n];
-    const Vector2d& hit2 = at_event.vertices[(i + 2) % n];
-    auto ends_at_b = [&](const RegionEdge& e) {
-      return IsObstacle(e) && ((e.line[0] - b).norm() <= tol_ || (e.line[1] - b).norm() <= tol_);
-    };
+    auto edge = [&](size_t k) -> const RegionEdge& { return ring.edges[(i + k) % n]; };
+    auto vertex = [&](size_t k) -> const Vector2d& { return ring.vertices[(i + k) % n]; };
+    auto event_vertex = [&](size_t k) -> const Vector2d& { return at_event.vertices[(i + k) % n]; };
+    const bool free0 = FreeOf(edge(0), a, sign), free1 = FreeOf(edge(1), a, sign);
+    if (!free0 && !free1 && !(n >= 4)) return;
     Site s;
-    s.index = i;
     s.b = b;
-    // Before: [x, a/s] or [a/s, x] with the hit at b at the event.
-    const bool x_first = ends_at_b(e0) && FreeOf(e1, a, sign);
-    const bool free_first = FreeOf(e0, a, sign) && ends_at_b(e1);
-    // The hit moves towards b from the side away from x's part of the ring (where b is that part's other end, x
-    // shrinks instead: the shapes below).
-    const Vector2d& hit_now = ring.vertices[(i + 1) % n];
-    const Vector2d& other_end = x_first ? ring.vertices[i] : ring.vertices[(i + 2) % n];
-    if ((x_first || free_first) && (hit1 - b).norm() <= tol_ && (other_end - b).norm() > tol_ &&
-        (b - hit_now).dot(other_end - hit_now) < 0) {
-      s.x = x_first ? e0 : e1;
-      s.free = x_first ? e1 : e0;
-      const RegionEdge* y = OtherEdgeAt(b, s.x);
-      if (y == nullptr) return std::nullopt;
-      s.edge = *y;
-      s.b = (s.edge.line[0] - b).norm() <= tol_ ? s.edge.line[0] : s.edge.line[1];
-      s.shape = x_first ? Shape::kHitPassesOn : Shape::kHitPassesOnReversed;
-      return s;
+    // [x, a/s] / [a/s, x], the free edge ending on x at b at the event: it passes on to y, the hit moving towards b
+    // from the side away from x's part of the ring (where b is that part's other end, x shrinks instead: below).
+    if ((free0 != free1) && (event_vertex(1) - b).norm() <= tol_) {
+      const bool forward = free1;
+      const RegionEdge& x = forward ? edge(0) : edge(1);
+      const Vector2d& other_end = forward ? vertex(0) : vertex(2);
+      if (IsObstacle(x) && EndsAt(x, b) && (other_end - b).norm() > tol_ &&
+          (b - vertex(1)).dot(other_end - vertex(1)) < 0) {
+        if (const RegionEdge* y = OtherEdgeAt(b, x)) {
+          s.shape = Shape::kHitPassesOn;
+          s.forward = forward;
+          s.x = x;
+          s.free = forward ? edge(1) : edge(0);
+          s.y = *y;
+          s.insert = {*y};
+          out.push_back(s);
+        }
+      }
     }
-    // Before: [a/s, x, y] or [y, x, a/s] with x and y meeting at b, and the hit on x at b at the event.
-    if (n < 4) return std::nullopt;
-    if (FreeOf(e0, a, sign) && IsObstacle(e1) && IsObstacle(e2) && (ring.vertices[(i + 2) % n] - b).norm() <= tol_ &&
-        (hit1 - b).norm() <= tol_) {
-      s.free = e0;
-      s.x = e1;
-      s.edge = e2;
-      s.shape = Shape::kHitPassesBack;
-      return s;
+    // [a/s, x, y] / [y, x, a/s], x and y meeting at b, the hit on x at b at the event: x goes.
+    if (n >= 4) {
+      if (free0 && IsObstacle(edge(1)) && IsObstacle(edge(2)) && (vertex(2) - b).norm() <= tol_ &&
+          (event_vertex(1) - b).norm() <= tol_) {
+        s.shape = Shape::kHitPassesBack;
+        s.forward = true;
+        s.free = edge(0);
+        s.x = edge(1);
+        s.y = edge(2);
+        s.remove = 1;
+        s.insert.clear();
+        out.push_back(s);
+      }
+      if (IsObstacle(edge(0)) && IsObstacle(edge(1)) && FreeOf(edge(2), a, sign) && (vertex(1) - b).norm() <= tol_ &&
+          (event_vertex(2) - b).norm() <= tol_) {
+        s.shape = Shape::kHitPassesBack;
+        s.forward = false;
+        s.free = edge(2);
+        s.x = edge(1);
+        s.y = edge(0);
+        s.remove = 1;
+        s.insert.clear();
+        out.push_back(s);
+      }
     }
-    if (IsObstacle(e0) && IsObstacle(e1) && FreeOf(e2, a, sign) && (ring.vertices[(i + 1) % n] - b).norm() <= tol_ &&
-        (hit2 - b).norm() <= tol_) {
-      s.free = e2;
-      s.x = e1;
-      s.edge = e0;
-      s.shape = Shape::kHitPassesBackReversed;
-      return s;
+    // The reverse: [x, b'/s, chain, y, a/s] / mirrored, the chain's last vertex before y at b and the hit on y at b at
+    // the event: everything between x and a/s goes.
+    for (const bool forward : {true, false}) {
+      for (size_t m = 0; m + 4 <= n && m <= 4; ++m) {
+        // Forward: edge(0) = x, edge(1) = b'/s, edge(2 .. m+1) = chain, edge(m+2) = y, edge(m+3) = a/s.
+        const RegionEdge& f = forward ? edge(m + 3) : edge(0);
+        const RegionEdge& bf = forward ? edge(1) : edge(m + 2);
+        const RegionEdge& y = forward ? edge(m + 2) : edge(1);
+        if (!FreeOf(f, a, sign) || bf.kind != EdgeKind::kFree || bf.sign != sign || !IsObstacle(y)) continue;
+        bool chain_ok = true;
+        for (size_t k = 0; k < m; ++k) chain_ok = chain_ok && IsObstacle(edge(forward ? 2 + k : 2 + k));
+        if (!chain_ok) continue;
+        const Vector2d& at_b = forward ? vertex(m + 2) : vertex(2);  // where y meets the chain (or b'/s)
+        const Vector2d& hit = forward ? event_vertex(m + 3) : event_vertex(1);
+        if ((at_b - b).norm() > tol_ || (hit - b).norm() > tol_) continue;
+        s.shape = Shape::kUnblocked;
+        s.forward = forward;
+        s.free = f;
+        s.y = y;
+        s.x = forward ? edge(0) : edge(m + 3);
+        s.remove = m + 2;
+        s.insert.clear();
+        out.push_back(s);
+      }
     }
-    return std::nullopt;
   }
 
-  // Whether the carried ring (the site at its start) is what the edit says, clearly (by more than the tolerance):
-  // the new vertices on their segments, the corner cut off or free again, the hit past b.
-  bool Confirmed(const Site& s, const RegionRing& before, const RegionRing& carried, double theta) const {
-    const size_t n = carried.vertices.size();
-    const auto& v = carried.vertices;
+  // Applies site s to `region` and carries it to θ; whether the result is clearly what the shape says (by more than
+  // the tolerance): the new vertices on their segments, the free edges going upstream from their sources, the
+  // corner cut off or free again, the free edge's end past b.
+  bool Edit(const Site& s, const Region& region, double theta, const std::vector<std::array<Vector2d, 2>>& rays,
+            Region& out) const {
+    Region edited = region;
+    RegionRing& ring = RingOf(edited, s.polygon, s.hole);
+    const size_t n = ring.edges.size();
+    if (s.remove + 3 > n + s.insert.size()) return false;
+    // The site at the ring's start: edge 0 is the anchor, edges 1 .. remove go, `insert` comes after edge 0.
+    std::rotate(ring.edges.begin(), ring.edges.begin() + static_cast<std::ptrdiff_t>(s.index), ring.edges.end());
+    std::rotate(ring.vertices.begin(), ring.vertices.begin() + static_cast<std::ptrdiff_t>(s.index),
+                ring.vertices.end());
+    const RegionRing before = ring;
+    ring.edges.erase(ring.edges.begin() + 1, ring.edges.begin() + 1 + static_cast<std::ptrdiff_t>(s.remove));
+    ring.vertices.erase(ring.vertices.begin() + 2, ring.vertices.begin() + 2 + static_cast<std::ptrdiff_t>(s.remove));
+    ring.edges.insert(ring.edges.begin() + 1, s.insert.begin(), s.insert.end());
+    ring.vertices.insert(ring.vertices.begin() + 2, s.insert.size(), Vector2d::Zero());
+    // Vertices 1 .. insert.size() + 1 are new: between two static edges, the point both end at (carrying keeps it);
+    // the others are where the lines meet (carrying computes them).
+    const size_t m = ring.edges.size();
+    for (size_t k = 1; k <= s.insert.size() + 1 && k < m; ++k) {
+      const RegionEdge &u = ring.edges[k - 1], &w = ring.edges[k];
+      if (u.kind == EdgeKind::kFree || w.kind == EdgeKind::kFree) continue;
+      bool shared = false;
+      for (const auto& p : {u.line[0], u.line[1]}) {
+        if (!shared && EndsAt(w, p)) ring.vertices[k] = p, shared = true;
+      }
+      if (!shared) return false;
+    }
+    out = CarryRegion(edited, theta, eps_);
+    const RegionRing& v = RingOf(out, s.polygon, s.hole);
+    for (const auto& p : v.vertices) {
+      if (!p.allFinite()) return false;
+    }
+    for (size_t k = 1; k <= s.insert.size() + 1 && k < m; ++k) {
+      if (NearRay(v.vertices[k], rays)) return false;
+    }
+    // The anchor and the edge after the edit keep their direction (else the edit reaches further than the shape).
+    const size_t after_edit = s.insert.size() + 1;
+    auto kept = [&](const Vector2d& p0, const Vector2d& p1, const Vector2d& q0, const Vector2d& q1) {
+      return (q1 - q0).norm() > tol_ && (q1 - q0).dot(p1 - p0) > 0;
+    };
+    if (!kept(before.vertices[0], before.vertices[1], v.vertices[0], v.vertices[1]) ||
+        !kept(before.vertices[1 + s.remove], before.vertices[(2 + s.remove) % n], v.vertices[after_edit],
+              v.vertices[(after_edit + 1) % m])) {
+      return false;
+    }
+    // The free edges the edit lengthens or moves (the anchor, the edge after the edit, and what it inserts) run
+    // through free space: they cross no static edge or ray (a free edge that now reaches past an obstacle ends on it,
+    // which is another shape).
+    for (size_t k = 0; k <= after_edit && k < m; ++k) {
+      if (v.edges[k].kind != EdgeKind::kFree) continue;
+      if (Crosses(v.vertices[k], v.vertices[(k + 1) % m], rays)) return false;
+    }
+    auto upstream = [&](const RegionEdge& f, const Vector2d& p) {  // p lies on f's free edge, past its source
+      return (p - f.source).dot(FreeDirection(f.sign, theta)) > tol_;
+    };
+    const auto& w = v.vertices;
     switch (s.shape) {
       case Shape::kFreeVertexCut: {
-        const Vector2d &p1 = v[1], &p2 = v[2];
-        const auto tip = MeetAt(before.edges[0], before.edges[1], theta, eps_);
-        if (!tip || ToSegment(p1, s.edge) > tol_ || ToSegment(p2, s.edge) > tol_ || (p2 - p1).norm() <= tol_) {
+        const auto tip = MeetAt(s.free, s.x, theta, eps_);
+        if (!tip || ToSegment(w[1], s.y) > tol_ || ToSegment(w[2], s.y) > tol_ || (w[2] - w[1]).norm() <= tol_) {
           return false;
         }
-        return Cross((p2 - p1).normalized(), *tip - p1) < -tol_;  // the old corner beyond the edge
+        return Cross((w[2] - w[1]).normalized(), *tip - w[1]) < -tol_;  // the old corner beyond the edge
       }
       case Shape::kFreeVertexFreed: {
         const Vector2d d = (before.vertices[2] - before.vertices[1]).normalized();  // the edge, region on its left
-        return d.allFinite() && Cross(d, v[1] - before.vertices[1]) > tol_;
+        return d.allFinite() && Cross(d, w[1] - before.vertices[1]) > tol_;
       }
-      case Shape::kHitPassesOn:
-      case Shape::kHitPassesOnReversed: {
-        const Vector2d& hit = s.shape == Shape::kHitPassesOn ? v[2] : v[1];
+      case Shape::kHitPassesOn: {
+        const Vector2d& hit = s.forward ? w[2] : w[1];
         const auto old_hit = MeetAt(s.free, s.x, theta, eps_);
-        return ToSegment(hit, s.edge) <= tol_ && (hit - s.b).norm() > tol_ && old_hit && ToSegment(*old_hit, s.x) > tol_;
+        return ToSegment(hit, s.y) <= tol_ && (hit - s.b).norm() > tol_ && upstream(s.free, hit) && old_hit &&
+               ToSegment(*old_hit, s.x) > tol_;
       }
-      case Shape::kHitPassesBack:
-      case Shape::kHitPassesBackReversed: {
-        const Vector2d& hit = v[1];
-        const Vector2d& next = s.shape == Shape::kHitPassesBack ? v[2 % n] : v[0];  // y's other end in the ring
+      case Shape::kHitPassesBack: {
+        const Vector2d& hit = w[1];
+        const Vector2d& next = s.forward ? w[2 % m] : w[0];  // y's other end in the ring
         const auto old_hit = MeetAt(s.free, s.x, theta, eps_);
-        return ToSegment(hit, s.edge) <= tol_ && (hit - s.b).norm() > tol_ && (next - hit).norm() > tol_ &&
-               (next - s.b).norm() > (next - hit).norm() && old_hit && ToSegment(*old_hit, s.x) > tol_;
+        return ToSegment(hit, s.y) <= tol_ && (hit - s.b).norm() > tol_ && (next - hit).norm() > tol_ &&
+               (next - s.b).norm() > (next - hit).norm() && upstream(s.free, hit) && old_hit &&
+               ToSegment(*old_hit, s.x) > tol_;
+      }
+      case Shape::kUnblocked: {
+        const Vector2d& hit = w[1];
+        const auto old_hit = MeetAt(s.free, s.y, theta, eps_);
+        return ToSegment(hit, s.x) <= tol_ && upstream(s.free, hit) && old_hit && ToSegment(*old_hit, s.y) > tol_;
       }
     }
     return false;
   }
 
+  static std::string Key(const RegionEdge& e) { return std::string(EdgeKindName(e.kind)) + ":" + e.ref; }
+  bool Clean(const RegionEdge& e) const { return crossed_.count(Key(e)) == 0; }
+
   const std::vector<RegionEdge>& statics_;
+  const std::set<std::string>& crossed_;
   double tol_, eps_;
 };
 
@@ -668,7 +811,10 @@ class Builder {
   NondirectionalBackprojection Run() {
     NondirectionalBackprojection nd;
     nd.velocity_cone = pr_.velocity_cone;
-    if (options_.method == SliceMethod::kKinetic && options_.computed_updates) statics_ = StaticRegionEdges(pr_);
+    if (options_.method == SliceMethod::kKinetic && options_.computed_updates) {
+      statics_ = StaticRegionEdges(pr_);
+      crossed_ = RegionUpdater::Crossed(statics_, kOnBoundary * size_);
+    }
     auto candidates = CriticalCandidates(pr_, start_, &nd.stats.counts);
     nd.stats.candidates = static_cast<std::int64_t>(candidates.size());
     std::vector<CriticalOrientation> r_candidates;
@@ -913,7 +1059,7 @@ class Builder {
       return std::nullopt;
     }
     const double theta = IntervalTheta(k);
-    const RegionUpdater updater(statics_, kOnBoundary * size_, pr_.velocity_cone);
+    const RegionUpdater updater(statics_, crossed_, kOnBoundary * size_, pr_.velocity_cone);
     Slice s;
     s.theta = s.lo = s.hi = theta;
     s.vc.active_rays = last.vc.active_rays;
@@ -1024,16 +1170,6 @@ class Builder {
                 std::abs(updated->vc.classic.area - out[k].vc.classic.area) > tol ||
                 std::abs(updated->vc.region.area - out[k].vc.region.area) > tol) {
               ++update_mismatches_;
-              if (getenv("VISCO_DEBUG_UPDATES")) {
-                for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
-                  fprintf(stderr, "MISMATCH k=%zu theta=%.9f kind=%s refs=", k, EventTheta(k), CriticalKindName(structural_[i].kind));
-                  for (auto& r : structural_[i].refs) fprintf(stderr, "%s ", r.c_str());
-                  fprintf(stderr, "\n");
-                }
-                auto pr = [](const char* t, const SliceStructure& x) { fprintf(stderr, " %s classic:", t); for (auto& y : x.classic) fprintf(stderr, " {%s}", y.c_str()); fprintf(stderr, "\n %s vc:", t); for (auto& y : x.vc) fprintf(stderr, " {%s}", y.c_str()); fprintf(stderr, "\n"); };
-                pr("last", out[last].structure); pr("computed", updated->structure); pr("swept", out[k].structure);
-                fprintf(stderr, " areas classic %.12g %.12g vc %.12g %.12g\n", updated->vc.classic.area, out[k].vc.classic.area, updated->vc.region.area, out[k].vc.region.area);
-              }
             }
             return;
           }
@@ -1310,7 +1446,8 @@ class Builder {
   std::vector<double> unexplained_at_;
   std::map<double, std::vector<std::string>> selection_refs_;
   std::map<std::pair<double, double>, Slice> midpoints_;  // the last interval checks' midpoint slices, by (lo, hi)
-  std::vector<RegionEdge> statics_;                        // the static edges events can bring (computed_updates)
+  std::vector<RegionEdge> statics_;                       // the static edges events can bring (computed_updates)
+  std::set<std::string> crossed_;                         // of those, the ones another meets (RegionUpdater::Crossed)
   std::atomic<std::int64_t> updated_{0}, update_mismatches_{0};
 };
 

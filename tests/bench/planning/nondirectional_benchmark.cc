@@ -137,7 +137,7 @@ void BM_Nondirectional(benchmark::State& state) {
   o.method = state.range(0) == 1 ? SliceMethod::kBaseline : SliceMethod::kKinetic;
   if (state.range(0) == 2) o.vertex_events = true;     // the walk's broad rule: an event at any vertex of the regions
   if (state.range(0) == 3) o.boundary_events = false;  // the sources rule alone, wherever the event's point lies
-  if (state.range(0) == 4) o.computed_updates = false;  // every relevant event swept, none computed from its edit
+  if (state.range(0) == 4) o.computed_updates = false;
   NondirectionalStats stats;
   size_t orientations = 0;
   ResetPeakMemory();
