@@ -245,7 +245,8 @@ void Run(const Args& a) {
                   {"found_by_probes", st.found_by_probes},
                   {"rule_missed", st.rule_missed},
                   {"rule_missed_sliding", st.rule_missed_sliding},
-                  {"explained", st.explained}};
+                  {"explained", st.explained},
+                  {"updated", st.updated}};
   for (int i = 0; i < kSweepPurposes; ++i) {
     doc["stats"]["sweeps"][SweepPurposeName(static_cast<SweepPurpose>(i))] = st.sweeps[i];
   }

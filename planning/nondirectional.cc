@@ -648,29 +648,23 @@ class RegionUpdater {
       }
     }
     // [a/s, x, y] / [y, x, a/s], x and y meeting at b, the hit on x at b at the event: x goes.
-    if (n >= 4) {
-      if (free0 && IsObstacle(edge(1)) && IsObstacle(edge(2)) && (vertex(2) - b).norm() <= tol_ &&
-          (event_vertex(1) - b).norm() <= tol_) {
-        s.shape = Shape::kHitPassesBack;
-        s.forward = true;
-        s.free = edge(0);
-        s.x = edge(1);
-        s.y = edge(2);
-        s.remove = 1;
-        s.insert.clear();
-        out.push_back(s);
+    for (const bool forward : {true, false}) {
+      if (n < 4) break;
+      const size_t f = forward ? 0 : 2, y = forward ? 2 : 0;
+      const Vector2d& at_b = forward ? vertex(2) : vertex(1);  // where x meets y
+      const Vector2d& hit = forward ? event_vertex(1) : event_vertex(2);
+      if (!FreeOf(edge(f), a, sign) || !IsObstacle(edge(1)) || !IsObstacle(edge(y)) || (at_b - b).norm() > tol_ ||
+          (hit - b).norm() > tol_) {
+        continue;
       }
-      if (IsObstacle(edge(0)) && IsObstacle(edge(1)) && FreeOf(edge(2), a, sign) && (vertex(1) - b).norm() <= tol_ &&
-          (event_vertex(2) - b).norm() <= tol_) {
-        s.shape = Shape::kHitPassesBack;
-        s.forward = false;
-        s.free = edge(2);
-        s.x = edge(1);
-        s.y = edge(0);
-        s.remove = 1;
-        s.insert.clear();
-        out.push_back(s);
-      }
+      s.shape = Shape::kHitPassesBack;
+      s.forward = forward;
+      s.free = edge(f);
+      s.x = edge(1);
+      s.y = edge(y);
+      s.remove = 1;
+      s.insert.clear();
+      out.push_back(s);
     }
     // The reverse: [x, b'/s, chain, y, a/s] / mirrored, the chain's last vertex before y at b and the hit on y at b at
     // the event: everything between x and a/s goes.
@@ -681,8 +675,8 @@ class RegionUpdater {
         const RegionEdge& bf = forward ? edge(1) : edge(m + 2);
         const RegionEdge& y = forward ? edge(m + 2) : edge(1);
         if (!FreeOf(f, a, sign) || bf.kind != EdgeKind::kFree || bf.sign != sign || !IsObstacle(y)) continue;
-        bool chain_ok = true;
-        for (size_t k = 0; k < m; ++k) chain_ok = chain_ok && IsObstacle(edge(forward ? 2 + k : 2 + k));
+        bool chain_ok = true;  // edges 2 .. m + 1 either way round
+        for (size_t k = 0; k < m; ++k) chain_ok = chain_ok && IsObstacle(edge(2 + k));
         if (!chain_ok) continue;
         const Vector2d& at_b = forward ? vertex(m + 2) : vertex(2);  // where y meets the chain (or b'/s)
         const Vector2d& hit = forward ? event_vertex(m + 3) : event_vertex(1);

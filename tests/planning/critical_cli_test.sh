@@ -31,6 +31,7 @@ for d in (k, b):
     assert st["unexplained"] == 0 and st["found_by_probes"] == 0, st
     assert st["rule_missed"] - st["rule_missed_sliding"] == 0, st
     assert 0 <= st["explained"] <= st["changes"], st
+    assert 0 <= st["updated"] <= st["events"], st
     assert st["changes"] == sum(1 for x in o if x["kind"] != "R"), st
     assert st["r_critical"] == sum(1 for x in o if x["kind"] == "R"), st
     assert sum(st["sweeps"].values()) == st["backprojections"], st
@@ -41,7 +42,7 @@ for d in (k, b):
 key = lambda d: [(round(x["theta_deg"], 9), x["kind"]) for x in d["orientations"]]
 assert key(k) == key(b), (key(k), key(b))
 assert k["stats"]["method"] == "kinetic" and b["stats"]["method"] == "baseline"
-assert b["stats"]["explained"] == 0, b["stats"]
+assert b["stats"]["explained"] == 0 and b["stats"]["updated"] == 0, b["stats"]
 assert b["stats"]["sweeps"]["walk"] == b["stats"]["events"], b["stats"]
 assert k["stats"]["sweeps"]["walk"] < b["stats"]["sweeps"]["walk"], (k["stats"], b["stats"])
 assert "slices" not in b
