@@ -461,20 +461,19 @@ class RegionUpdater {
       }
     }
     if (sites.empty()) return PointNearBoundary(c.point[0], at_event, tol_) ? Update::kUnknown : Update::kUnchanged;
-    // Several shapes can match at one place (only one passes its checks); matches in two places are two events.
-    for (const auto& s : sites) {
-      if (s.polygon != sites[0].polygon || s.hole != sites[0].hole || s.index != sites[0].index) {
-        return Update::kUnknown;
-      }
-    }
-    int confirmed = 0;
+    // Shapes that pass their checks must agree (a run cut off can also be one of the named shapes; one shape at two
+    // places would be two events).
+    std::optional<std::vector<std::string>> confirmed;
     for (const auto& s : sites) {
       Region edited;
+      if (TouchesOtherRings(region, s.polygon, s.hole)) return Update::kUnknown;
       if (!Edit(s, region, theta_after, rays, edited)) continue;
-      if (++confirmed > 1) return Update::kUnknown;
+      const auto structure = RegionStructure(edited);
+      if (confirmed && *confirmed != structure) return Update::kUnknown;
+      confirmed = structure;
       out = std::move(edited);
     }
-    return confirmed == 1 ? Update::kEdited : Update::kUnknown;
+    return confirmed ? Update::kEdited : Update::kUnknown;
   }
 
  private:
@@ -485,6 +484,8 @@ class RegionUpdater {
     kHitPassesBack,    // [a/s, x, y] -> [a/s, y] (or mirrored): from x back onto y, x's part gone
     kUnblocked,        // [x, b'/s, chain, y, a/s] -> [x, a/s] (or mirrored): the free edge no longer ends on b's
                        // obstacle, and the obstacle's chain and the free edge b'/s beside it go
+    kCutOff,           // [a/s, run, z] -> [a/s, z] (or mirrored): any run of edges with b at one of its vertices,
+                       // all of it now beyond a's free edge (the two shapes above are the commonest such runs)
   };
   // An edit of a ring, at its edge `index` (the anchor, which stays): the `remove` edges after it replaced by
   // `insert`. `forward`: the shape as written above (else mirrored: the ring runs the other way round the site).
@@ -531,6 +532,29 @@ class RegionUpdater {
     const double angle = theta + M_PI + (sign > 0 ? eps_ : -eps_);
     return {std::cos(angle), std::sin(angle)};
   }
+  // Whether another ring of the region touches ring (p, h): motions can pass from one part of the region to another
+  // where they touch, so an edit of one can change the other (VISCO_SEED_OFFSET=1000003, seed 63: a second part
+  // touching the first where a run was cut off went with it).
+  bool TouchesOtherRings(const Region& region, size_t p, int h) const {
+    Region one;
+    one.polygons.push_back({RingOf(region, p, h), {}});
+    for (size_t q = 0; q < region.polygons.size(); ++q) {
+      for (int g = -1; g < static_cast<int>(region.polygons[q].holes.size()); ++g) {
+        if (q == p && g == h) continue;
+        const RegionRing& other = RingOf(region, q, g);
+        Region that;
+        that.polygons.push_back({other, {}});
+        for (const auto& v : other.vertices) {
+          if (PointNearBoundary(v, one, tol_)) return true;
+        }
+        for (const auto& v : RingOf(region, p, h).vertices) {
+          if (PointNearBoundary(v, that, tol_)) return true;
+        }
+      }
+    }
+    return false;
+  }
+
   // Whether the segment pq crosses a static edge or a ray in its interior (away from its ends).
   bool Crosses(const Vector2d& p, const Vector2d& q, const std::vector<std::array<Vector2d, 2>>& rays) const {
     const Vector2d d = q - p;
@@ -666,6 +690,29 @@ class RegionUpdater {
       s.insert.clear();
       out.push_back(s);
     }
+    // Any run with b at one of its vertices (or the source of one of its free edges): [a/s, run, z] / [z, run, a/s].
+    for (const bool forward : {true, false}) {
+      for (size_t len = 1; len + 3 <= n && len <= 8; ++len) {
+        const RegionEdge& f = forward ? edge(0) : edge(len + 1);
+        const RegionEdge& z = forward ? edge(len + 1) : edge(0);
+        if (!FreeOf(f, a, sign) || z.kind == EdgeKind::kVc || (z.kind != EdgeKind::kFree && !Clean(z))) continue;
+        bool ok = true, has_b = false;
+        for (size_t k = 1; k <= len && ok; ++k) {
+          const RegionEdge& r = edge(k);
+          ok = r.kind == EdgeKind::kFree || (IsStatic(r) && Clean(r));
+          has_b = has_b || (r.kind == EdgeKind::kFree && (r.source - b).norm() <= tol_);
+        }
+        for (size_t k = 1; k <= len + 1 && ok && !has_b; ++k) has_b = (vertex(k) - b).norm() <= tol_;
+        if (!ok || !has_b) continue;
+        s.shape = Shape::kCutOff;
+        s.forward = forward;
+        s.free = f;
+        s.y = z;
+        s.remove = len;
+        s.insert.clear();
+        out.push_back(s);
+      }
+    }
     // The reverse: [x, b'/s, chain, y, a/s] / mirrored, the chain's last vertex before y at b and the hit on y at b at
     // the event: everything between x and a/s goes.
     for (const bool forward : {true, false}) {
@@ -777,6 +824,19 @@ class RegionUpdater {
         return ToSegment(hit, s.y) <= tol_ && (hit - s.b).norm() > tol_ && (next - hit).norm() > tol_ &&
                (next - s.b).norm() > (next - hit).norm() && upstream(s.free, hit) && old_hit &&
                ToSegment(*old_hit, s.x) > tol_;
+      }
+      case Shape::kCutOff: {
+        // The new corner where a/s meets z: on z (a static z's segment, or upstream on a free z), and everything the
+        // run had that is not on a/s's line clearly beyond it (right of a/s as the ring runs: outside).
+        const Vector2d& corner = w[1];
+        if (!upstream(s.free, corner)) return false;
+        if (s.y.kind == EdgeKind::kFree ? !upstream(s.y, corner) : ToSegment(corner, s.y) > tol_) return false;
+        const Vector2d dir = s.forward ? (corner - w[0]).normalized() : (w[2 % m] - corner).normalized();
+        const RegionRing old_ring = CarryRing(before, theta, eps_);
+        for (size_t k = s.forward ? 2 : 1; k <= (s.forward ? s.remove + 1 : s.remove); ++k) {
+          if (!(Cross(dir, old_ring.vertices[k] - corner) < -tol_)) return false;
+        }
+        return true;
       }
       case Shape::kUnblocked: {
         const Vector2d& hit = w[1];
