@@ -8,10 +8,11 @@
 //   where an event involves the regions' free edges, or a sliding or along-a-segment event's edge or vertex meets a
 //   region) against the critical-slice baseline (method 1: a sweep in every interval between candidates) and the
 //   kinetic walk with its broad rule (method 2: also every event at any vertex of the regions) and with its sources
-//   rule alone (method 3: an event's point need not lie on the regions' boundary), same problem, same
-//   run: the ratio to the baseline is the kinetic method's gain; the counters give the candidates swept by the walk
-//   (checked), all sweeps (backprojections) by purpose (sweeps_*, with their time *_s) and the orientations found
-//   (equal for all three).
+//   rule alone (method 3: an event's point need not lie on the regions' boundary) and without its computed updates
+//   (method 4: every relevant event swept, none of the slices after one computed from its local edit), same problem,
+//   same run: the ratio to the baseline is the kinetic method's gain; the counters give the candidates swept by the
+//   walk (checked), the slices it computed instead (updated), all sweeps (backprojections) by purpose (sweeps_*, with
+//   their time *_s) and the orientations found (equal for all methods).
 // BM_RegionAt/method/n: the region at a θ inside an open interval, carried from the slice (method 0) or swept
 //   (method 1), in the same run: the ratio is what the carried regions save the queries and the --svg curves.
 // Every benchmark but BM_Plan reports its peak resident memory (`peak_MiB`).
