@@ -428,16 +428,16 @@ class RegionUpdater {
   // The edit that candidate c (a free vertex crossing a static edge, or a free edge passing a C-obstacle vertex)
   // makes to `region` (a slice's, at its own θ; `at_event` is it carried to the event), applied and carried to
   // `theta_after` in `out`; kUnchanged where the event's point is off the region's boundary; kUnknown where the
-  // region near the event is not one of the shapes below, or is in more than one place, or no shape's result passes
-  // its checks (the walk then sweeps). `rays`: every candidate ray's segments for the VC region (none for the
+  // region near the event is not one of the shapes below, or the shapes that pass their checks disagree, or none
+  // does (the walk then sweeps). `rays`: every candidate ray's segments for the VC region (none for the
   // classic one): an event at a ray, or an edit that reaches one, can change the rays chosen, which no shape covers.
   Update Apply(const CriticalOrientation& c, const Region& region, const Region& at_event, double theta_after,
                const std::vector<std::array<Vector2d, 2>>& rays, Region& out) const {
     if (c.point.empty() || c.sources.empty()) return Update::kUnknown;
+    // At a ray's point, or with a source at a ray's end or cut point (whose free edges are the VC region's).
     if (NearRay(c.point[0], rays)) return Update::kUnknown;
     for (const auto& source : c.sources) {
-      if (NearRay(source, rays))
-        return Update::kUnknown;  // a ray's end or cut point: its free edges are the VC region's
+      if (NearRay(source, rays)) return Update::kUnknown;
     }
     std::vector<Site> sites;
     for (size_t p = 0; p < region.polygons.size(); ++p) {
