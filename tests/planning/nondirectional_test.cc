@@ -645,6 +645,15 @@ TEST(NondirectionalProperty, ComputedUpdatesAreTheSweptSlices) {
     check(random->problem, "seed " + std::to_string(seed), scenes < (kSanitizerDivisor > 1 ? 1 : 4));
     ++scenes;
   }
+  // The problems of a strategy's visual guarded steps (a goal strip on a ray, the rest of it forbidden), where the
+  // strips' edges meet (and so are never edited) but free edges pass their corners.
+  int strips = 0;
+  for (std::uint64_t seed = 1; seed <= (FullProperty() ? 60 : (kSanitizerDivisor > 1 ? 2 : 6)); ++seed) {
+    const auto pr = StripProblem(seed);
+    if (!pr) continue;
+    check(*pr, "strip seed " + std::to_string(seed), false);
+    ++strips;
+  }
   // And the benchmark's grids of pentagons (8 and 16: 44 and 84 C-obstacle vertices), where many obstacles stand
   // side by side and a free edge passes from one to the next (the random scenes have one or two obstacles).
   for (const int m : {8, 16}) {
@@ -653,9 +662,9 @@ TEST(NondirectionalProperty, ComputedUpdatesAreTheSweptSlices) {
     ++grids;
   }
   std::printf(
-      "scenes %d and %d grids: %lld slices computed instead of swept, %lld differ from the sweep; %lld sweeps "
-      "against %lld without the updates on %d of them\n",
-      scenes, grids, static_cast<long long>(updated), static_cast<long long>(mismatches),
+      "scenes %d, %d strip problems and %d grids: %lld slices computed instead of swept, %lld differ from the sweep; "
+      "%lld sweeps against %lld without the updates on %d of them\n",
+      scenes, strips, grids, static_cast<long long>(updated), static_cast<long long>(mismatches),
       static_cast<long long>(sweeps), static_cast<long long>(sweeps_without), compared);
   EXPECT_GT(updated, 0) << "no slice was computed: the updates are not exercised";
   EXPECT_LT(sweeps, sweeps_without);
