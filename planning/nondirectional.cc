@@ -1,5 +1,6 @@
 #include "planning/nondirectional.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -464,9 +465,13 @@ class RegionUpdater {
     // Shapes that pass their checks must agree (a run cut off can also be one of the named shapes; one shape at two
     // places would be two events).
     std::optional<std::vector<std::string>> confirmed;
+    std::set<std::pair<size_t, int>> apart;  // rings found to touch no other
     for (const auto& s : sites) {
       Region edited;
-      if (TouchesOtherRings(region, s.polygon, s.hole)) return Update::kUnknown;
+      if (!apart.count({s.polygon, s.hole})) {
+        if (TouchesOtherRings(region, s.polygon, s.hole)) return Update::kUnknown;
+        apart.insert({s.polygon, s.hole});
+      }
       if (!Edit(s, region, theta_after, rays, edited)) continue;
       const auto structure = RegionStructure(edited);
       if (confirmed && *confirmed != structure) return Update::kUnknown;
@@ -536,18 +541,27 @@ class RegionUpdater {
   // where they touch, so an edit of one can change the other (VISCO_SEED_OFFSET=1000003, seed 63: a second part
   // touching the first where a run was cut off went with it).
   bool TouchesOtherRings(const Region& region, size_t p, int h) const {
+    const RegionRing& ring = RingOf(region, p, h);
+    auto box = [&](const RegionRing& r) {
+      Eigen::AlignedBox2d b;
+      for (const auto& v : r.vertices) b.extend(v);
+      return b;
+    };
+    const Eigen::AlignedBox2d near =
+        box(ring).extend(box(ring).min() - Vector2d::Constant(tol_)).extend(box(ring).max() + Vector2d::Constant(tol_));
     Region one;
-    one.polygons.push_back({RingOf(region, p, h), {}});
+    one.polygons.push_back({ring, {}});
     for (size_t q = 0; q < region.polygons.size(); ++q) {
       for (int g = -1; g < static_cast<int>(region.polygons[q].holes.size()); ++g) {
         if (q == p && g == h) continue;
         const RegionRing& other = RingOf(region, q, g);
+        if (!near.intersects(box(other))) continue;  // apart: cannot touch
         Region that;
         that.polygons.push_back({other, {}});
         for (const auto& v : other.vertices) {
           if (PointNearBoundary(v, one, tol_)) return true;
         }
-        for (const auto& v : RingOf(region, p, h).vertices) {
+        for (const auto& v : ring.vertices) {
           if (PointNearBoundary(v, that, tol_)) return true;
         }
       }
