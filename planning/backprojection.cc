@@ -239,6 +239,10 @@ class Sweep {
   std::vector<ExactRing> Assemble() const;
   Region ToRegion(const std::vector<ExactRing>& rings) const;
   std::vector<RegionEdge> StaticEdges() const;
+  // A static source's segment in the world frame (RegionEdge::line).
+  std::array<Vector2d, 2> WorldLine(const Source& src) const {
+    return {rot_.InvertExact(src.a) + Vector2d::Zero(), rot_.InvertExact(src.b) + Vector2d::Zero()};
+  }
   // Active rays (indices into the problem's rays) with a piece whose track is bad: complying down from there fails.
   const std::set<int>& bad_track_rays() const { return bad_track_rays_; }
 
@@ -1460,8 +1464,7 @@ Region Sweep::ToRegion(const std::vector<ExactRing>& rings) const {
         edge.source = rot_.InvertExact(it->second.point) + Vector2d::Zero();
         edge.sign = it->second.sign;
       } else if (const auto st = static_lines.find(r.edges[i].second); st != static_lines.end()) {
-        edge.line = {rot_.InvertExact(st->second->a) + Vector2d::Zero(),
-                     rot_.InvertExact(st->second->b) + Vector2d::Zero()};
+        edge.line = WorldLine(*st->second);
       }
       out.edges.push_back(std::move(edge));
     }
@@ -1647,11 +1650,7 @@ std::vector<RegionEdge> Sweep::StaticEdges() const {
   for (const Source& src : sources_) {
     if (src.kind == EdgeKind::kVc) continue;
     // As ToRegion labels them.
-    out.push_back({src.kind,
-                   names_[src.name],
-                   Vector2d::Zero(),
-                   {rot_.InvertExact(src.a) + Vector2d::Zero(), rot_.InvertExact(src.b) + Vector2d::Zero()},
-                   0});
+    out.push_back({src.kind, names_[src.name], Vector2d::Zero(), WorldLine(src), 0});
   }
   return out;
 }

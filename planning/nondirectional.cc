@@ -402,9 +402,8 @@ class RegionUpdater {
       : statics_(statics), crossed_(crossed), tol_(tolerance), eps_(eps) {}
 
   // The static edges another static edge meets away from their shared ends (within `tolerance`).
-  static std::set<std::string> Crossed(const std::vector<RegionEdge>& statics, double tolerance) {
+  static std::set<std::string> Crossed(const std::vector<RegionEdge>& e, double tolerance) {
     std::set<std::string> out;
-    const auto& e = statics;
     for (size_t i = 0; i < e.size(); ++i) {
       for (size_t j = i + 1; j < e.size(); ++j) {
         const auto &p = e[i].line, &q = e[j].line;
@@ -547,8 +546,9 @@ class RegionUpdater {
       for (const auto& v : r.vertices) b.extend(v);
       return b;
     };
-    const Eigen::AlignedBox2d near =
-        box(ring).extend(box(ring).min() - Vector2d::Constant(tol_)).extend(box(ring).max() + Vector2d::Constant(tol_));
+    Eigen::AlignedBox2d near = box(ring);  // grown by the tolerance
+    near.min().array() -= tol_;
+    near.max().array() += tol_;
     Region one;
     one.polygons.push_back({ring, {}});
     for (size_t q = 0; q < region.polygons.size(); ++q) {
@@ -663,7 +663,6 @@ class RegionUpdater {
     auto vertex = [&](size_t k) -> const Vector2d& { return ring.vertices[(i + k) % n]; };
     auto event_vertex = [&](size_t k) -> const Vector2d& { return at_event.vertices[(i + k) % n]; };
     const bool free0 = FreeOf(edge(0), a, sign), free1 = FreeOf(edge(1), a, sign);
-    if (!free0 && !free1 && !(n >= 4)) return;
     Site s;
     s.b = b;
     // [x, a/s] / [a/s, x], the free edge ending on x at b at the event: it passes on to y, the hit moving towards b
@@ -778,11 +777,9 @@ class RegionUpdater {
     for (size_t k = 1; k <= s.insert.size() + 1 && k < m; ++k) {
       const RegionEdge &u = ring.edges[k - 1], &w = ring.edges[k];
       if (u.kind == EdgeKind::kFree || w.kind == EdgeKind::kFree) continue;
-      bool shared = false;
-      for (const auto& p : {u.line[0], u.line[1]}) {
-        if (!shared && EndsAt(w, p)) ring.vertices[k] = p, shared = true;
-      }
-      if (!shared) return false;
+      const Vector2d* shared = EndsAt(w, u.line[0]) ? &u.line[0] : EndsAt(w, u.line[1]) ? &u.line[1] : nullptr;
+      if (shared == nullptr) return false;
+      ring.vertices[k] = *shared;
     }
     out = CarryRegion(edited, theta, eps_);
     const RegionRing& v = RingOf(out, s.polygon, s.hole);
@@ -882,6 +879,9 @@ class Builder {
     if (options_.method == SliceMethod::kKinetic && options_.computed_updates) {
       statics_ = StaticRegionEdges(pr_);
       crossed_ = RegionUpdater::Crossed(statics_, kOnBoundary * size_);
+      // Every candidate ray, active or not: an event at a ray's end can also change which rays are chosen.
+      for (const auto& ray : pr_.rays)
+        ray_segments_.insert(ray_segments_.end(), ray.segments.begin(), ray.segments.end());
     }
     auto candidates = CriticalCandidates(pr_, start_, &nd.stats.counts);
     nd.stats.candidates = static_cast<std::int64_t>(candidates.size());
@@ -1114,8 +1114,8 @@ class Builder {
 
   // The slice after event k computed from `last` (the last slice before it, swept or computed) without a sweep, where
   // the event is one candidate whose local edit the updater knows and that edit is confirmed; nullopt otherwise.
-  std::optional<Slice> Updated(size_t k, const Slice& last) const {
-    const auto ends = WalkPointsOf(last);
+  // `ends`: last's walk points (the walk has them already).
+  std::optional<Slice> Updated(size_t k, const Slice& last, const std::vector<EventPoint>& ends) const {
     CarriedAt carried(last, EventTheta(k), pr_.velocity_cone);
     const CriticalOrientation* only = nullptr;
     for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
@@ -1135,15 +1135,12 @@ class Builder {
     s.vc.unreliable_rays = last.vc.unreliable_rays;
     s.vc.selection = last.vc.selection;
     s.vc.candidates = last.vc.candidates;
-    // Every candidate ray, active or not: an event at a ray's end can also change which rays are chosen.
-    std::vector<std::array<Vector2d, 2>> rays;
-    for (const auto& ray : pr_.rays) rays.insert(rays.end(), ray.segments.begin(), ray.segments.end());
     bool edited = false;
     for (int r = 0; r < 2; ++r) {
       const Region& region = r == 0 ? last.vc.classic : last.vc.region;
       Region& out = r == 0 ? s.vc.classic : s.vc.region;
       switch (updater.Apply(*only, region, carried.Get()[static_cast<size_t>(r)], theta,
-                            r == 0 ? std::vector<std::array<Vector2d, 2>>{} : rays, out)) {
+                            r == 0 ? std::vector<std::array<Vector2d, 2>>{} : ray_segments_, out)) {
         case Update::kUnknown:
           return std::nullopt;
         case Update::kUnchanged:
@@ -1223,9 +1220,9 @@ class Builder {
       };
       // The slice after relevant event k, from the last one: computed where the update knows the event's edit, else
       // swept. With check_updates it is swept as well, and the walk goes on with the sweep.
-      auto advance = [&](size_t k, size_t last) {
+      auto advance = [&](size_t k, size_t last, const std::vector<EventPoint>& ends) {
         if (options_.computed_updates && !statics_.empty()) {
-          if (auto updated = Updated(k, out[last])) {
+          if (auto updated = Updated(k, out[last], ends)) {
             ++updated_;
             if (!options_.check_updates) {
               out[k] = std::move(*updated);
@@ -1287,7 +1284,7 @@ class Builder {
         std::vector<EventPoint> ends = WalkPointsOf(out[lo]);
         for (size_t k = lo + 1; k < hi; ++k) {
           if (swept[k] || !EventRelevant(k, ends, out[last])) continue;
-          advance(k, last);
+          advance(k, last, ends);
           if (!(out[k].structure == out[last].structure)) resolve(last, k);
           last = k;
           ends = WalkPointsOf(out[k]);
@@ -1299,7 +1296,7 @@ class Builder {
       size_t last = begin;
       for (size_t k = begin + 1; k < end; ++k) {
         if (!EventRelevant(k, ends, out[last]) && k - last < period && k + 1 < end) continue;
-        advance(k, last);
+        advance(k, last, ends);
         if (!(out[k].structure == out[last].structure)) resolve(last, k);
         last = k;
         ends = WalkPointsOf(out[k]);
@@ -1516,6 +1513,7 @@ class Builder {
   std::map<std::pair<double, double>, Slice> midpoints_;  // the last interval checks' midpoint slices, by (lo, hi)
   std::vector<RegionEdge> statics_;                       // the static edges events can bring (computed_updates)
   std::set<std::string> crossed_;                         // of those, the ones another meets (RegionUpdater::Crossed)
+  std::vector<std::array<Vector2d, 2>> ray_segments_;     // every candidate ray's segments (computed_updates)
   std::atomic<std::int64_t> updated_{0}, update_mismatches_{0};
 };
 

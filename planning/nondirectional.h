@@ -133,10 +133,10 @@ struct NondirectionalOptions {
   /// makes (one static or free edge coming or going at its point), the change is put there without sweeping just
   /// before the event to confirm it; false: always confirmed by a sweep (kept to compare).
   bool local_edits = true;
-  /// Kinetic walk: at a relevant event that is one free vertex crossing a static edge, or one free edge passing the
-  /// C-obstacle vertex at the end of the edge it ends on, compute the slice after it from the last one (that edge
-  /// comes or goes, the rest is carried) instead of sweeping, where the region there has that shape
-  /// (docs/planning_nondirectional.md, "Computing the slice after a change"); false: always sweep (kept to compare).
+  /// Kinetic walk: at a relevant event that is one free vertex crossing a static edge, or one free edge passing a
+  /// C-obstacle vertex, compute the slice after it from the last one instead of sweeping, where the change there is
+  /// one of the local edits that bring no new chain (an edge coming or going, a run cut off; the rest is carried:
+  /// docs/planning_nondirectional.md, "Computing the slice after a change"); false: always sweep (kept to compare).
   bool computed_updates = true;
   /// With computed_updates: sweep as well, count the computed slices that differ (stats.update_mismatches), and go on
   /// with the sweep. For the tests.
