@@ -4,6 +4,7 @@
 namespace visco::channels {
 
 inline constexpr char kCameraImage[] = "VISCO_CAMERA_IMAGE";      // visco::image_t
+inline constexpr char kCameraInfo[] = "VISCO_CAMERA_INFO";        // visco::camera_info_t: the images' calibration
 inline constexpr char kTagDetections[] = "VISCO_TAG_DETECTIONS";  // visco::tag_detections_t
 inline constexpr char kObjectPoses[] = "VISCO_OBJECT_POSES";      // visco::object_poses_t
 inline constexpr char kRobotEstimate[] = "VISCO_ROBOT_ESTIMATE";  // visco::robot_estimate_t

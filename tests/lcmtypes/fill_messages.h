@@ -18,6 +18,30 @@ inline void Fill(image_t& m) {
   for (int i = 0; i < 12; ++i) m.data[i] = static_cast<uint8_t>(i * 17);
   m.size = 12;
 }
+inline void Fill(camera_info_t& m) {
+  m.utime = 1700000000000011;
+  m.camera = "cam0";
+  m.source = "cam0.yaml";
+  m.width = 640;
+  m.height = 480;
+  m.px = 600.5;
+  m.py = 601.5;
+  m.u0 = 319.5;
+  m.v0 = 239.5;
+  m.distortion_model = camera_info_t::DISTORTION_OPENCV;
+  m.distortion = {-0.1, 0.01, 0.001, -0.002, 0.0005};
+  m.num_distortion = 5;
+  m.has_extrinsics = true;
+  m.position[0] = 0.1;
+  m.position[1] = -0.45;
+  m.position[2] = 0.5;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) m.rotation[r][c] = r == c ? 1.0 : 0.0;
+  }
+  for (int r = 0; r < 6; ++r) {
+    for (int c = 0; c < 6; ++c) m.extrinsics_covariance[r][c] = r == c ? 1e-6 * (r + 1) : 0.0;
+  }
+}
 inline void Fill(tag_detection_t& m) {
   m.utime = 1700000000000002;
   m.family = "tag36h11";
