@@ -250,23 +250,28 @@ std::string RunSvg(const planning::Scene& scene, const planning::CSpace& cspace,
   for (const auto& p : trace.contacts) c.Circle(p, 4, "class=\"contact\" fill=\"#f80\" stroke=\"none\"");
   if (!trace.path.empty()) c.Circle(trace.path.back(), 5, "class=\"end\" fill=\"#c00\" stroke=\"black\"");
   c.TextPx(10, 18,
-           fmt::format("{}: executed trajectory (red) over the plan's preimages; purple: visual events, orange: "
-                       "contacts",
-                       scene.name),
+           fmt::format("{}: the executed trajectory over the plan (steps numbered from 0, as in the logs)", scene.name),
            13, "fill=\"black\"");
+  auto legend = planning::StrategyLegend(strategy);
+  legend.push_back({{"━", "#c00", "executed trajectory (vision's estimates)"},
+                    {"○", "#90c", "visual event"},
+                    {"●", "#f80", "contact"},
+                    {"●", "#c00", "where it ended"}});
+  c.Legend(legend);
   return c.Finish();
 }
 
+// Absolute: the parameter files and summary.json name the outputs, and must work from any directory.
 fs::path FreshDir(const std::string& requested) {
   if (!requested.empty()) {
     fs::create_directories(requested);
-    return requested;
+    return fs::absolute(requested).lexically_normal();
   }
   for (int k = 1;; ++k) {
     const fs::path p = fmt::format("visco-demo-{}", k);
     if (!fs::exists(p)) {
       fs::create_directories(p);
-      return p;
+      return fs::absolute(p).lexically_normal();
     }
   }
 }

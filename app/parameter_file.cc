@@ -4,16 +4,30 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <filesystem>
 #include <nlohmann/json.hpp>
+#include <set>
 
 namespace visco::app {
 namespace {
 
 using Json = nlohmann::ordered_json;
 
+// The options and positionals whose values are files or folders (every command's, by their long names): in a
+// parameter file, a relative one is relative to the file's folder, so that the file works from any directory.
+const std::set<std::string>& PathOptions() {
+  static const std::set<std::string> names = {"IMAGE",      "LOG",        "OBSERVATION", "SCENE",      "camera",
+                                              "candidates", "extrinsics", "images",      "log",        "objects",
+                                              "out",        "overlay",    "rays",        "scene",      "strategy",
+                                              "svg",        "video",      "world",       "write-world"};
+  return names;
+}
+
 // CLI11's config items from the JSON file: one section per command, one item per option.
 class JsonParameters final : public CLI::Config {
  public:
+  explicit JsonParameters(const CLI::App& root) : root_(root) {}
+
   std::string to_config(const CLI::App* app, bool default_also, bool, std::string) const override {
     // The options of the selected subcommand with their values (and defaults with default_also).
     Json out = Json::object();
@@ -39,6 +53,18 @@ class JsonParameters final : public CLI::Config {
       throw CLI::ConfigError(std::string("not valid JSON: ") + e.what());
     }
     if (!j.is_object()) throw CLI::ConfigError("must be a JSON object: {\"COMMAND\": {\"OPTION\": VALUE, ...}}");
+    // CLI11 reads the --config files last to first and does not say which one this is.
+    const std::vector<std::string> files = root_.get_config_ptr()->as<std::vector<std::string>>();
+    std::filesystem::path folder;
+    if (!files.empty()) {
+      folder = std::filesystem::path(files[files.size() - 1 - files_read_ % files.size()]).parent_path();
+    }
+    ++files_read_;
+    auto resolve = [&](const std::string& name, std::string value) {
+      if (value.empty() || folder.empty() || PathOptions().count(name) == 0) return value;
+      const std::filesystem::path path(value);
+      return path.is_absolute() ? value : (folder / path).lexically_normal().string();
+    };
     std::vector<CLI::ConfigItem> result;
     for (const auto& [command, options] : j.items()) {
       if (!options.is_object()) {
@@ -54,15 +80,19 @@ class JsonParameters final : public CLI::Config {
           throw CLI::ConfigError(command + "." + name + ": must be a string, number, true/false or a list of them");
         };
         if (value.is_array()) {
-          for (const Json& v : value) item.inputs.push_back(input(v));
+          for (const Json& v : value) item.inputs.push_back(resolve(name, input(v)));
         } else {
-          item.inputs.push_back(input(value));
+          item.inputs.push_back(resolve(name, input(value)));
         }
         result.push_back(std::move(item));
       }
     }
     return result;
   }
+
+ private:
+  const CLI::App& root_;
+  mutable std::size_t files_read_ = 0;
 };
 
 Json Value(const std::string& text) {
@@ -84,7 +114,7 @@ void EnableParameterFiles(CLI::App& app) {
   app.set_config("--config", "",
                  "read the command's options from this JSON parameter file ({\"COMMAND\": {\"OPTION\": VALUE}}, "
                  "docs/formats.md); options on the command line win");
-  app.config_formatter(std::make_shared<JsonParameters>());
+  app.config_formatter(std::make_shared<JsonParameters>(app));
   app.allow_config_extras(CLI::config_extras_mode::error);
   // `visco driver --config FILE` as well as `visco --config FILE driver`: subcommands pass the root's options up
   // (they copied the root's setting when they were made, so each is set).

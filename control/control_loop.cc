@@ -149,9 +149,10 @@ void ControlLoop::RunCycle(std::int64_t now_ns, std::int64_t now_utime) {
       if (f.what != nullptr) {
         CopyText(input_.link_fault, f.what);
       } else {
-        VISCO_FORMAT_TEXT(input_.link_fault, "%s fault code %d (EMCY 0x%04x, driver fault bits 0x%02x)",
-                          f.local ? "link" : "driver", static_cast<int>(f.code), static_cast<unsigned>(f.emcy_code),
-                          static_cast<unsigned>(f.fault_bits));
+        // The driver's own reason, in words (its EMCY code), with the codes.
+        VISCO_FORMAT_TEXT(input_.link_fault, "%s: %s (EMCY 0x%04x, fault bits 0x%02x)",
+                          f.local ? "link fault" : "the driver stopped the robot", drivers::EmcyWhat(f.emcy_code),
+                          static_cast<unsigned>(f.emcy_code), static_cast<unsigned>(f.fault_bits));
       }
     }
   }

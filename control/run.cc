@@ -8,6 +8,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -244,12 +245,25 @@ std::string RunResult::ToJson() const {
 }
 
 Task LoadTask(const RunOptions& o) {
+  // Every file must belong to the one scene: a strategy planned for another scene drives the robot where that scene
+  // has free space (docs/formats.md, "scene_digest").
+  std::optional<SceneInfo> scene;
+  if (!o.scene_path.empty()) scene = LoadScene(o.scene_path);
+  SceneIdentity rays_for;
   std::vector<CvcRay> rays;
-  if (!o.rays_path.empty()) rays = LoadRays(o.rays_path);
+  if (!o.rays_path.empty()) {
+    rays_for = ReadSceneIdentity(o.rays_path);
+    if (scene) CheckMadeFor(rays_for, "rays", o.rays_path, *scene, o.scene_path);
+    rays = LoadRays(o.rays_path);
+  }
+  const bool rays_given = !o.rays_path.empty();
   Task task;
   std::string source = o.strategy_path;
   if (!o.strategy_path.empty()) {
-    task = LoadStrategyFile(o.strategy_path, rays);
+    const SceneIdentity strategy_for = ReadSceneIdentity(o.strategy_path);
+    if (scene) CheckMadeFor(strategy_for, "strategy", o.strategy_path, *scene, o.scene_path);
+    if (rays_given) CheckSameScene(strategy_for, o.strategy_path, rays_for, o.rays_path);
+    task = LoadStrategyFile(o.strategy_path, rays, rays_given);
   } else {
     source = channels::kStrategy;
     lcm::LCM lcm(o.lcm_url);
@@ -263,9 +277,11 @@ Task LoadTask(const RunOptions& o) {
       throw JobFailed(std::string("no strategy received on ") + channels::kStrategy + " within " +
                       std::to_string(o.strategy_wait_s) + " s");
     }
-    task = FromLcm(waiter.message, rays);
+    // The message names its scene but carries no digest: the names are compared.
+    if (scene) CheckMadeFor({waiter.message.scene, ""}, "strategy", source, *scene, o.scene_path);
+    task = FromLcm(waiter.message, rays, rays_given);
   }
-  if (!o.scene_path.empty()) AttachScene(task, LoadScene(o.scene_path), o.scene_path);
+  if (scene) AttachScene(task, *scene, o.scene_path);
   ValidateTask(task, source);
   return task;
 }

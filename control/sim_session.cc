@@ -110,9 +110,11 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
   }
 
   if (!o.rays_path.empty()) {
+    const SceneInfo info = LoadScene(o.scene_path);
+    CheckMadeFor(ReadSceneIdentity(o.rays_path), "rays", o.rays_path, info, o.scene_path);
     rays_.rays = LoadRays(o.rays_path);
     for (std::size_t i = 0; i < rays_.rays.size(); ++i) rays_.ray_index[rays_.rays[i].id] = static_cast<int>(i);
-    AttachScene(rays_, LoadScene(o.scene_path), o.scene_path);
+    AttachScene(rays_, info, o.scene_path);
     if (rays_.rays.size() > static_cast<std::size_t>(kMaxVisualObservations)) {
       throw InputError(o.rays_path, "cvc_rays", "more rays than the simulated camera's capacity");
     }

@@ -1,6 +1,7 @@
 #include "control/task.h"
 
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
@@ -8,6 +9,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "common/scene_digest.h"
 #include "visco/motion_strategy_t.hpp"
 
 namespace visco::control {
@@ -113,7 +115,14 @@ SceneInfo LoadScene(const std::string& path) {
   const json scene = ParseJson(ReadFile(path), path);
   if (!scene.is_object()) throw InputError(path, "", "a scene must be a JSON object");
   SceneInfo info;
-  if (scene.contains("name")) info.name = scene.at("name").is_string() ? scene.at("name").get<std::string>() : "";
+  info.digest = SceneDigest(scene.dump());
+  if (scene.contains("name") && scene.at("name").is_string()) {
+    info.name = scene.at("name").get<std::string>();
+    info.named = true;
+  } else {  // as the planner names it
+    info.name = std::filesystem::path(path).filename().string();
+    info.name = info.name.substr(0, info.name.find('.'));
+  }
   if (scene.contains("bounds")) {
     const json& b = scene.at("bounds");
     Bounds bounds{Point(Member(b, "min", path, "bounds"), path, "bounds.min"),
@@ -201,7 +210,58 @@ std::vector<CvcRay> LoadRays(const std::string& path) {
   return rays;
 }
 
-Task ParseStrategyJson(const std::string& json_text, const std::string& source, const std::vector<CvcRay>& rays) {
+SceneIdentity ReadSceneIdentity(const std::string& path) {
+  const json doc = ParseJson(ReadFile(path), path);
+  SceneIdentity id;
+  if (!doc.is_object()) return id;
+  if (doc.contains("scene") && doc.at("scene").is_string()) id.name = doc.at("scene").get<std::string>();
+  if (doc.contains("scene_digest") && doc.at("scene_digest").is_string()) {
+    id.digest = doc.at("scene_digest").get<std::string>();
+  }
+  return id;
+}
+
+namespace {
+
+std::string Describe(const std::string& name, const std::string& digest) {
+  std::string text = "scene \"" + name + "\"";
+  if (!digest.empty()) text += " (scene_digest " + digest + ")";
+  return text;
+}
+
+}  // namespace
+
+void CheckMadeFor(const SceneIdentity& made_for, const std::string& what, const std::string& path,
+                  const SceneInfo& scene, const std::string& scene_path) {
+  bool other = false;
+  if (!made_for.digest.empty() && !scene.digest.empty()) {
+    other = made_for.digest != scene.digest;
+  } else if (!made_for.name.empty() && scene.named) {
+    other = made_for.name != scene.name;
+  }
+  if (!other) return;
+  const std::string redo = what == "rays" ? "`visco vcrays " + scene_path + " --out FILE`"
+                                          : "plan it with `visco plan " + scene_path + " --out FILE`";
+  const std::string why =
+      made_for.name == scene.name ? " (the same name, another content: the scene file was edited)" : "";
+  throw InputError(path, "scene",
+                   (what == "rays" ? "the rays were computed for " : "the " + what + " was planned for ") +
+                       Describe(made_for.name, made_for.digest) + ", not for " + scene_path + ", which is " +
+                       Describe(scene.name, scene.digest) + why + ": " + redo);
+}
+
+void CheckSameScene(const SceneIdentity& strategy, const std::string& strategy_path, const SceneIdentity& rays,
+                    const std::string& rays_path) {
+  if (strategy.digest.empty() || rays.digest.empty() || strategy.digest == rays.digest) return;
+  throw InputError(rays_path, "scene",
+                   "the rays were computed for " + Describe(rays.name, rays.digest) + ", the strategy " +
+                       strategy_path + " was planned for " + Describe(strategy.name, strategy.digest) +
+                       ": give the rays of the strategy's scene (`visco vcrays SCENE --out FILE`)");
+}
+
+Task ParseStrategyJson(const std::string& json_text, const std::string& source, const std::vector<CvcRay>& rays,
+                       bool rays_given) {
+  rays_given = rays_given || !rays.empty();
   const json doc = ParseJson(json_text, source);
   if (!doc.is_object()) throw InputError(source, "", "a strategy must be a JSON object");
   if (doc.contains("feasible") && doc.at("feasible").is_boolean() && !doc.at("feasible").get<bool>()) {
@@ -227,7 +287,7 @@ Task ParseStrategyJson(const std::string& json_text, const std::string& source, 
       for (std::size_t k = 0; k < active.size(); ++k) {
         const std::string ray_where = where + ".active_rays[" + std::to_string(k) + "]";
         const std::string id = active[k].is_string() ? active[k].get<std::string>() : active[k].dump();
-        step.active_rays.push_back(ResolveRay(task, id, source, ray_where, !rays.empty()));
+        step.active_rays.push_back(ResolveRay(task, id, source, ray_where, rays_given));
       }
     }
     const json& terminate = Member(s, "terminate", source, where);
@@ -238,7 +298,7 @@ Task ParseStrategyJson(const std::string& json_text, const std::string& source, 
       const json& ref = Member(terminate, "ref", source, where + ".terminate");
       if (ref.is_null()) throw InputError(source, where + ".terminate.ref", "a vc step must name its CVC ray");
       const std::string id = ref.is_string() ? ref.get<std::string>() : ref.dump();
-      step.terminate_ray = ResolveRay(task, id, source, where + ".terminate.ref", !rays.empty());
+      step.terminate_ray = ResolveRay(task, id, source, where + ".terminate.ref", rays_given);
     }
     if (s.contains("timeout_s")) {
       step.timeout_s = Number(s.at("timeout_s"), source, where + ".timeout_s");
@@ -249,12 +309,13 @@ Task ParseStrategyJson(const std::string& json_text, const std::string& source, 
   return task;
 }
 
-Task LoadStrategyFile(const std::string& path, const std::vector<CvcRay>& rays) {
-  return ParseStrategyJson(ReadFile(path), path, rays);
+Task LoadStrategyFile(const std::string& path, const std::vector<CvcRay>& rays, bool rays_given) {
+  return ParseStrategyJson(ReadFile(path), path, rays, rays_given);
 }
 
-Task FromLcm(const motion_strategy_t& message, const std::vector<CvcRay>& rays) {
+Task FromLcm(const motion_strategy_t& message, const std::vector<CvcRay>& rays, bool rays_given) {
   const std::string source = "VISCO_STRATEGY";
+  rays_given = rays_given || !rays.empty();
   if (!message.feasible) throw JobFailed(source + ": the strategy is not feasible (the planner found no plan)");
   if (message.num_steps <= 0 || static_cast<std::size_t>(message.num_steps) != message.steps.size()) {
     throw InputError(source, "steps", "must be non-empty and match num_steps");
@@ -272,7 +333,7 @@ Task FromLcm(const motion_strategy_t& message, const std::vector<CvcRay>& rays) 
     step.theta = m.theta;
     for (std::size_t k = 0; k < m.active_rays.size(); ++k) {
       step.active_rays.push_back(
-          ResolveRay(task, m.active_rays[k], source, where + ".active_rays[" + std::to_string(k) + "]", !rays.empty()));
+          ResolveRay(task, m.active_rays[k], source, where + ".active_rays[" + std::to_string(k) + "]", rays_given));
     }
     switch (m.terminate_kind) {
       case motion_step_t::TERMINATE_GOAL:
@@ -280,7 +341,7 @@ Task FromLcm(const motion_strategy_t& message, const std::vector<CvcRay>& rays) 
         break;
       case motion_step_t::TERMINATE_VC:
         step.terminate = TerminateKind::kVisualGuarded;
-        step.terminate_ray = ResolveRay(task, m.terminate_ref, source, where + ".terminate_ref", !rays.empty());
+        step.terminate_ray = ResolveRay(task, m.terminate_ref, source, where + ".terminate_ref", rays_given);
         break;
       case motion_step_t::TERMINATE_CONTACT:
         step.terminate = TerminateKind::kContact;

@@ -56,7 +56,9 @@ struct Polygon {
 
 /// The subset of the contract's scene file that execution and simulation need.
 struct SceneInfo {
-  std::string name;
+  std::string name;    // the scene's "name", or the file's stem as the planner names it
+  bool named = false;  // the file has a "name" (a stem says little: the demo's copy of any scene is scene.json)
+  std::string digest;  // common/scene_digest.h: what plans and rays record of the scene they were made for
   std::optional<Bounds> bounds;
   Polygon robot;
   struct Obstacle {
@@ -88,17 +90,37 @@ struct Task {
   std::unordered_map<std::string, int> ray_index;
 };
 
+/// The scene a strategy or rays file says it was made for: its top-level "scene" (name) and "scene_digest", each
+/// empty when absent (hand-written files, files from before the digest).
+struct SceneIdentity {
+  std::string name;
+  std::string digest;
+};
+
 /// Reads a scene file (docs/formats.md). @throws InputError naming the file and object if it is malformed.
 SceneInfo LoadScene(const std::string& path);
 /// Reads `visco vcrays` output. @throws InputError.
 std::vector<CvcRay> LoadRays(const std::string& path);
+/// Reads the scene identity of a strategy or rays file. @throws InputError if it is unreadable or not JSON.
+SceneIdentity ReadSceneIdentity(const std::string& path);
+/// Refuses a file made for another scene: `what` ("strategy", "rays") read from `path` says it was made for
+/// `made_for`; the scene is `scene`, read from `scene_path`. Digests decide when both are known; otherwise the names,
+/// when the file names a scene and the scene file names itself. @throws InputError(path, "scene", ...) naming both
+/// files and both scenes.
+void CheckMadeFor(const SceneIdentity& made_for, const std::string& what, const std::string& path,
+                  const SceneInfo& scene, const std::string& scene_path);
+/// Refuses a strategy and a rays file made for different scenes (both digests known). @throws InputError.
+void CheckSameScene(const SceneIdentity& strategy, const std::string& strategy_path, const SceneIdentity& rays,
+                    const std::string& rays_path);
 /// Parses the contract's `visco plan` JSON (plus optional extensions: top-level "speed" in m/s, per step
-/// "timeout_s"). `source` names the input in errors. Rays named by the strategy must be in `rays` when it is not
-/// empty; compliant steps need them. @throws InputError, JobFailed if the strategy says it is infeasible.
-Task ParseStrategyJson(const std::string& json_text, const std::string& source, const std::vector<CvcRay>& rays);
-Task LoadStrategyFile(const std::string& path, const std::vector<CvcRay>& rays);
+/// "timeout_s"). `source` names the input in errors. Rays named by the strategy must be in `rays` when a rays file
+/// was given (`rays_given`) or `rays` is not empty; compliant steps need them. @throws InputError, JobFailed if the
+/// strategy says it is infeasible.
+Task ParseStrategyJson(const std::string& json_text, const std::string& source, const std::vector<CvcRay>& rays,
+                       bool rays_given = false);
+Task LoadStrategyFile(const std::string& path, const std::vector<CvcRay>& rays, bool rays_given = false);
 /// Converts the LCM strategy. @throws InputError (source "VISCO_STRATEGY").
-Task FromLcm(const motion_strategy_t& message, const std::vector<CvcRay>& rays);
+Task FromLcm(const motion_strategy_t& message, const std::vector<CvcRay>& rays, bool rays_given = false);
 /// Adds the scene's goal, bounds, ε_p and robot vertex offsets to the task. @throws InputError on inconsistency
 /// (a ray's cm_vertex not in the robot polygon).
 void AttachScene(Task& task, const SceneInfo& scene, const std::string& scene_path);

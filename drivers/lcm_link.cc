@@ -165,7 +165,7 @@ class LcmRobotLink final : public RobotLink {
           PushLocal(now_us, fault_t::CODE_PEER_TIMEOUT,
                     "the driver restarted (boot-up heartbeat): its session and this controller's commands are void");
         } else if (in.nmt != NmtState::kBootUp) {
-          Announce(in.status.session, now_us);
+          Announce(in.status.session);
         }
         continue;
       }
@@ -203,12 +203,21 @@ class LcmRobotLink final : public RobotLink {
       status_ = s;
       fresh_status_ = true;
     }
+    // The driver sends the fault it stopped for before it announces the session the stop begins (on another
+    // channel, handed over on another queue): a fault that arrives with the announcement is this controller's
+    // session's, and it goes first, so that the controller stops with the driver's reason (issue 39).
     LinkFault f;
     while (incoming_faults_.Pop(f)) {
       f.receive_us = now_us;
-      f.foreign = !session_.owned() && f.emcy_code != 0xFF01;  // 0xFF01: can::kEmcyResetRefused
+      f.foreign = !session_.owned() && !session_lost_ && f.emcy_code != 0xFF01;  // 0xFF01: can::kEmcyResetRefused
       ++counters_.faults_received;
       if (!faults_.Push(f)) ++counters_.faults_dropped;
+    }
+    if (session_lost_) {
+      session_lost_ = false;
+      PushLocal(now_us, fault_t::CODE_PEER_TIMEOUT,
+                "the driver started a new session (it stopped, restarted or was reset): this controller's commands "
+                "are void");
     }
     counters_.bad_frames = bad_messages_.load(std::memory_order_relaxed);
   }
@@ -245,7 +254,7 @@ class LcmRobotLink final : public RobotLink {
   };
 
   // Real-time side: an announced session (a heartbeat's or a status's).
-  void Announce(std::uint32_t nonce, std::int64_t now_us) {
+  void Announce(std::uint32_t nonce) {
     switch (session_.OnAnnounce(nonce)) {
       case SessionView::Change::kNone:
         return;
@@ -256,9 +265,7 @@ class LcmRobotLink final : public RobotLink {
         break;
       case SessionView::Change::kLost:
         ++counters_.session_changes;
-        PushLocal(now_us, fault_t::CODE_PEER_TIMEOUT,
-                  "the driver started a new session (it stopped, restarted or was reset): this controller's commands "
-                  "are void");
+        session_lost_ = true;  // reported at the end of Poll, after the driver's own reason
         break;
     }
     status_synced_ = false;
@@ -344,6 +351,7 @@ class LcmRobotLink final : public RobotLink {
   NmtState nmt_state_ = NmtState::kBootUp;
   bool status_synced_ = false;
   bool stale_reported_ = false;
+  bool session_lost_ = false;  // this Poll saw the announcement of a session that replaced this controller's
   std::uint32_t status_last_ = 0;
   RobotStatus status_;
   bool fresh_status_ = false;

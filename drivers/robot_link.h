@@ -126,6 +126,41 @@ constexpr const char* DriverFaultWhat(std::uint16_t emcy_code) {
                              : nullptr;
 }
 
+/// A driver's EMCY code in words (the codes of can_protocol.h), for the controller's stop reason; "a driver fault"
+/// for a code it does not know. Real-time safe.
+constexpr const char* EmcyWhat(std::uint16_t emcy_code) {
+  switch (emcy_code) {
+    case 0x1000:
+      return "e-stop";
+    case 0x8100:
+      return "CAN bus-off or its interface down";
+    case 0x8110:
+      return "CAN overrun, frames lost";
+    case 0x8120:
+      return "CAN error passive";
+    case 0x8140:
+      return "CAN recovered from bus-off";
+    case 0x8200:
+      return "protocol error (checksum, reserved bits or sequence)";
+    case 0x8210:
+      return "command of the wrong length";
+    case 0x8250:
+      return "no valid command within its watchdog period";
+    case 0x8400:
+      return "commanded speed above the driver's limit";
+    case 0x8612:
+      return "the robot left its workspace";
+    case 0xFF01:
+      return "reset refused: the driver's e-stop is latched";
+    case 0xFF02:
+      return "quick stop at the controller's request";
+    case 0xFF03:
+      return "CAN error warning";
+    default:
+      return "a driver fault";
+  }
+}
+
 /// LinkFault::what of the (foreign, non-stopping) fault a link reports when the driver's session turns out to be
 /// another controller's. An array, not a pointer to a literal: one object with one address in every translation unit
 /// (identical literals in different units need not share one; under ASan they never do), so `what ==` identifies it.

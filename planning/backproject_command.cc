@@ -117,6 +117,15 @@ void DrawPanel(SvgCanvas& c, const Scene& scene, const CSpace& cspace, const Bac
   c.Line(tip, tip - 0.3 * len * v + 0.15 * len * n, "stroke=\"#070\" stroke-width=\"3\"");
   c.Line(tip, tip - 0.3 * len * v - 0.15 * len * n, "stroke=\"#070\" stroke-width=\"3\"");
   c.TextPx(c.x(lo), 20, title, 14, "fill=\"black\"");
+  c.Legend({{{"■", "#cfe3ff", "the backprojection"},
+             {"━", "#c00", "its edges on an active ray"},
+             {"╍", "#036", "its other edges"}},
+            {{"■", "#bbb", "obstacle"},
+             {"□", "#333", "C-obstacle"},
+             {"■", "black", "goal (with --kernel: its kernel)"},
+             {"✕", "black", "camera"},
+             {"➜", "#070", "commanded direction θ"}},
+            {{"╍", "#c00", "active CVC ray"}, {"━", "#e9a", "other CVC ray"}, {"○", "#c00", "its open end"}}});
 }
 
 struct Args {

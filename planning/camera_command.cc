@@ -110,14 +110,17 @@ std::string Describe(const CameraEvaluation& e) {
                      e.steps == 1 ? "" : "s", e.min_interval_deg, e.preimage_area);
 }
 
-// Colour of a candidate: green for one step, yellow-orange for more, grey shades by coverage when infeasible.
+// Colour of a candidate: green for one step, yellow-orange for more, purple shades by coverage when infeasible (grey
+// is the obstacles').
 std::string Colour(const CameraEvaluation& e) {
   if (e.feasible) {
     static const char* by_steps[] = {"#1a9850", "#a6d96a", "#fee08b", "#fdae61", "#f46d43"};
     return by_steps[std::clamp(e.steps - 1, 0, 4)];
   }
-  const int g = 200 - static_cast<int>(std::lround(100 * std::clamp(e.coverage, 0.0, 1.0)));
-  return fmt::format("#{:02x}{:02x}{:02x}", g, g, g);
+  // From #efe3f6 (no coverage) to #6a3d9a (one step covers all of the start region).
+  const double t = std::clamp(e.coverage, 0.0, 1.0);
+  auto mix = [t](int a, int b) { return static_cast<int>(std::lround(a + t * (b - a))); };
+  return fmt::format("#{:02x}{:02x}{:02x}", mix(0xef, 0x6a), mix(0xe3, 0x3d), mix(0xf6, 0x9a));
 }
 
 void DrawCameraMarker(SvgCanvas& c, const CameraEvaluation& e, double reach, const std::string& colour,
@@ -167,18 +170,35 @@ std::string HeatMapSvg(const Scene& scene, const Point& min, const Point& max, M
   if (best != nullptr) DrawCameraMarker(c, *best, reach, "#d7191c", "best");
   // Legend (in the room the canvas keeps below the drawing).
   const double y0 = c.height_px() - 36;
+  // Two rows: what a camera placed there gives, then what the other marks are.
   const std::vector<std::pair<std::string, std::string>> legend = {
       {"#1a9850", "1 step"},
       {"#a6d96a", "2 steps"},
       {"#fee08b", "3 steps"},
-      {"#969696", "no strategy (darker: one step covers more of the start)"},
+      {"#ab8cc8", "no strategy (darker: one step covers more of the start)"},
       {"#ffffff", "view not evaluated"}};
+  const std::vector<std::pair<std::string, std::string>> marks = {{"#888888", "obstacle"},
+                                                                  {"#000000", "goal"},
+                                                                  {"none\" stroke=\"#060", "start region"},
+                                                                  {"#1f78b4", "the scene's camera"},
+                                                                  {"#d7191c", "the best candidate"}};
   std::string items;
   double x = 30;
   for (const auto& [colour, text] : legend) {
-    items += fmt::format("<rect x=\"{:.1f}\" y=\"{:.1f}\" width=\"16\" height=\"12\" fill=\"{}\" stroke=\"#666\"/>\n",
-                         x, y0 - 10, colour);
-    c.TextPx(x + 22, y0, text, 11, "fill=\"black\"");
+    items += fmt::format(
+        "<rect class=\"legend\" x=\"{:.1f}\" y=\"{:.1f}\" width=\"16\" height=\"12\" fill=\"{}\" "
+        "stroke=\"#666\"/>\n",
+        x, y0 - 22, colour);
+    c.TextPx(x + 22, y0 - 12, text, 11, "class=\"legend\" fill=\"black\"");
+    x += 40 + 6.2 * static_cast<double>(text.size());
+  }
+  x = 30;
+  for (const auto& [colour, text] : marks) {
+    items += fmt::format(
+        "<rect class=\"legend\" x=\"{:.1f}\" y=\"{:.1f}\" width=\"16\" height=\"12\" fill=\"{}\" "
+        "stroke-width=\"2\"/>\n",
+        x, y0 - 2, colour);
+    c.TextPx(x + 22, y0 + 8, text, 11, "class=\"legend\" fill=\"black\"");
     x += 40 + 6.2 * static_cast<double>(text.size());
   }
   std::string svg = c.Finish();

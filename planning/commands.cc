@@ -14,6 +14,7 @@
 #include "planning/cspace.h"
 #include "planning/plan_command.h"
 #include "planning/scene.h"
+#include "planning/strategy.h"
 #include "planning/vc_rays.h"
 
 namespace visco::planning {
@@ -31,6 +32,10 @@ void RunVcRays(const VcRaysArgs& a) {
   const Scene scene = LoadScene(a.scene);
   const CSpace cspace(scene);
   const VcRays rays = ComputeVcRays(scene, cspace);
+  // The scene is valid, but no strategy can end in its goal: say so now rather than only in `visco plan`.
+  if (ProblemFromScene(scene, cspace, nullptr, 0.0, /*kernel=*/true).goal.empty()) {
+    std::fprintf(stderr, "visco: warning: %s: %s\n", a.scene.c_str(), kEmptyGoalKernel);
+  }
   WriteText(VcRaysToJson(scene, rays), a.out);
   if (!a.svg.empty()) WriteText(VcRaysToSvg(scene, cspace, rays), a.svg);
 }

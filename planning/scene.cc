@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "common/scene_digest.h"
 #include "planning/cspace.h"
 
 namespace visco::planning {
@@ -367,7 +368,10 @@ Scene ParseScene(std::string_view json_text, const std::string& source) {
     // Also catches numbers that overflow a double (JSON has no literal for a non-finite number).
     reader.Fail("", fmt::format("invalid JSON: {}", e.what()));
   }
-  return Parse(reader, j, StemOf(source));
+  const std::string digest = SceneDigest(j.dump());  // before Parse, whose operator[] may add null members
+  Scene scene = Parse(reader, j, StemOf(source));
+  scene.digest = digest;
+  return scene;
 }
 
 Scene LoadScene(const std::string& path) {

@@ -122,6 +122,8 @@ struct Scene {
   std::string name;
   /// Where it came from (file path, or a label such as "<embedded slot.json>"), for messages.
   std::string source;
+  /// The digest of the scene's JSON (common/scene_digest.h): plans and rays record it, `visco run` compares it.
+  std::string digest;
   Bounds bounds;
   /// The robot in its own frame; the reference point is the origin.
   ScenePolygon robot;

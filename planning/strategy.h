@@ -26,11 +26,11 @@
 
 #include "planning/backprojection.h"
 #include "planning/scene.h"
+#include "planning/svg.h"
 
 namespace visco::planning {
 
 class CSpace;
-class SvgCanvas;
 struct VcRays;
 
 /// Half-width of the strip standing for "somewhere on the ray" (metres): the robot stops within this of the VC line
@@ -106,8 +106,13 @@ struct PlanOptions {
   std::function<void(double)> progress;
 };
 
-/// Plans a strategy from the scene's start region to its goal. @throws InputError (via the scene) if the scene has
-/// no start region, JobFailed if the goal kernel is empty.
+/// Why a scene has no strategy when its goal kernel is empty: `visco plan`'s reason, `visco vcrays`'s warning.
+inline constexpr char kEmptyGoalKernel[] =
+    "goal: the goal kernel is empty (the goal is narrower than twice the position uncertainty): no strategy can "
+    "recognise that it is in the goal";
+
+/// Plans a strategy from the scene's start region to its goal; an infeasible one (with its reason) when there is none,
+/// the goal kernel being empty included. @throws InputError (via the scene) if the scene has no start region.
 Strategy PlanStrategy(const Scene& scene, const PlanOptions& options = {});
 
 /// The contract's `visco plan` JSON: {"feasible", "scene", "steps": [{"theta_deg", "active_rays", "terminate":
@@ -126,6 +131,8 @@ std::string StrategyToSvg(const Scene& scene, const CSpace& cspace, const Strate
 
 /// The same drawing onto a canvas of the scene's bounds (for pictures drawn over the plan, e.g. `visco demo`'s).
 void DrawStrategy(SvgCanvas& canvas, const Scene& scene, const CSpace& cspace, const Strategy& strategy);
+/// The legend of DrawStrategy's picture, in words (rows for SvgCanvas::Legend).
+std::vector<std::vector<SvgCanvas::LegendItem>> StrategyLegend(const Strategy& strategy);
 
 /// Result of simulating a strategy (the motion model of docs/semantics.md with adversarial velocities).
 struct StrategyCheck {

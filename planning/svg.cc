@@ -66,6 +66,23 @@ void SvgCanvas::TextPx(double x_px, double y_px, const std::string& text, double
                        x_px, y_px, size_px, style, SvgEscape(text));
 }
 
+void SvgCanvas::Legend(const std::vector<std::vector<LegendItem>>& rows) {
+  const double line = 17;
+  // The canvas keeps 60 px below the drawing; more rows make the document taller.
+  height_ += std::max(0.0, line * static_cast<double>(rows.size()) + 10 - 60);
+  double y = height_ - 8 - line * static_cast<double>(rows.size() - 1);
+  for (const auto& row : rows) {
+    double x = 12;
+    for (const LegendItem& item : row) {
+      TextPx(x, y, item.glyph, 13, fmt::format("class=\"legend\" fill=\"{}\"", item.colour));
+      x += 8.5 * static_cast<double>(item.glyph.size() / 3 + 1) + 4;  // the glyphs are 3-byte UTF-8 characters
+      TextPx(x, y, item.text, 11, "class=\"legend\" fill=\"black\"");
+      x += 6.0 * static_cast<double>(item.text.size()) + 16;
+    }
+    y += line;
+  }
+}
+
 namespace {
 std::string Document(double width, double height, const std::string& body) {
   return fmt::format(

@@ -27,6 +27,17 @@ class SvgCanvas {
   /// Text at a fixed pixel position (for legends).
   void TextPx(double x_px, double y_px, const std::string& text, double size_px, const std::string& style);
 
+  /// One entry of a legend: a glyph drawn in `colour` (e.g. "■" for a fill, "━" for a line, "╍" for a dashed one),
+  /// then what it means in words.
+  struct LegendItem {
+    std::string glyph;
+    std::string colour;
+    std::string text;
+  };
+  /// A legend below the drawing: rows of items, left to right (class "legend"); the document grows for more than
+  /// three rows. Call it last.
+  void Legend(const std::vector<std::vector<LegendItem>>& rows);
+
   /// The document.
   std::string Finish() const;
   /// The drawing without the document around it (SVG elements in this canvas's pixel frame).

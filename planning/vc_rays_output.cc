@@ -22,6 +22,7 @@ constexpr double kPi = 3.14159265358979323846;
 std::string VcRaysToJson(const Scene& scene, const VcRays& rays) {
   nlohmann::ordered_json j;
   j["scene"] = scene.name;
+  if (!scene.digest.empty()) j["scene_digest"] = scene.digest;  // scenes built in code have none
   if (scene.camera) {
     j["camera"] = {{"center", PointJson(scene.camera->center)},
                    {"fov_deg", {scene.camera->fov_first_rad * 180 / kPi, scene.camera->fov_second_rad * 180 / kPi}}};

@@ -31,14 +31,23 @@ void RunOnce(const ReplayOptions& o, int loop, int loops) {
     std::fprintf(stderr, "replay: controller: %lld period(s) through the executor (%lld with the replayed vision)\n",
                  static_cast<long long>(s.control_cycles), static_cast<long long>(s.control_frames_from_vision));
   }
-  std::fprintf(stderr, "replay: %lld frame(s) through vision (%lld rejected as live), %lld message(s) produced",
+  std::fprintf(stderr, "replay: %lld frame(s) through vision (%lld rejected as live), %lld message(s) produced%s",
                static_cast<long long>(s.frames), static_cast<long long>(s.bad_frames),
-               static_cast<long long>(s.published));
+               static_cast<long long>(s.produced), o.publish ? "" : " (not published: --no-publish)");
   if (o.check) {
-    std::fprintf(stderr, ", %lld compared, %s\n", static_cast<long long>(s.compared + s.control_compared),
-                 s.identical() ? "identical" : "DIFFERENT");
+    std::fprintf(stderr, ", %lld compared (%lld vision message(s), %lld controller period(s)), %s\n",
+                 static_cast<long long>(s.compared_total()), static_cast<long long>(s.compared),
+                 static_cast<long long>(s.control_compared),
+                 s.identical() ? "identical" : (s.differences.empty() ? "nothing compared" : "DIFFERENT"));
   } else {
     std::fprintf(stderr, "\n");
+  }
+  if (o.check && s.differences.empty() && !s.identical()) {
+    throw JobFailed("replay --check: " +
+                    std::string(s.compared_total() == 0
+                                    ? "nothing was compared (no vision output or controller period of the log was "
+                                      "replayed): nothing is shown identical"
+                                    : "logged vision outputs that no replayed frame produced"));
   }
   if (o.check && !s.identical()) {
     const Difference& d = s.differences.front();

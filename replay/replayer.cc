@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <deque>
+#include <filesystem>
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -198,6 +199,8 @@ namespace {
 // on the frames' own timestamps (from `start_utime`, so that two replays give the same bytes). Nothing to compare.
 ReplaySummary ReplaySource(const ReplayOptions& o, const vision::LoadedPipeline& loaded) {
   ReplaySummary s;
+  s.publishing = o.publish;
+  s.checked = o.check;
   const auto wall_start = std::chrono::steady_clock::now();
   std::unique_ptr<vision::FrameSource> source = !o.images_dir.empty()
                                                     ? vision::MakeFolderSource(o.images_dir, o.fps, o.start_utime)
@@ -261,7 +264,7 @@ ReplaySummary ReplaySource(const ReplayOptions& o, const vision::LoadedPipeline&
       const std::vector<std::uint8_t> bytes = Encode(message);
       if (bus) bus->publish(prefix + channel, bytes.data(), static_cast<unsigned int>(bytes.size()));
       if (out) out->Write(prefix + channel, frame.utime, bytes);
-      ++s.published;
+      ++s.produced;
     });
   }
   if (out) out->Close();
@@ -317,6 +320,8 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
   LogEvent event;
   while (reader.Next(event)) events.push_back(event);
   ReplaySummary s;
+  s.publishing = o.publish;
+  s.checked = o.check;
   s.log = reader.report();
   if (events.empty()) throw InputError(o.log_path, "", "no usable event: " + s.log.Describe());
   s.log_start_utime = events.front().timestamp;
@@ -509,7 +514,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
     vision::ForEachMessage(result, [&](const char* produced_channel, const auto& produced) {
       const std::vector<std::uint8_t> bytes = Encode(produced);
       emit(produced_channel, e.timestamp, bytes);
-      ++s.published;
+      ++s.produced;
       if (!o.check || !s.differences.empty()) return;
       Difference d{produced_channel, e.timestamp, message.seq, message.utime, -1, {}};
       auto found = logged.find({produced_channel, message.utime});
@@ -590,9 +595,16 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
       throw InputError(o.log_path, "controller_config", std::string("not JSON: ") + e.what());
     }
     control::RunOptions run;
-    run.strategy_path = !o.strategy_path.empty() ? o.strategy_path : config.value("strategy", std::string());
-    run.scene_path = !o.scene_path.empty() ? o.scene_path : config.value("scene", std::string());
-    run.rays_path = !o.rays_path.empty() ? o.rays_path : config.value("rays", std::string());
+    // The files the log names: a relative name is relative to the log's folder (docs/replay.md), so that a replay
+    // works from any directory; those given on the command line are the user's, relative to the working directory.
+    auto named = [&](const char* key) {
+      const std::filesystem::path path = config.value(key, std::string());
+      if (path.empty() || path.is_absolute()) return path.string();
+      return (std::filesystem::path(o.log_path).parent_path() / path).lexically_normal().string();
+    };
+    run.strategy_path = !o.strategy_path.empty() ? o.strategy_path : named("strategy");
+    run.scene_path = !o.scene_path.empty() ? o.scene_path : named("scene");
+    run.rays_path = !o.rays_path.empty() ? o.rays_path : named("rays");
     if (run.strategy_path.empty()) {
       throw InputError(o.log_path, "controller_config",
                        "the run's strategy came over LCM: give the strategy file with --strategy (or --no-control)");
@@ -653,7 +665,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
       command.reset = output.command.reset;
       command.quick_stop = output.command.quick_stop;
       emit(channels::kCommand, in.now_utime, Encode(command));
-      ++s.published;
+      ++s.produced;
       for (int i = 0; i < output.num_faults; ++i) {
         const control::FaultEvent& f = output.faults[i];
         fault_t message{};
@@ -665,7 +677,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
         message.cleared = f.cleared;
         message.message = f.message;
         emit(channels::kFault, in.now_utime, Encode(message));
-        ++s.published;
+        ++s.produced;
         if (!o.check || t < o.from_s || d.result) continue;
         auto logged_fault = controller_faults.find(f.utime);
         if (logged_fault == controller_faults.end() || logged_fault->second.empty()) {
@@ -728,7 +740,9 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
 
 std::string ReplaySummary::ToJson() const {
   nlohmann::json j;
-  j["identical"] = identical();
+  // Claimed only when shown: null without --check; false when --check compared nothing.
+  j["checked"] = checked;
+  j["identical"] = checked ? nlohmann::json(identical()) : nlohmann::json(nullptr);
   j["stopped_at_step"] = stopped_at_step;
   j["seeked_events"] = seeked_events;
   j["images"] = images;
@@ -737,8 +751,9 @@ std::string ReplaySummary::ToJson() const {
   j["undecodable"] = undecodable;
   j["skipped_frames"] = skipped_frames;
   j["warmup_frames"] = warmup_frames;
-  j["published"] = published;
-  j["republished"] = republished;
+  j["produced"] = produced;
+  j["published"] = publishing ? produced : 0;
+  j["republished"] = publishing ? republished : 0;
   j["compared"] = compared;
   j["unmatched_logged"] = unmatched_logged;
   j["differences"] = differences.size();

@@ -83,8 +83,10 @@ struct ReplaySummary {
   // state follows the live run.
   std::int64_t skipped_frames = 0;
   std::int64_t warmup_frames = 0;               // frames before --from (processed, not published)
-  std::int64_t published = 0;                   // messages produced (published and/or written)
-  std::int64_t republished = 0;                 // logged non-image messages republished
+  std::int64_t produced = 0;                    // messages produced (published, written with --out, or neither)
+  bool publishing = false;                      // produced messages went out on LCM (not --no-publish)
+  bool checked = false;                         // --check: compared with the log
+  std::int64_t republished = 0;                 // logged non-image messages passed on unchanged
   std::int64_t compared = 0;                    // messages compared with the log
   std::int64_t unmatched_logged = 0;            // logged vision outputs no replayed frame produced
   std::vector<Difference> differences;          // --check stops at the first
@@ -97,7 +99,10 @@ struct ReplaySummary {
   std::map<std::string, std::int64_t> unknown_channels;  // channel -> events
   std::vector<std::string> notes;                        // undecodable events and other remarks (the first few)
   double wall_s = 0;
-  bool identical() const { return differences.empty() && unmatched_logged == 0; }
+  /// Messages and controller periods compared with the log.
+  std::int64_t compared_total() const { return compared + control_compared; }
+  /// Shown identical: --check ran, compared something and found no difference.
+  bool identical() const { return checked && differences.empty() && unmatched_logged == 0 && compared_total() > 0; }
   std::string ToJson() const;
 };
 

@@ -27,6 +27,18 @@ out=$("$rt" --config "$tmp/driver.json" driver --start 3 6.5 2>/dev/null) || fai
 python3 -c 'import json,sys; d = json.loads(sys.argv[1]); assert d["position"] == [3, 6.5], d' "$out" ||
   fail "the command line did not win: $out"
 
+# A relative path in the file is relative to the file's folder (issue 39: the demo's driver.json named a world relative
+# to where the demo ran), from any working directory.
+mkdir -p "$tmp/conf"
+cat >"$tmp/conf/driver.json" <<JSON
+{"driver": {"world": "../world.json", "duration": 0.3, "lcm-url": "udpm://239.255.76.67:$((30000 + $$ % 20000))?ttl=0"}}
+JSON
+out=$(cd / && "$rt" driver --config "$tmp/conf/driver.json" 2>"$tmp/driver.err") ||
+  fail "driver --config with a relative world, from /, exited $?: $(cat "$tmp/driver.err")"
+grep -q "among [1-9][0-9]* C-obstacle" "$tmp/driver.err" || fail "the relative world was not loaded: $(cat "$tmp/driver.err")"
+python3 -c 'import json,sys; d = json.loads(sys.argv[1]); assert d["position"] == [2, 6], d' "$out" ||
+  fail "the driver did not start where the relative world says: $out"
+
 # Unknown key, unknown command, bad value, bad JSON, missing file: exit 2 naming the file and what is wrong.
 expect2() {
   local what="$1" pattern="$2"

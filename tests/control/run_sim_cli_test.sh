@@ -24,6 +24,21 @@ grep -q '"result":"done"' "$tmp/run.json" || { fail "run summary is not done:"; 
 grep -q 'goal recognised' "$tmp/run.log" || fail "the log does not say why the run ended"
 grep -q '"commands_applied"' "$tmp/sim.json" || { fail "sim printed no summary:"; cat "$tmp/sim.json" "$tmp/sim.log"; }
 
+# The driver stops the robot at the workspace's bounds (the controller, given no scene, does not know them): the run
+# stops with the driver's own reason (its EMCY), not only "the driver started a new session" (issue 39).
+echo '{"steps": [{"theta_deg": 90, "active_rays": [], "terminate": {"kind": "contact"}, "timeout_s": 30}]}' \
+  >"$tmp/up.json"
+"$visco" sim "$data/post_scene.json" --start 1.84 1.55 --seed 3 --lcm-url "$url" --duration 30 \
+  >"$tmp/sim2.json" 2>"$tmp/sim2.log" &
+sim_pid=$!
+"$visco" run "$tmp/up.json" --lcm-url "$url" --max-speed 0.4 --max-accel 4 --no-realtime >"$tmp/run2.json" \
+  2>"$tmp/run2.log"
+status=$?
+kill -INT $sim_pid; wait $sim_pid
+[[ $status -eq 1 ]] || fail "the run out of bounds exited $status, expected 1"
+grep -q '"reason":"robot link: the driver stopped the robot: the robot left its workspace (EMCY 0x8612' \
+  "$tmp/run2.json" || { fail "the stop reason is not the driver's:"; cat "$tmp/run2.json"; tail -5 "$tmp/run2.log"; }
+
 # Bad input: exit 2, "visco: FILE: OBJECT: what".
 echo '{"steps": [{"theta_deg": 0, "terminate": {"kind": "teleport"}}]}' >"$tmp/bad.json"
 out=$("$visco" run "$tmp/bad.json" 2>&1); status=$?

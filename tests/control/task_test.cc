@@ -128,6 +128,90 @@ TEST(Task, SceneAttachesGoalBoundsAndVertexOffsets) {
   EXPECT_THROW(LoadScene(WriteTemp("bad.json", R"({"robot": {"polygon": [[0, 0], [1, 0]]}})")), InputError);
 }
 
+// A strategy or rays file made for another scene is refused (issue 39: a strategy planned for the slot drove the
+// robot out of another scene's workspace). The digest is of the scene's content, whatever its spacing and key order.
+TEST(Task, FilesMadeForAnotherSceneAreRefused) {
+  const char* const kScene = R"({"name": "slot", "bounds": {"min": [0, 0], "max": [10, 8]},
+    "robot": {"polygon": [[0, 0], [1, 0], [1, 1], [0, 1]]}, "obstacles": [],
+    "goal": {"polygon": [[4, 0], [5, 0], [5, 0.5], [4, 0.5]]},
+    "uncertainty": {"velocity_cone_deg": 8, "position": 0.05}, "friction_cone_deg": 15})";
+  const SceneInfo scene = LoadScene(WriteTemp("digest_a.json", kScene));
+  EXPECT_EQ(scene.digest.size(), 16u);
+  EXPECT_TRUE(scene.named);
+  // The same content written otherwise: the same digest.
+  const SceneInfo same = LoadScene(WriteTemp("digest_b.json", R"({"friction_cone_deg": 15,
+      "uncertainty": {"position": 0.05, "velocity_cone_deg": 8}, "goal": {"polygon": [[4, 0], [5, 0], [5, 0.5],
+      [4, 0.5]]}, "obstacles": [], "robot": {"polygon": [[0, 0], [1, 0], [1, 1], [0, 1]]},
+      "bounds": {"max": [10, 8], "min": [0, 0]}, "name": "slot"})"));
+  EXPECT_EQ(same.digest, scene.digest);
+  // The goal moved, the name kept: another digest.
+  std::string moved = kScene;
+  moved.replace(moved.find("[4, 0], [5, 0]"), 14, "[4, 1], [5, 1]");
+  const SceneInfo edited = LoadScene(WriteTemp("digest_c.json", moved));
+  EXPECT_NE(edited.digest, scene.digest);
+  EXPECT_EQ(edited.name, "slot");
+
+  auto message = [](auto&& check) {
+    try {
+      check();
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message([&] {
+              CheckMadeFor({"slot", scene.digest}, "strategy", "plan.json", same, "b.json");
+            }),
+            "no error");
+  const std::string edited_message = message([&] {
+    CheckMadeFor({"slot", scene.digest}, "strategy", "plan.json", edited, "c.json");
+  });
+  EXPECT_EQ(edited_message.find("plan.json: scene: the strategy was planned for scene \"slot\" (scene_digest " +
+                                scene.digest + "), not for c.json, which is scene \"slot\" (scene_digest " +
+                                edited.digest + ")"),
+            0u)
+      << edited_message;
+  EXPECT_NE(edited_message.find("the scene file was edited"), std::string::npos);
+  const std::string rays_message = message([&] {
+    CheckMadeFor({"corner", "0123456789abcdef"}, "rays", "rays.json", scene, "a.json");
+  });
+  EXPECT_NE(rays_message.find("rays.json: scene: the rays were computed for scene \"corner\""), std::string::npos)
+      << rays_message;
+  EXPECT_NE(rays_message.find("visco vcrays a.json"), std::string::npos) << rays_message;
+  // Files from before the digest, and LCM strategies: the names decide, when the scene file names itself.
+  EXPECT_NE(message([&] { CheckMadeFor({"corner", ""}, "strategy", "old.json", scene, "a.json"); }), "no error");
+  EXPECT_EQ(message([&] { CheckMadeFor({"slot", ""}, "strategy", "old.json", scene, "a.json"); }), "no error");
+  EXPECT_EQ(message([&] { CheckMadeFor({}, "strategy", "hand_written.json", scene, "a.json"); }), "no error");
+  std::string unnamed = kScene;
+  unnamed.replace(unnamed.find("\"name\": \"slot\", "), 16, "");
+  const SceneInfo stem = LoadScene(WriteTemp("scene.json", unnamed));
+  EXPECT_FALSE(stem.named);
+  EXPECT_EQ(stem.name, "scene");  // as the planner names it
+  EXPECT_EQ(message([&] { CheckMadeFor({"corner", ""}, "strategy", "old.json", stem, "scene.json"); }), "no error");
+  // A strategy and rays of different scenes, with no scene file to compare them with.
+  EXPECT_NE(message([&] {
+              CheckSameScene({"slot", scene.digest}, "plan.json", {"slot", edited.digest}, "rays.json");
+            }).find("rays.json: scene: the rays were computed for"),
+            std::string::npos);
+  EXPECT_EQ(message([&] {
+              CheckSameScene({"slot", scene.digest}, "plan.json", {"slot", ""}, "rays.json");
+            }),
+            "no error");
+}
+
+// A rays file without rays (a scene without a camera) is still a rays file: a ray the strategy names is not in it
+// (not "give the rays with --rays", which was given).
+TEST(Task, AnEmptyRaysFileIsARaysFile) {
+  const std::string plan =
+      R"({"steps": [{"theta_deg": 0, "active_rays": ["vc9.cm1"], "terminate": {"kind": "goal"}}]})";
+  try {
+    ParseStrategyJson(plan, "plan.json", {}, true);
+    ADD_FAILURE() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("CVC ray \"vc9.cm1\" is not in the rays file"), std::string::npos) << e.what();
+  }
+}
+
 // Property: the kernel test equals "a dense ring of points at distance r around p lies in the goal" on seeded
 // random star-shaped goals (a slow, obvious reading of the Minkowski difference with a disc).
 TEST(TaskProperty, GoalKernelMatchesDiscContainment) {

@@ -44,7 +44,7 @@ class LcmLink : public ::testing::Test {
     DriverConfig config;
     config.watchdog_us = watchdog_us_;
     config.session_seed = ++seed_;
-    robot_ = std::make_unique<SimulatedRobot>(SimulatedRobotConfig{});
+    robot_ = std::make_unique<SimulatedRobot>(robot_config_);
     driver_ = std::make_unique<Driver>(config, *transport_, *robot_);
     stop_.store(false);
     thread_ = std::thread([this] { driver_->Run(stop_); });
@@ -91,6 +91,7 @@ class LcmLink : public ::testing::Test {
   static inline std::atomic<std::uint64_t> next_seed_{static_cast<std::uint64_t>(getpid()) * 1000};
   std::uint64_t seed_ = next_seed_.fetch_add(100);
   std::int64_t watchdog_us_ = 100'000;  // the driver's command watchdog (StartDriver)
+  SimulatedRobotConfig robot_config_;   // the driver's robot (StartDriver)
   VelocityCommand command_;
   RobotStatus last_;
   std::vector<LinkFault> faults_;
@@ -155,6 +156,37 @@ TEST_F(LcmLink, CommandsWatchdogResetAndHeartbeat) {
   StopDriver();
   ASSERT_TRUE(RunUntil(
       2'000'000, [&] { return link_->peer_state(MonotonicMicros()) == PeerState::kLost; }, false));
+}
+
+// The driver stops the robot at its workspace's bounds: the EMCY that says why and the announcement of the session
+// the stop begins arrive together; the link hands over the driver's fault first, as this controller's (not foreign),
+// so that the controller stops with the driver's reason, then its own "new session" (issue 39).
+TEST_F(LcmLink, ABoundsStopIsReportedWithTheDriversReasonFirst) {
+  robot_config_.world.bounds_min = {-0.05, -1.0};
+  robot_config_.world.bounds_max = {0.05, 1.0};
+  RestartDriver();
+  ASSERT_TRUE(RunUntil(
+      3'000'000, [&] { return link_->peer_state(MonotonicMicros()) == PeerState::kAlive; }, false));
+  command_.reset = true;
+  ASSERT_TRUE(RunUntil(
+      2'000'000, [&] { return last_.state == RobotState::kReady; }, true));
+  faults_.clear();
+  command_ = VelocityCommand{};
+  command_.velocity[0] = 0.3;
+  ASSERT_TRUE(RunUntil(
+      3'000'000, [&] { return link_->counters().session_changes == 1; }, true));
+  RunUntil(
+      50'000, [] { return false; }, false);
+  const auto first_stop = std::find_if(faults_.begin(), faults_.end(),
+                                       [](const LinkFault& f) { return f.robot_stopped && !f.cleared && !f.foreign; });
+  ASSERT_NE(first_stop, faults_.end());
+  EXPECT_FALSE(first_stop->local);
+  EXPECT_EQ(first_stop->emcy_code, can::kEmcyBounds);
+  EXPECT_TRUE(first_stop->fault_bits & fault_bits::kBounds);
+  EXPECT_STREQ(EmcyWhat(first_stop->emcy_code), "the robot left its workspace");
+  EXPECT_TRUE(std::any_of(first_stop + 1, faults_.end(), [](const LinkFault& f) {
+    return f.local && f.what != nullptr && std::string(f.what).find("new session") != std::string::npos;
+  }));
 }
 
 // A controller killed and replaced: the new one cannot take over the old one's session (its numbering starts at 1, the

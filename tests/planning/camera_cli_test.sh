@@ -32,6 +32,17 @@ assert all("cell" in x and len(x["fov_deg"]) == 2 for x in c)
 PY
 grep -q '<svg' "$tmp/cells.svg" && grep -q 'class="cell view' "$tmp/cells.svg" && grep -q '>best<' "$tmp/cells.svg" ||
   fail "cells.svg lacks cells or the best camera"
+# A legend in words for every colour and mark, and no grey but the obstacles' (a candidate without a strategy is
+# purple, not the obstacles' grey: issue 39).
+python3 - "$tmp/cells.svg" <<'PY' || fail "cells.svg: legend or colours"
+import re, sys
+svg = open(sys.argv[1]).read()
+for words in ("1 step", "no strategy", "view not evaluated", "obstacle", "goal", "start region", "the best candidate"):
+    assert re.search(r'class="legend"[^>]*>' + re.escape(words), svg), words
+fills = set(re.findall(r'class="(?:cell view\d+|candidate)" fill="(#[0-9a-f]{6})"', svg))
+greys = {f for f in fills if f[1:3] == f[3:5] == f[5:7] and f != "#ffffff"}
+assert fills and not greys, (fills, greys)
+PY
 grep -q '^best: centre' "$tmp/cells.log" || fail "no summary line: $(cat "$tmp/cells.log")"
 
 # A file of candidates: the scene's own centre and one inside the post (infeasible, with the reason).

@@ -116,10 +116,12 @@ expect2() {
   [[ $status -eq 2 ]] || fail "$what: exit $status, expected 2"
   grep -q -- "$pattern" "$tmp/bad.log" || { fail "$what: no clear message"; cat "$tmp/bad.log"; }
 }
-expect2 "no strategy" "--strategy" sim data/scenes/slot.json --lockstep "${cam[@]}" --rays "$here/data/slot_e2e_rays.json"
-expect2 "no camera" "--objects" sim data/scenes/slot.json --lockstep --strategy tests/control/data/slot_e2e_plan.json \
+# (the rays' own scene: rays of another scene are refused before anything else)
+e2e=tests/control/data/slot_e2e_scene.json
+expect2 "no strategy" "--strategy" sim $e2e --lockstep "${cam[@]}" --rays "$here/data/slot_e2e_rays.json"
+expect2 "no camera" "--objects" sim $e2e --lockstep --strategy tests/control/data/slot_e2e_plan.json \
   --rays "$here/data/slot_e2e_rays.json"
-expect2 "with --can" "--can" sim data/scenes/slot.json --lockstep --can vcan0 "${cam[@]}" \
+expect2 "with --can" "--can" sim $e2e --lockstep --can vcan0 "${cam[@]}" \
   --strategy tests/control/data/slot_e2e_plan.json --rays "$here/data/slot_e2e_rays.json"
 expect2 "--strategy without --lockstep" "only with --lockstep" sim data/scenes/slot.json \
   --strategy tests/control/data/slot_e2e_plan.json

@@ -19,6 +19,9 @@ usage: logtool.py list LOG
                                                      keep the camera, vision and controller channels from the start
                                                      while the file stays under MAX_BYTES, images as PNG; the run's
                                                      configuration at the end, its file names replaced by these
+                                                     (written relative to OUT's folder, as replay resolves them)
+       logtool.py files LOG OUT STRATEGY SCENE RAYS  LOG with the file names of its run's configuration replaced
+                                                     by these (written relative to OUT's folder)
 """
 import struct
 import sys
@@ -74,8 +77,68 @@ def png_gray(width, height, stride, pixels):
             chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
 
 
+def set_files(note, names):
+    """Replaces the strategy, scene and rays files named by a controller_config annotation event."""
+    import json
+    payload = note[3]
+    # log_annotation_t: fingerprint, utime, then three strings (source, kind, text).
+    p = 16
+    strings = []
+    for _ in range(3):
+        (n,) = struct.unpack(">I", payload[p:p + 4])
+        strings.append(bytes(payload[p + 4:p + 4 + n - 1]).decode())
+        p += 4 + n
+    config = json.loads(strings[2])
+    config["strategy"], config["scene"], config["rays"] = names
+    body = bytearray(payload[:16])
+    for text in strings[:2] + [json.dumps(config, sort_keys=True)]:
+        raw = text.encode() + b"\0"
+        body += struct.pack(">I", len(raw)) + raw
+    note[3] = body
+
+
+def rebase_files(events, log, out):
+    """A log written elsewhere names the same files: relative names (relative to the log's folder, as replay resolves
+    them) are rewritten relative to OUT's folder."""
+    import json
+    import os
+    notes = [e for e in events if e[2] == ANNOTATION]
+    if not notes:
+        return
+    p, strings = 16, []
+    for _ in range(3):
+        (n,) = struct.unpack(">I", notes[-1][3][p:p + 4])
+        strings.append(bytes(notes[-1][3][p + 4:p + 4 + n - 1]).decode())
+        p += 4 + n
+    if strings[1] != "controller_config":
+        return
+    config = json.loads(strings[2])
+    source, target = (os.path.dirname(os.path.abspath(p)) for p in (log, out))
+    names = []
+    for key in ("strategy", "scene", "rays"):
+        name = config.get(key, "")
+        relative = name and not os.path.isabs(name)
+        names.append(os.path.relpath(os.path.join(source, name), target) if relative else name)
+    set_files(notes[-1], names)
+
+
+def relative_to(log, names):
+    """The names as `visco replay` resolves them: relative to the log's folder."""
+    import os
+    folder = os.path.dirname(os.path.abspath(log))
+    return [os.path.relpath(os.path.abspath(n), folder) for n in names]
+
+
 def main():
     cmd = sys.argv[1]
+    if cmd == "files":
+        events = read(sys.argv[2])
+        notes = [e for e in events if e[2] == ANNOTATION]
+        if not notes:
+            raise SystemExit("%s: no controller_config annotation" % sys.argv[2])
+        set_files(notes[-1], relative_to(sys.argv[3], sys.argv[4:7]))
+        write(sys.argv[3], encode(events))
+        return
     if cmd == "diff":
         channel = sys.argv[4] if len(sys.argv) > 4 and sys.argv[4] != "-" else None
         before = float(sys.argv[5]) if len(sys.argv) > 5 else None
@@ -107,6 +170,7 @@ def main():
         return
     events = read(sys.argv[2])
     out = sys.argv[3]
+    rebase_files(events, sys.argv[2], out)
     if cmd == "extract-images":
         import os
         os.makedirs(out, exist_ok=True)
@@ -148,24 +212,9 @@ def main():
         kept, size = [], 0
         notes = [e for e in events if e[2] == ANNOTATION]
         if notes:
-            import json
-            note = notes[-1][3]
-            # log_annotation_t: fingerprint, utime, then three strings (source, kind, text).
-            p = 16
-            strings = []
-            for _ in range(3):
-                (n,) = struct.unpack(">I", note[p:p + 4])
-                strings.append(bytes(note[p + 4:p + 4 + n - 1]).decode())
-                p += 4 + n
-            config = json.loads(strings[2])
             if len(sys.argv) > 7:
-                config["strategy"], config["scene"], config["rays"] = sys.argv[5:8]
-            body = bytearray(note[:16])
-            for text in strings[:2] + [json.dumps(config, sort_keys=True)]:
-                raw = text.encode() + b"\0"
-                body += struct.pack(">I", len(raw)) + raw
-            notes[-1][3] = body
-            size += 28 + len(ANNOTATION) + len(body)
+                set_files(notes[-1], relative_to(sys.argv[3], sys.argv[5:8]))
+            size += 28 + len(ANNOTATION) + len(notes[-1][3])
         for e in events:
             if e[2] not in VISION and e[2] != CYCLE:
                 continue

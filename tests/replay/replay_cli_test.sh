@@ -35,6 +35,28 @@ sys.exit(0 if s["identical"] and s["frames"] >= 20 and s["compared"] >= 4 * s["f
          c["compared"] >= 1000 and c["frames_from_vision"] > 0 else 1)' "$tmp/out.json" ||
   fail "fixture: not identical or too few frames or periods compared"
 
+# What the summary claims is what happened (issue 39): with --no-publish nothing is "published"; without --check
+# "identical" is not claimed.
+python3 -S -c '
+import json, sys
+s = json.load(open(sys.argv[1]))
+sys.exit(0 if s["published"] == 0 and s["republished"] == 0 and s["produced"] > 1000 and s["checked"] else 1)' \
+  "$tmp/out.json" || fail "--no-publish: the summary claims publications: $(head -c 300 "$tmp/out.json")"
+status=$(replay "$log" --to 0.5)
+grep -q '"identical":null' "$tmp/out.json" && grep -q '"checked":false' "$tmp/out.json" ||
+  fail "without --check the summary claims identical: $(head -c 200 "$tmp/out.json")"
+# A --check whose window holds nothing to compare (it starts after the log's end) shows nothing identical: exit 1.
+status=$(replay "$log" --check --from 100)
+[[ $status -eq 1 ]] && grep -q "nothing was compared" "$tmp/err.log" && grep -q '"identical":false' "$tmp/out.json" ||
+  fail "--check comparing nothing: exit $status, $(tail -1 "$tmp/err.log")"
+# The files the log names are relative to the log: the replay works from any directory.
+(cd / && "$visco" replay "$OLDPWD/$log" --camera "$OLDPWD/data/sim/slot_camera.xml" \
+  --extrinsics "$OLDPWD/data/sim/slot_extrinsics.json" --objects "$OLDPWD/data/sim/slot_objects.json" --fast --check \
+  --no-publish --to 1 >"$tmp/elsewhere.json" 2>"$tmp/elsewhere.log") ||
+  fail "replay --check from / exited $?: $(tail -2 "$tmp/elsewhere.log")"
+grep -q "controller: [0-9]* period(s) through the executor" "$tmp/elsewhere.log" ||
+  fail "from /, the controller was not replayed: $(cat "$tmp/elsewhere.log")"
+
 # A window (earlier frames go through vision silently): identical too, fewer messages compared.
 status=$(replay "$log" --check --from 1 --to 2)
 [[ $status -eq 0 ]] || { fail "windowed replay exited $status"; cat "$tmp/err.log"; }
@@ -111,7 +133,10 @@ for _ in $(seq 1 185); do
 done
 kill -9 $driver
 wait $driver 2>/dev/null
-status=$(replay "$tmp/driver.lcmlog" --channels 'VISCO_(STATUS|HEARTBEAT_DRIVER)')
+# Published (in-process provider): the summary counts what went out, which --no-publish would not.
+"$visco" replay "$tmp/driver.lcmlog" "${cam[@]}" --fast --lcm-url memq:// --channels 'VISCO_(STATUS|HEARTBEAT_DRIVER)' \
+  >"$tmp/out.json" 2>"$tmp/err.log"
+status=$?
 [[ $status -eq 0 ]] || { fail "the SIGKILLed driver's log: exit $status"; cat "$tmp/err.log"; }
 python3 -S -c '
 import json, sys

@@ -86,6 +86,10 @@ TEST(ReplayFuzz, DamagedMessagesAreReportedNeverACrash) {
     o.pipeline.camera = "data/sim/slot_camera.xml";
     o.pipeline.extrinsics = "data/sim/slot_extrinsics.json";
     o.pipeline.objects = "data/sim/slot_objects.json";
+    // The fixture names its run's files relative to its own folder; this copy lies elsewhere.
+    o.strategy_path = "tests/control/data/slot_e2e_plan.json";
+    o.scene_path = "tests/control/data/slot_e2e_scene.json";
+    o.rays_path = "tests/replay/data/slot_e2e_rays.json";
     o.fast = true;
     o.publish = false;
     o.check = true;
