@@ -23,6 +23,7 @@
 #include "vision/pipeline.h"
 #include "vision/pipeline_config.h"
 #include "vision/tag_detector.h"
+#include "vision/v4l2_camera.h"
 
 namespace visco::vision {
 namespace {
@@ -30,9 +31,17 @@ namespace {
 std::atomic<bool> g_interrupted{false};
 extern "C" void OnSignal(int) { g_interrupted = true; }
 
+V4l2Options NoCamera() {
+  V4l2Options o;
+  o.device.clear();
+  return o;
+}
+
 struct TrackArgs {
   PipelineConfig pipeline;
   std::string images, video;
+  V4l2Options v4l2 = NoCamera();  // device empty: no V4L2 camera
+  bool fps_given = false;
   bool lcm_input = false;
   std::string lcm_url;
   bool publish = true;
@@ -57,8 +66,9 @@ const char* StateName(std::int8_t s) {
 }
 
 void RunTrack(const TrackArgs& a) {
-  const int inputs = (a.images.empty() ? 0 : 1) + (a.video.empty() ? 0 : 1) + (a.lcm_input ? 1 : 0);
-  if (inputs != 1) throw InputError("command line", "--images/--video/--lcm", "give exactly one frame source");
+  const int inputs =
+      (a.images.empty() ? 0 : 1) + (a.video.empty() ? 0 : 1) + (a.lcm_input ? 1 : 0) + (a.v4l2.device.empty() ? 0 : 1);
+  if (inputs != 1) throw InputError("command line", "--images/--video/--lcm/--v4l2", "give exactly one frame source");
   const LoadedPipeline loaded = LoadPipelineConfig(a.pipeline);
   const CameraModel& camera = loaded.camera;
   const Eigen::Isometry3d& wMc = loaded.wMc;
@@ -82,6 +92,14 @@ void RunTrack(const TrackArgs& a) {
   if (!a.images.empty()) source = MakeFolderSource(a.images, a.fps, start);
   if (!a.video.empty()) source = MakeVideoSource(a.video, start);
   if (a.lcm_input) source = MakeLcmSource(*bus, channels::kCameraImage);
+  if (!a.v4l2.device.empty()) {
+    V4l2Options v = a.v4l2;
+    // The calibration's image size is asked of the camera (a camera that cannot give it is an error).
+    v.width = camera.width;
+    v.height = camera.height;
+    if (!a.fps_given) v.fps = 0;
+    source = MakeV4l2Source(v, po.camera_name);
+  }
 
   std::FILE* out = stdout;
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(nullptr, &std::fclose);
@@ -268,8 +286,9 @@ void RegisterCommands(CLI::App& app) {
   auto targs = std::make_shared<TrackArgs>();
   CLI::App* track = app.add_subcommand(
       "track",
-      "Run the vision pipeline over a stream: an image folder, a video file or the LCM camera channel "
-      "(VISCO_CAMERA_IMAGE, image_t). Detects and tracks the tags of the object models, estimates object poses, the "
+      "Run the vision pipeline over a stream: an image folder, a video file, the LCM camera channel "
+      "(VISCO_CAMERA_IMAGE, image_t) or a V4L2 camera. Detects and tracks the tags of the object models, estimates "
+      "object poses, the "
       "robot position and the visual events, publishes them on LCM (VISCO_TAG_DETECTIONS, VISCO_OBJECT_POSES, "
       "VISCO_ROBOT_ESTIMATE, VISCO_VISUAL_EVENTS, faults on VISCO_FAULT) and prints one JSON line per frame (robot, "
       "objects with "
@@ -279,12 +298,26 @@ void RegisterCommands(CLI::App& app) {
   track->add_option("--images", targs->images, "folder of image files, processed in name order");
   track->add_option("--video", targs->video, "video file (OpenCV)");
   track->add_flag("--lcm", targs->lcm_input, "read image_t frames from VISCO_CAMERA_IMAGE until interrupted");
+  track->add_option("--v4l2", targs->v4l2.device,
+                    "read a V4L2 camera (e.g. /dev/video0) in this process, at the calibration's image size: as "
+                    "`visco capture` does (docs/camera.md)");
+  track->add_option("--input", targs->v4l2.input, "with --v4l2: the device's input to select");
+  track->add_option("--pixel-format", targs->v4l2.pixel_format, "with --v4l2: GREY, YUYV or MJPG");
+  track->add_option("--exposure", targs->v4l2.exposure, "with --v4l2: manual exposure (the device's unit)");
+  track->add_option("--gain", targs->v4l2.gain, "with --v4l2: manual gain (the device's unit)");
+  track->add_option("--timeout-ms", targs->v4l2.timeout_ms, "with --v4l2: no frame for this long is a fault")
+      ->capture_default_str();
   track->add_option("--lcm-url", targs->lcm_url,
                     "LCM provider URL (default: LCM's default). With --lcm over UDP multicast, add recv_buf_size "
                     "(e.g. udpm://239.255.76.67:7667?ttl=0&recv_buf_size=2097152): a 640x480 frame is larger than "
                     "the kernel's default receive buffer and frames are dropped without it");
   track->add_flag("!--no-publish", targs->publish, "do not publish on LCM (print only)");
-  track->add_option("--fps", targs->fps, "frame rate of an image folder (timestamps)")->capture_default_str();
+  track
+      ->add_option("--fps", targs->fps,
+                   "frame rate of an image folder (timestamps); with --v4l2, the rate asked of "
+                   "the camera (default: its current)")
+      ->capture_default_str()
+      ->each([targs](const std::string&) { targs->fps_given = true; });
   track->add_option("--max-frames", targs->max_frames, "stop after this many processed frames (0: no limit)");
   track->add_option("--out", targs->out, "write the JSON lines to this file instead of stdout");
   track->add_option("--log", targs->log,
@@ -296,7 +329,12 @@ void RegisterCommands(CLI::App& app) {
                     "picture per input frame (bad frames: black with the fault): tags and ids, searched windows, the "
                     "objects' prisms, CM vertices, VC lines, signed distances, events as they fire, faults; the video "
                     "runs at --fps; docs/vision.md, \"Overlays\"");
-  track->callback([targs] { RunTrack(*targs); });
+  track->callback([targs] {
+    TrackArgs a = *targs;
+    if (a.fps_given) a.v4l2.fps = a.fps;
+    RunTrack(a);
+  });
+  RegisterCaptureCommand(app);
 }
 
 }  // namespace visco::vision
