@@ -18,6 +18,7 @@
 #include "common/event_log.h"
 #include "drivers/driver.h"
 #include "drivers/driver_transport.h"
+#include "drivers/robot_backend.h"
 #include "drivers/robot_link.h"
 #include "drivers/simulated_robot.h"
 #include "drivers/simulated_robot_options.h"
@@ -40,6 +41,7 @@ struct DriverCommand {
   std::string lcm_url;
   DriverOptions driver;
   SimulatedRobotOptions robot;
+  RobotBackendOptions backend;
   double duration_s = 0.0;
   double truth_hz = 0.0;
   std::string log;
@@ -82,7 +84,18 @@ void RunDriver(const DriverCommand& o) {
   LogToStderr();  // stdout carries only the JSON summary
   const DriverConfig config = ToDriverConfig(o.driver);
 
-  SimulatedRobot robot(ToConfig(o.robot));
+  RobotBackendOptions backend = o.backend;
+  backend.max_speed = o.driver.max_speed;
+  backend.driver_node = o.driver.node;
+  backend.driver_interface = o.can_interface;
+  backend.heartbeat_ms = o.driver.heartbeat_ms;
+  SimulatedRobot* simulated = nullptr;
+  std::unique_ptr<RobotInterface> robot_owner = MakeRobot(backend, o.robot, &simulated);
+  RobotInterface& robot = *robot_owner;
+  if (o.truth_hz > 0.0 && simulated == nullptr) {
+    throw InputError("command line", "--truth-hz",
+                     "publishes the simulated robot's truth: only with --robot simulated");
+  }
   std::unique_ptr<EventLogTap> log = OpenEventLog(o.log, o.lcm_url);
 
   DriverTransportConfig transport_config;
@@ -92,6 +105,14 @@ void RunDriver(const DriverCommand& o) {
   std::unique_ptr<DriverTransport> transport = o.can_interface.empty() ? MakeLcmDriverTransport(transport_config)
                                                                        : MakeSocketCanDriverTransport(transport_config);
   Driver driver(config, *transport, robot);
+  // The robot's lifecycle (drivers/robot_interface.h): never a half-started robot.
+  try {
+    robot.Configure();
+    robot.Activate();
+  } catch (...) {
+    robot.Deactivate();
+    throw;
+  }
 
   struct sigaction action {};
   action.sa_handler = OnSignal;
@@ -105,7 +126,7 @@ void RunDriver(const DriverCommand& o) {
   if (!(o.truth_hz >= 0.0 && o.truth_hz <= 1000.0))
     throw InputError("command line", "--truth-hz", "must be in [0, 1000]");
   std::thread truth =
-      o.truth_hz > 0.0 ? StartTruthPublisher(robot, o.truth_hz, o.lcm_url, o.driver.node) : std::thread();
+      o.truth_hz > 0.0 ? StartTruthPublisher(*simulated, o.truth_hz, o.lcm_url, o.driver.node) : std::thread();
   std::thread timer;
   if (o.duration_s > 0.0) {
     timer = std::thread([d = o.duration_s] {
@@ -117,12 +138,15 @@ void RunDriver(const DriverCommand& o) {
     });
   }
   const RobotFeedback at = robot.Read();
-  spdlog::info("driver: node {} on {}, watchdog {} ms, simulated robot at ({}, {}) among {} C-obstacle(s)",
-               o.driver.node,
+  spdlog::info("driver: node {} on {}, watchdog {} ms, {} robot at ({}, {}){}", o.driver.node,
                o.can_interface.empty() ? "LCM " + (o.lcm_url.empty() ? std::string("(default)") : o.lcm_url)
                                        : "CAN " + o.can_interface,
-               o.driver.watchdog_ms, at.position[0], at.position[1], robot.model().world().obstacles.size());
+               o.driver.watchdog_ms, backend.kind, at.position[0], at.position[1],
+               simulated != nullptr
+                   ? " among " + std::to_string(simulated->model().world().obstacles.size()) + " C-obstacle(s)"
+                   : std::string());
   driver.Run(g_stop);
+  robot.Deactivate();
   signal(SIGUSR1, SIG_IGN);
   g_driver.store(nullptr);
   g_stop.store(true);
@@ -134,7 +158,8 @@ void RunDriver(const DriverCommand& o) {
       "{\"commands_applied\": %llu, \"bad_commands\": %llu, \"out_of_sequence\": %llu, \"wrong_session\": %llu, "
       "\"sessions\": %llu, \"refused_resets\": %llu, \"nmt_starts\": %llu, \"nmt_resets\": %llu, "
       "\"operator_releases\": %llu, \"quick_stops\": %llu, \"watchdog_stops\": %llu, "
-      "\"bounds_stops\": %llu, \"estops\": %llu, \"resets\": %llu, \"bus_offs\": %llu, \"frames_dropped\": %llu, "
+      "\"bounds_stops\": %llu, \"robot_faults\": %llu, \"estops\": %llu, \"resets\": %llu, \"bus_offs\": %llu, "
+      "\"frames_dropped\": %llu, "
       "\"statuses_sent\": %llu, "
       "\"faults_sent\": %llu, "
       "\"send_failures\": %llu, \"state\": \"%s\", \"position\": [%.9g, %.9g], \"contact\": %s}\n",
@@ -144,11 +169,12 @@ void RunDriver(const DriverCommand& o) {
       static_cast<unsigned long long>(s.nmt_starts), static_cast<unsigned long long>(s.nmt_resets),
       static_cast<unsigned long long>(s.operator_releases), static_cast<unsigned long long>(s.quick_stops),
       static_cast<unsigned long long>(s.watchdog_stops), static_cast<unsigned long long>(s.bounds_stops),
-      static_cast<unsigned long long>(s.estops), static_cast<unsigned long long>(s.resets),
-      static_cast<unsigned long long>(s.bus_offs), static_cast<unsigned long long>(s.frames_dropped),
-      static_cast<unsigned long long>(s.statuses_sent), static_cast<unsigned long long>(s.faults_sent),
-      static_cast<unsigned long long>(s.send_failures), ToString(driver.state()), robot.Read().position[0],
-      robot.Read().position[1], robot.Read().contact ? "true" : "false");
+      static_cast<unsigned long long>(s.robot_faults), static_cast<unsigned long long>(s.estops),
+      static_cast<unsigned long long>(s.resets), static_cast<unsigned long long>(s.bus_offs),
+      static_cast<unsigned long long>(s.frames_dropped), static_cast<unsigned long long>(s.statuses_sent),
+      static_cast<unsigned long long>(s.faults_sent), static_cast<unsigned long long>(s.send_failures),
+      ToString(driver.state()), robot.Read().position[0], robot.Read().position[1],
+      robot.Read().contact ? "true" : "false");
   std::fflush(stdout);
 }
 
@@ -199,7 +225,8 @@ void RegisterCommands(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "driver",
       "Robot driver process: receives velocity commands over SocketCAN (--can IFACE) or LCM (default), drives the "
-      "simulated robot, answers every command with a status, sends heartbeats and EMCY/fault messages, and stops "
+      "robot (the simulated one by default; CiA 402 drives or a plugin: --robot), answers every command with a status, "
+      "sends heartbeats and EMCY/fault messages, and stops "
       "the robot when no valid command arrives within the watchdog period (protocol: drivers/README.md). It boots "
       "disabled in a fresh session and accepts only commands of its current session. A latched e-stop is released "
       "only by the operator: send the driver SIGUSR1 (kill -USR1 PID); it is then disabled until a controller's "
@@ -210,6 +237,19 @@ void RegisterCommands(CLI::App& app) {
                   "write an LCM event log (lcm-logger format) of the bus: every channel it publishes and receives "
                   "(needs a udpm:// bus; docs/replay.md)");
   AddDriverOptions(*cmd, options->driver);
+  const std::string robot_group = "Robot backend (docs/your_own_robot.md)";
+  cmd->add_option("--robot", options->backend.kind,
+                  "what the driver drives: simulated (the simulated robot, its options below), cia402 (CiA 402 drives "
+                  "over CAN, configured by --robot-config) or plugin (a shared library, --robot-plugin)")
+      ->capture_default_str()
+      ->group(robot_group);
+  cmd->add_option("--robot-config", options->backend.config_path,
+                  "the robot's configuration, a JSON file: the drives (cia402) or the plugin's own (passed to it as "
+                  "text)")
+      ->group(robot_group);
+  cmd->add_option("--robot-plugin", options->backend.plugin_path,
+                  "--robot plugin: the shared library (exports visco_robot_plugin_create, drivers/robot_plugin.h)")
+      ->group(robot_group);
   AddSimulatedRobotOptions(*cmd, options->robot, /*with_world=*/true);
   cmd->add_option("--truth-hz", options->truth_hz,
                   "simulation: publish the robot's true state on VISCO_SIM_TRUTH (LCM) at this rate, for a simulated "

@@ -172,6 +172,17 @@ void Driver::Update(std::int64_t now_us) {
     SetFault(fault_bits::kBounds, can::kEmcyBounds, fault_t::CODE_LIMIT, true, message);
   }
   out_of_bounds_ = feedback.out_of_bounds;
+  if (feedback.fault && !robot_fault_) {
+    ++stats_.robot_faults;
+    // (A disabled or e-stopped driver stays so: the robot is stopped all the same.)
+    StopRobot(state_ == RobotState::kReady || state_ == RobotState::kMoving ? RobotState::kStopped : state_);
+    if (feedback.fault_bus) fault_bits_ = static_cast<std::uint16_t>(fault_bits_ | fault_bits::kBus);
+    const std::int32_t code = feedback.fault_bus ? static_cast<std::int32_t>(fault_t::CODE_CAN_ERROR)
+                                                 : static_cast<std::int32_t>(fault_t::CODE_ROBOT_FAULT);
+    Announce(feedback.fault_code, code, true, false,
+             feedback.fault_message[0] != '\0' ? feedback.fault_message : "robot fault");
+  }
+  robot_fault_ = feedback.fault;
 
   if (session_expired_) NewSession(now_us);  // after this update's EMCYs, which say why
   if (now_us >= next_status_us_) SendStatus(now_us);
@@ -296,9 +307,12 @@ void Driver::OnReset(std::int64_t now_us) {
     return;
   }
   if (bus_off_) return;  // cannot reset while the bus is off
-  const bool was_latched = (state_ != RobotState::kReady && state_ != RobotState::kMoving) || fault_bits_ != 0;
+  const bool was_latched =
+      (state_ != RobotState::kReady && state_ != RobotState::kMoving) || fault_bits_ != 0 || robot_fault_;
   const double zero[2] = {0.0, 0.0};
   robot_.SetVelocity(zero);
+  robot_.Reset();  // a robot's own fault: its fault reset; a fault that persists is reported again
+  robot_fault_ = false;
   fault_bits_ = 0;
   state_ = RobotState::kReady;
   last_valid_us_ = std::max(last_valid_us_, now_us);  // a reset command already set it to its arrival

@@ -18,6 +18,9 @@
 // - Quick stop (a command's quick-stop flag, whatever its session, number or CRC: the controller stopped): quick stop
 //   at once, state STOPPED, EMCY 0xFF02; a reset clears it.
 // - Bus-off or interface down: quick stop, state STOPPED, FAULT_BUS until the bus recovers.
+// - The robot's own fault (RobotFeedback::fault: a drive's fault or EMCY, a drive lost): quick stop, state STOPPED,
+//   EMCY with the robot's code and message (the bus fault bit if it is a communication fault); the reset calls
+//   RobotInterface::Reset() (a CiA 402 fault reset), and a fault that persists stops the robot again.
 // - STOPPED is latched: a reset command with the faults gone returns the driver to READY. The reset command's
 //   velocity is ignored. NMT start has no effect; NMT reset node restarts the session (DISABLED, or ESTOP if latched).
 
@@ -51,6 +54,7 @@ struct DriverStats {
   std::uint64_t sequence_gaps = 0;    // command numbers skipped (lost commands)
   std::uint64_t watchdog_stops = 0;
   std::uint64_t bounds_stops = 0;  // the robot left its workspace
+  std::uint64_t robot_faults = 0;  // the robot reported a fault of its own (RobotFeedback::fault)
   std::uint64_t estops = 0;
   std::uint64_t quick_stops = 0;  // at the controller's request (command flag)
   std::uint64_t resets = 0;
@@ -134,6 +138,7 @@ class Driver {
   std::uint16_t fault_bits_ = 0;
   bool bus_off_ = false;
   bool out_of_bounds_ = false;  // the robot reported itself outside its workspace (one fault per episode)
+  bool robot_fault_ = false;    // the robot reported a fault (one stop per episode; a reset ends it)
   std::uint64_t rng_ = 0;       // splitmix64 state of the nonces
   std::uint32_t session_ = 0;
   std::uint32_t last_seq_ = 0;  // last accepted command number in the session (0: none)
