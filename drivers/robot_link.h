@@ -138,6 +138,8 @@ constexpr const char* EmcyWhat(std::uint16_t emcy_code) {
       return "CAN overrun, frames lost";
     case 0x8120:
       return "CAN error passive";
+    case 0x8130:
+      return "a drive of the robot lost (its heartbeat)";
     case 0x8140:
       return "CAN recovered from bus-off";
     case 0x8200:
