@@ -105,7 +105,7 @@ def case_a():
         sim.stop()
         return
     boot3 = [t for t, what, value in sim.drive(3).history if what == "nmt" and value == "boot-up"]
-    check(boot3 and boot3[-1] - t0 >= 0.9, "node 3 booted late (%.2f s after the driver started)" %
+    check(boot3 and boot3[-1] - t0 >= 0.5, "node 3 booted late (%.2f s after the driver started)" %
           ((boot3[-1] - t0) if boot3 else -1))
     for n in (2, 3):
         d = sim.drive(n)
