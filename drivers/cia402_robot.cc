@@ -215,7 +215,8 @@ void Cia402Robot::Fault(bool bus, std::uint16_t code, const char* format, ...) {
 void Cia402Robot::Dispatch(const can::Frame& frame, std::int64_t now_us) {
   if ((frame.id & can::kErrFlag) != 0) {
     if ((frame.id & can::kErrBusOff) != 0 && configured_) {
-      Fault(true, 0x8140, "CAN bus-off on %s (the drives' bus): every axis quick-stopped", config_.interface.c_str());
+      Fault(true, can::kEmcyBusOff, "CAN bus-off on %s (the drives' bus): every axis quick-stopped",
+            config_.interface.c_str());
     }
     return;
   }

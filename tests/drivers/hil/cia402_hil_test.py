@@ -6,8 +6,8 @@ asserts what the robot -- the simulated drives -- did:
   A. (cyclic synchronous velocity, two buses, node 3 booting 1 s late) boot and SDO configuration, NMT start of the
      two nodes only, enable on the driver's reset, velocity tracking within the drive's limits, quick stop on the
      driver's watchdog stop and re-enable, a drive's fault (EMCY relayed, the other axis quick-stopped) and fault
-     reset, a drive's heartbeat lost, the drives' interface taken down and up, the driver killed (the drives stop on
-     its lost heartbeat);
+     reset, a drive's heartbeat lost, the drives' interface taken down and up, a bus-off on it, the driver killed (the
+     drives stop on its lost heartbeat);
   B. a drive that aborts an SDO: a clear error naming node, object and abort code, nothing enabled;
   C. a drive that never boots: a clear error, the other never started;
   D. a drive whose max profile velocity is below the driver's --max-speed: refused (exit 2), nothing started;
@@ -45,9 +45,12 @@ def config(path, **overrides):
 
 def start_driver(name, cfg, interface="vcan0"):
     log = open("/tmp/cia402_%s.log" % name, "w")
-    process = subprocess.Popen([VISCO, "driver", "--can", interface, "--node", "1", "--watchdog-ms", "300",
-                                "--heartbeat-ms", "100", "--status-period-ms", "20", "--max-speed", "0.5",
-                                "--robot", "cia402", "--robot-config", cfg], stdout=log, stderr=subprocess.STDOUT)
+    # Pinned to CPU 1, the test and the simulated drives to CPU 0 (run_in_vm.sh): vcan's receive queues are per CPU, and
+    # a sender that migrates between CPUs can have its frames delivered out of order, which a real bus cannot do.
+    process = subprocess.Popen(["/usr/bin/taskset", "-c", "1", VISCO, "driver", "--can", interface, "--node", "1",
+                                "--watchdog-ms", "300", "--heartbeat-ms", "100", "--status-period-ms", "20",
+                                "--max-speed", "0.5", "--robot", "cia402", "--robot-config", cfg],
+                               stdout=log, stderr=subprocess.STDOUT)
     process.log_path = log.name
     return process
 
@@ -85,8 +88,10 @@ def mapping(sim, node, index):
 
 def enable(peer, sim, what):
     peer.command(0, 0, reset=True)
-    ok = peer.wait(lambda: peer.status is not None and peer.status[3] == READY, 3.0)
-    ok = ok and wait_for(lambda: both(sim, drives.ENABLED), 3.0)
+    # Zero commands meanwhile: a drive's fault reset and enable take several SYNC periods, longer than the driver's
+    # watchdog may wait for the controller.
+    ok = peer.wait(lambda: peer.status is not None and peer.status[3] == READY and both(sim, drives.ENABLED), 3.0,
+                   (0, 0))
     check(ok, what + ": the driver's reset -> READY, both drives OPERATION ENABLED")
     return ok
 
@@ -198,6 +203,27 @@ def case_a():
     enable(peer, sim, "interface up again")
     peer.wait(lambda: False, 0.4, (0.2, 0.2))
     check(sim.snapshot(2)["velocity"] > 0.1 * COUNTS, "moving again")
+
+    # A bus-off on the drives' interface, as a CAN controller reports it (an error frame; vcan has no controller to
+    # go bus-off by itself).
+    peer.emcy.clear()
+    injector = drives.can.Bus(interface="socketcan", channel="vcan1")
+    injector.send(drives.can.Message(arbitration_id=0x040, is_error_frame=True, is_extended_id=False, dlc=8,
+                                     data=bytes(8)))  # CAN_ERR_BUSOFF
+    busoff = time.monotonic()
+    got = peer.wait(lambda: any(e[0] == 0x8100 and e[3] for e in peer.emcy), 2.0, (0.2, 0.2))
+    check(got, "bus-off on the drives' interface reported with EMCY 0x8100 (%.0f ms)" %
+          ((time.monotonic() - busoff) * 1e3))
+    check(wait_for(lambda: both(sim, drives.QUICK_STOP) and sim.snapshot(2)["velocity"] == 0 and
+                   sim.snapshot(3)["velocity"] == 0, 2.0), "bus-off: both drives quick-stopped and still")
+    peer.drain(0.1)
+    check(peer.status[3] == STOPPED, "bus-off: the driver STOPPED")
+    injector.send(drives.can.Message(arbitration_id=0x100, is_error_frame=True, is_extended_id=False, dlc=8,
+                                     data=bytes(8)))  # CAN_ERR_RESTARTED
+    injector.shutdown()
+    enable(peer, sim, "after the bus-off")
+    peer.wait(lambda: False, 0.4, (0.2, 0.2))
+    check(sim.snapshot(2)["velocity"] > 0.1 * COUNTS, "moving again after the bus-off")
 
     # The driver killed: the drives consume its heartbeat and stop.
     driver.send_signal(signal.SIGKILL)

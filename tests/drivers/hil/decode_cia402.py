@@ -68,6 +68,9 @@ def analyse(lines, nodes, visco, master=127, quiet=False):
             continue
         t, iface, cid, data = float(m.group(1)), m.group(2), int(m.group(3), 16), bytes.fromhex(m.group(4))
         frames.append((t, iface, cid, data))
+    # In the order the frames were sent: the kernel stamps a frame when it is sent, but on two CPUs the receive
+    # queues are per CPU and candump may read a drive's answer before the request it answers (seen in the VM).
+    frames.sort(key=lambda f: f[0])
     pending = {}      # node -> (time, index, sub) of an unanswered SDO request
     emcy_watch = []   # (node of the EMCY, time, {node: RPDOs seen since})
     counts = {}
@@ -173,6 +176,8 @@ def self_test():
         "NMT broadcast": (ok + ["(2.0) vcan1 000#0100"], 1),
         "bad controlword": (ok + ["(2.0) vcan1 202#1F0000000000"], 1),
         "velocity without enable": (ok + ["(2.0) vcan1 202#070010000000"], 1),
+        "answer logged before its request": (ok + ["(2.001) vcan1 582#6000100000000000",
+                                                   "(2.000) vcan1 602#4000100000000000"], 0),
         "request unanswered, then another": (ok + ["(2.0) vcan1 602#4000100000000000",
                                                     "(2.1) vcan1 602#4000100000000000"], 1),
         "no stop after an EMCY": (ok + ["(2.0) vcan1 082#1023010000000000", "(2.01) vcan1 202#0F0000000000",

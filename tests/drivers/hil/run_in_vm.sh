@@ -9,7 +9,8 @@
 #  6. the controller's loop over the SocketCAN link under the real-time guard, every stop path;
 #  7. the CiA 402 backend (`visco-rt driver --robot cia402`) against simulated CiA 402 drives (python-can) on vcan1
 #     and vcan0, the drives' traffic recorded and decoded;
-#  8. (with --bench) command throughput against cangen and the command-to-feedback round trip.
+#  8. the CiA 402 backend's loop under the real-time guard (no allocation, lock or throw) against the simulator;
+#  9. (with --bench) command throughput against cangen and the command-to-feedback round trip.
 # usage: run_in_vm.sh BUILD_DIR [--bench]   (working directory: the repository top)
 set -u
 build="$1"
@@ -114,7 +115,7 @@ step "CiA 402 backend vs simulated CiA 402 drives (tests/drivers/hil/cia402_driv
 candump -L -D -r 16777216 vcan0 vcan1 >/tmp/cia402_candump.log 2>&1 &
 cdump=$!
 sleep 0.3
-kept $py -S tests/drivers/hil/cia402_hil_test.py "$VISCO_BIN" || failed /tmp/hil_step.log
+kept taskset -c 0 $py -S tests/drivers/hil/cia402_hil_test.py "$VISCO_BIN" || failed /tmp/hil_step.log
 sleep 0.2
 kill -TERM $cdump 2>/dev/null
 wait $cdump 2>/dev/null
@@ -124,6 +125,9 @@ step "CiA 402 candump decoded (NMT, SYNC, SDO, EMCY, the mapped PDOs): checks an
 kept $py -S tests/drivers/hil/decode_cia402.py --self-test || failed /tmp/hil_step.log
 kept $py -S tests/drivers/hil/decode_cia402.py "$out/cia402_candump.log" --nodes 2 3 --visco-node 1 \
   || failed /tmp/hil_step.log
+
+step "the CiA 402 backend's loop (SetVelocity, Step, Read, QuickStop, Reset) under the real-time guard, against the drive simulator on vcan1"
+kept "$build/bin/drivers_cia402_realtime_hil_test" --gtest_brief=1 || failed /tmp/hil_step.log
 
 if [ "$bench" = "--bench" ]; then
   step "benchmarks on vcan0: command throughput vs cangen, round trip vs vcan loopback"
