@@ -46,7 +46,7 @@ enum class FaultCode : std::int32_t {
   kStepTimeout = 8,
   kStrategyFailed = 9,
   kOverrun = 10,
-  kRobotFault = 11,
+  kRobotFault = 12,
 };
 
 /// A fault, stop or clearance announcement (fault_t) produced by the loop.
