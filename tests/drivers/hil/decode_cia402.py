@@ -114,11 +114,33 @@ def analyse(lines, nodes, visco, master=127, quiet=False):
             code = struct.unpack("<H", data[:2])[0]
             if code != 0:
                 emcy_watch.append((node, t, {}))
+    latencies = command_latencies(frames, nodes, visco)
     for node, (t, index, sub) in pending.items():
         # A request still unanswered at the end of a case that ended by refusing: the log shows it went unanswered.
         if not quiet:
             print("     node %d: SDO request for %04X:%02X at %.6f not answered" % (node, index, sub, t))
-    return failures, counts, aborts, frames
+    return failures, counts, aborts, frames, latencies
+
+
+def command_latencies(frames, nodes, visco):
+    """Seconds from each controller command that changes the x velocity (the visco protocol's command 0x200 + visco
+    node, vx int16 at bytes 2-3) to the first RPDO1 of the x axis' drive (nodes[0]) whose target velocity changes to a
+    value of the same sign, other than 0: the driver's and the master's part of the path to the drive."""
+    out = []
+    last_vx, last_target, waiting = 0, 0, None
+    for t, iface, cid, data in frames:
+        if cid == 0x200 + visco and len(data) == 8:
+            vx = struct.unpack("<h", data[2:4])[0]
+            if vx != last_vx and vx != 0 and waiting is None:
+                waiting = (t, vx)
+            last_vx = vx
+        elif cid == 0x200 + nodes[0] and len(data) == 6:
+            target = struct.unpack("<Hi", data)[1]
+            if waiting is not None and target != last_target and target != 0 and (target > 0) == (waiting[1] > 0):
+                out.append(t - waiting[0])
+                waiting = None
+            last_target = target
+    return out
 
 
 def figures(counts):
@@ -205,8 +227,12 @@ def main():
     if args.self_test:
         return 1 if self_test() else 0
     with open(args.log, errors="replace") as f:
-        failures, counts, aborts, frames = analyse(f, args.nodes, args.visco_node, args.master_node)
+        failures, counts, aborts, frames, latencies = analyse(f, args.nodes, args.visco_node, args.master_node)
     figures(counts)
+    if latencies:
+        latencies.sort()
+        print("controller command -> the drive's new target velocity (RPDO1): p50 %.1f ms, max %.1f ms (%d changes)" %
+              (statistics.median(latencies) * 1e3, latencies[-1] * 1e3, len(latencies)))
     print("decode_cia402: %d frames, %d SDO abort(s), %d failure(s)" % (len(frames), len(aborts), len(failures)))
     return 1 if failures else 0
 
