@@ -41,14 +41,17 @@ sys.exit(0 if ok else 1)' "$tmp/demo/summary.json" || fail "the lockstep demo di
   first="$tmp/demo/run.lcmlog"
 else
   # Sanitizer builds: the checked-in plan, a few simulated seconds (the loop, the log and the replay, not the goal).
+  # The parameter file lies in the temporary folder and names files relative to itself: absolute paths here.
   python3 -S -c '
-import json, sys
-print(json.dumps({"sim": {"lockstep": True, "strategy": "tests/control/data/slot_e2e_plan.json",
-                          "rays": sys.argv[1], "camera-hz": 15, "supersample": 1, "latency-ms": 5,
+import json, os, sys
+root = sys.argv[3]
+def at(name): return os.path.join(root, name)
+print(json.dumps({"sim": {"lockstep": True, "strategy": at("tests/control/data/slot_e2e_plan.json"),
+                          "rays": at(sys.argv[1]), "camera-hz": 15, "supersample": 1, "latency-ms": 5,
                           "image-noise": 2, "blur-px": 0.5, "seed": 7, "watchdog-ms": 500,
-                          "camera": "data/sim/slot_camera.xml", "extrinsics": "data/sim/slot_extrinsics.json",
-                          "objects": "data/sim/slot_objects.json", "duration": float(sys.argv[2])}}))' \
-    "$here/data/slot_e2e_rays.json" "$limit" >"$tmp/params.json"
+                          "camera": at("data/sim/slot_camera.xml"), "extrinsics": at("data/sim/slot_extrinsics.json"),
+                          "objects": at("data/sim/slot_objects.json"), "duration": float(sys.argv[2])}}))' \
+    "$here/data/slot_e2e_rays.json" "$limit" "$PWD" >"$tmp/params.json"
   params="$tmp/params.json"
   first="$tmp/first.lcmlog"
   "$visco" sim tests/control/data/slot_e2e_scene.json --config "$params" --log "$first" >"$tmp/first.json" \
