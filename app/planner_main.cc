@@ -14,8 +14,8 @@
 
 #include "app/cli_run.h"
 #include "app/paths.h"
-#include "planning/apo_command.h"
-#include "planning/commands.h"
+#include "planning/cli/apo_command.h"
+#include "planning/cli/commands.h"
 
 #ifdef VISCO_MIMALLOC
 #include <mimalloc.h>  // linked for its malloc; --version names it (and so the program really links it)

@@ -4,9 +4,9 @@
 //   * B_vcθ(G): the same with a set of active CVC rays (frictionless two-sided walls), and the choice of that set
 //     so that the region stays sound and contains B_θ(G).
 //
-// The sweep runs in exact arithmetic (CGAL's lazy exact kernel, hidden in backprojection.cc) in a frame rotated so
-// that the commanded velocity points straight down; sticking and sliding are decided with the motion model's own
-// predicates (planning/motion_model.h), so planner and simulator agree on ties. Rings are assembled and holes placed
+// The sweep runs in exact arithmetic (CGAL's lazy exact kernel, hidden in planning/backprojection/) in a frame rotated
+// so that the commanded velocity points straight down; sticking and sliding are decided with the motion model's own
+// predicates (common/motion_model.h), so planner and simulator agree on ties. Rings are assembled and holes placed
 // with exact predicates; output coordinates are rotated back to the world frame exactly, then converted to double. An
 // inconsistency of the sweep is a std::logic_error (`visco` exits 1 with "internal error"), never a smaller or
 // larger region.
@@ -149,7 +149,8 @@ Region BackprojectionWithActiveRays(const BackprojectionProblem& problem, const 
 
 /// The static edges a region's rings can have besides CVC rays (C-obstacle, goal, bounds and forbidden edges), each
 /// with the kind, ref and RegionEdge::line a sweep gives it: where an event brings one into a region, the
-/// nondirectional walk takes it from here instead of sweeping (nondirectional.cc). @throws as ClassicBackprojection.
+/// nondirectional walk takes it from here instead of sweeping (nondirectional/computed_updates.h). @throws as
+/// ClassicBackprojection.
 std::vector<RegionEdge> StaticRegionEdges(const BackprojectionProblem& problem);
 
 /// B_vcθ(G). A region swept with an active set S is exactly what S guarantees (the rays are walls for the whole

@@ -309,9 +309,9 @@ bool Crossing(const Seg& s, const Seg& t, Vector2d* out) {
   return true;
 }
 
-class Generator {
+class CandidateGenerator {
  public:
-  Generator(const BackprojectionProblem& pr, const NamedPolygon* start, CandidateSearch search) : pr_(pr) {
+  CandidateGenerator(const BackprojectionProblem& pr, const NamedPolygon* start, CandidateSearch search) : pr_(pr) {
     eps_ = std::max(pr.velocity_cone, 1e-9);
     phi_ = pr.friction_cone;
     Collect(start);
@@ -744,12 +744,12 @@ double WrapAngle(double theta) {
 
 std::vector<CriticalOrientation> CriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon* start,
                                                     CriticalCounts* counts, CandidateSearch search) {
-  return Generator(problem, start, search).Run(counts);
+  return CandidateGenerator(problem, start, search).Run(counts);
 }
 
 std::vector<CriticalOrientation> RCriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon& start,
                                                      CandidateSearch search) {
-  return Generator(problem, &start, search).Run(nullptr, true);
+  return CandidateGenerator(problem, &start, search).Run(nullptr, true);
 }
 
 }  // namespace visco::planning

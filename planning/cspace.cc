@@ -100,7 +100,7 @@ int StateFromBoundaryDirections(const std::vector<std::pair<K::Vector_2, bool>>&
 
 // A segment whose pieces can bound a C-obstacle (cspace.h EdgeSource). Only indices are stored (there are
 // 2 n m of them); the exact segment is formed for the few that a boundary edge's bounding box meets.
-struct Generator {
+struct MinkowskiGenerator {
   std::size_t obstacle = 0;
   EdgeSource::Kind kind = EdgeSource::Kind::kObstacleEdge;
   std::uint32_t obstacle_vertex = 0;  // normalised: the edge from this vertex (kObstacleEdge), or this vertex
@@ -122,8 +122,8 @@ CGAL::Bbox_2 DifferenceBox(const Point& b, const Point& a) {
 }
 
 // The generator's segment: its two ends (b - a) as points of the scene's normalised polygons.
-std::pair<std::pair<const Point*, const Point*>, std::pair<const Point*, const Point*>> Ends(const Scene& scene,
-                                                                                             const Generator& g) {
+std::pair<std::pair<const Point*, const Point*>, std::pair<const Point*, const Point*>> Ends(
+    const Scene& scene, const MinkowskiGenerator& g) {
   const Polygon& b = scene.obstacles[g.obstacle].shape.polygon;
   const Polygon& a = scene.robot.polygon;
   if (g.kind == EdgeSource::Kind::kObstacleEdge) {
@@ -132,17 +132,17 @@ std::pair<std::pair<const Point*, const Point*>, std::pair<const Point*, const P
   return {{&b[g.obstacle_vertex], &a[g.robot_vertex]}, {&b[g.obstacle_vertex], &a[(g.robot_vertex + 1) % a.size()]}};
 }
 
-KSegment ExactSegment(const Scene& scene, const Generator& g) {
+KSegment ExactSegment(const Scene& scene, const MinkowskiGenerator& g) {
   const auto [s, t] = Ends(scene, g);
   return {Difference(*s.first, *s.second), Difference(*t.first, *t.second)};
 }
 
-CGAL::Bbox_2 GeneratorBox(const Scene& scene, const Generator& g) {
+CGAL::Bbox_2 GeneratorBox(const Scene& scene, const MinkowskiGenerator& g) {
   const auto [s, t] = Ends(scene, g);
   return DifferenceBox(*s.first, *s.second) + DifferenceBox(*t.first, *t.second);
 }
 
-EdgeSource SourceOf(const Scene& scene, const Generator& g) {
+EdgeSource SourceOf(const Scene& scene, const MinkowskiGenerator& g) {
   EdgeSource source{g.kind, g.obstacle, g.obstacle_feature, g.robot_feature, ""};
   const bool obstacle_edge = g.kind == EdgeSource::Kind::kObstacleEdge;
   source.ref = fmt::format("obstacle[{}].{}[{}]-robot.{}[{}]", scene.obstacles[g.obstacle].id,
@@ -152,17 +152,18 @@ EdgeSource SourceOf(const Scene& scene, const Generator& g) {
 
 // Obstacle i's generators (cspace.h EdgeSource), sorted by key: obstacle edges translated by minus each robot
 // vertex, reflected robot edges translated by each obstacle vertex.
-std::vector<Generator> GeneratorsOf(const Scene& scene, std::size_t i) {
+std::vector<MinkowskiGenerator> GeneratorsOf(const Scene& scene, std::size_t i) {
   const ScenePolygon& robot = scene.robot;
   const ScenePolygon& shape = scene.obstacles[i].shape;
-  std::vector<Generator> out;
+  std::vector<MinkowskiGenerator> out;
   for (std::uint32_t k = 0; k < shape.polygon.size(); ++k) {
     for (std::uint32_t j = 0; j < robot.polygon.size(); ++j) {
       out.push_back({i, EdgeSource::Kind::kObstacleEdge, k, j, SourceEdgeIndex(shape, k), robot.source_index[j]});
       out.push_back({i, EdgeSource::Kind::kRobotEdge, k, j, shape.source_index[k], SourceEdgeIndex(robot, j)});
     }
   }
-  std::sort(out.begin(), out.end(), [](const Generator& a, const Generator& b) { return a.key() < b.key(); });
+  std::sort(out.begin(), out.end(),
+            [](const MinkowskiGenerator& a, const MinkowskiGenerator& b) { return a.key() < b.key(); });
   return out;
 }
 
@@ -260,8 +261,9 @@ std::vector<SplitRing> SplitByGenerators(const std::vector<const KPolygon*>& cyc
 
 // Edge and vertex provenance of split rings. A vertex is named as a sum of vertices b_k - a_j when it is one (the
 // first (obstacle, k, j) by file positions; among `obstacle`'s vertices only, if given), else by its two edges.
-std::vector<RingSources> RingSourcesOf(const std::vector<SplitRing>& rings, const std::vector<Generator>& generators,
-                                       const Scene& scene, std::optional<std::size_t> obstacle) {
+std::vector<RingSources> RingSourcesOf(const std::vector<SplitRing>& rings,
+                                       const std::vector<MinkowskiGenerator>& generators, const Scene& scene,
+                                       std::optional<std::size_t> obstacle) {
   std::vector<RingSources> out(rings.size());
   std::vector<std::pair<std::size_t, std::size_t>> vertex_of;  // box info -> (ring, vertex)
   std::vector<Box> vertex_boxes, sum_boxes;
@@ -343,7 +345,7 @@ CSpace::CSpace(const Scene& scene) : exact_(std::make_unique<Exact>()) {
   const KPolygon minus_robot = ToExact(scene.robot.polygon, -1.0);  // a point reflection keeps the orientation
   // Provenance (cspace.h EdgeSource): every boundary edge is split where the first generator containing it
   // changes. Splits polygons with holes (all at once), records their double rings and provenance, returns the split.
-  std::vector<Generator> all_generators;  // key-sorted: obstacles ascend
+  std::vector<MinkowskiGenerator> all_generators;  // key-sorted: obstacles ascend
   const auto split = [&](const std::vector<KPolygonWithHoles>& polygons, const std::vector<Carrier>& carriers,
                          std::optional<std::size_t> obstacle, std::vector<PolygonWithHoles>& rings,
                          std::vector<PolygonSources>& sources) {
@@ -374,7 +376,7 @@ CSpace::CSpace(const Scene& scene) : exact_(std::make_unique<Exact>()) {
   for (std::size_t i = 0; i < scene.obstacles.size(); ++i) {
     e.c_obstacles.push_back(CGAL::minkowski_sum_2(ToExact(scene.obstacles[i].shape.polygon), minus_robot));
     const std::size_t offset = all_generators.size();
-    const std::vector<Generator> generators = GeneratorsOf(scene, i);
+    const std::vector<MinkowskiGenerator> generators = GeneratorsOf(scene, i);
     all_generators.insert(all_generators.end(), generators.begin(), generators.end());
     std::vector<Carrier> carriers;
     for (std::size_t g = 0; g < generators.size(); ++g) {

@@ -104,9 +104,6 @@ struct NondirectionalBackprojection {
 
 enum class SliceMethod : std::uint8_t { kKinetic, kBaseline };
 
-/// The machine's hardware threads (at least 1): the commands' default for `threads` (results do not depend on it).
-int MachineThreads();
-
 struct NondirectionalOptions {
   SliceMethod method = SliceMethod::kKinetic;
   VcSelectionOptions selection;

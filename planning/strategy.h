@@ -28,6 +28,10 @@
 #include "planning/scene.h"
 #include "planning/svg.h"
 
+namespace visco {
+class motion_strategy_t;
+}
+
 namespace visco::planning {
 
 class CSpace;
@@ -124,6 +128,9 @@ std::string StrategyToJson(const Scene& scene, const Strategy& strategy, double 
 /// The time-out of every step at commanded speed `speed` (m/s): three times the bounds' diagonal at that speed, plus
 /// 10 s, in whole seconds (the JSON's and the LCM message's "timeout_s").
 double StepTimeout(const Scene& scene, double speed);
+
+/// The strategy as the LCM message `visco run` also accepts (speed in m/s, the JSON's time-outs).
+motion_strategy_t StrategyToLcm(const Scene& scene, const Strategy& strategy, double speed);
 
 /// The nested preimages of the steps (Fig. 13 style): the start region, each preimage, its commanded direction, the
 /// rays used and the goal.

@@ -10,10 +10,11 @@
 #include <vector>
 
 #include "common/motion_model.h"
-#include "planning/backproject_command.h"
 #include "planning/backprojection.h"
+#include "planning/backprojection_output.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
+#include "planning/scene_problem.h"
 #include "planning/vc_rays.h"
 #include "tests/planning/random_scenes.h"
 

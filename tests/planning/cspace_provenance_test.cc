@@ -23,10 +23,10 @@
 #include <vector>
 
 #include "common/error.h"
-#include "planning/backproject_command.h"
 #include "planning/backprojection.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
+#include "planning/scene_problem.h"
 #include "tests/planning/random_vc_scenes.h"
 
 namespace visco::planning {

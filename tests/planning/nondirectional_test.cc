@@ -30,10 +30,10 @@
 #include <vector>
 
 #include "common/motion_model.h"
-#include "planning/backproject_command.h"
+#include "planning/area_profile.h"
 #include "planning/critical.h"
-#include "planning/critical_command.h"
 #include "planning/cspace.h"
+#include "planning/scene_problem.h"
 #include "planning/strategy.h"
 #include "planning/vc_rays.h"
 #include "tests/bench/planning/pentagon_grid.h"
@@ -469,7 +469,7 @@ TEST(NondirectionalExamples, AnRCriticalOrientationIsWhereTheStartRegionStartsTo
 // of the arm's corner and the −ε_v one of the roof between the arms) just below an active CVC ray that leads into the
 // left arm; turning θ pushes that free vertex across the ray, and the region below the ray joins the band above it
 // around a new hole. The scene also made the ray choice's exact region comparison meet a ring that touches itself at
-// a vertex (a CGAL precondition, planning/backprojection.cc SimpleLoops): the sanitizer build checks it.
+// a vertex (a CGAL precondition, planning/backprojection/ray_choice.h SimpleLoops): the sanitizer build checks it.
 BackprojectionProblem FreeEdgeCrossingProblem() {
   const Scene s = LoadScene("tests/planning/data/scenes/free_edge_crossing.json");
   const CSpace cspace(s);
@@ -511,8 +511,8 @@ TEST(NondirectionalExamples, AFreeVertexCrossingAnActiveRayChangesTheStructure) 
 
 // At θ ≈ 4° in the same scene, regions the ray choice compares have a ring that touches itself at a vertex. CGAL's
 // polygon sets take such a ring only as a precondition (the debug build stopped there with an internal error); the
-// ring is cut into simple loops first (planning/backprojection.cc SimpleLoops). The region found is the same for
-// every way of choosing the rays that this ring passes through.
+// ring is cut into simple loops first (planning/backprojection/ray_choice.h SimpleLoops). The region found is the same
+// for every way of choosing the rays that this ring passes through.
 TEST(NondirectionalExamples, ARingTouchingItselfIsComparedExactly) {
   const BackprojectionProblem pr = FreeEdgeCrossingProblem();
   for (double theta : {0.0619, 0.0702679, 0.0943}) {

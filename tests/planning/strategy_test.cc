@@ -16,7 +16,6 @@
 #include <vector>
 
 #include "planning/cspace.h"
-#include "planning/plan_command.h"
 #include "planning/scene.h"
 #include "planning/vc_rays.h"
 #include "tests/planning/random_vc_scenes.h"

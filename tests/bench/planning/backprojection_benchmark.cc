@@ -18,10 +18,10 @@
 #include <vector>
 
 #include "common/motion_model.h"
-#include "planning/backproject_command.h"
 #include "planning/backprojection.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
+#include "planning/scene_problem.h"
 #include "planning/vc_rays.h"
 #include "tests/bench/planning/pentagon_grid.h"
 #include "tests/planning/random_scenes.h"

@@ -28,12 +28,13 @@
 #include <string>
 #include <vector>
 
-#include "planning/backproject_command.h"
 #include "planning/critical.h"
 #include "planning/cspace.h"
 #include "planning/nondirectional.h"
 #include "planning/scene.h"
+#include "planning/scene_problem.h"
 #include "planning/strategy.h"
+#include "planning/threads.h"
 #include "planning/vc_rays.h"
 #include "tests/bench/planning/pentagon_grid.h"
 #include "tests/planning/random_vc_scenes.h"

@@ -2,7 +2,7 @@
 // the widest narrowest θ-interval, then the largest first preimage). Candidates: one per view of the viewing cells
 // (default), a grid, or a file.
 
-#include "planning/camera_command.h"
+#include "planning/cli/camera_command.h"
 
 #include <fmt/format.h>
 #include <unistd.h>
@@ -28,6 +28,7 @@
 #include "planning/nondirectional.h"
 #include "planning/scene.h"
 #include "planning/svg.h"
+#include "planning/threads.h"
 
 namespace visco::planning {
 namespace {

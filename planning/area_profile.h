@@ -1,20 +1,13 @@
 #pragma once
-// `visco critical SCENE [--kernel] [--slices] [--svg FILE] [--threads N] [--method kinetic|baseline] [--out FILE]`
-// (docs/formats.md), and its picture: the areas of B_θ(G) and B_vcθ(G) against θ with the critical orientations.
+// The area profile of a nondirectional backprojection: the areas of B_θ(G) and B_vcθ(G) against θ, and its picture
+// with the critical orientations (`visco critical --svg`, docs/formats.md).
 
 #include <string>
 #include <vector>
 
 #include "planning/nondirectional.h"
 
-namespace CLI {
-class App;
-}
-
 namespace visco::planning {
-
-/// Registers `visco critical` on `app`.
-void RegisterCriticalCommand(CLI::App& app);
 
 /// The areas at one commanded direction.
 struct AreaSample {

@@ -1,4 +1,4 @@
-#include "planning/apo_command.h"
+#include "planning/cli/apo_command.h"
 
 #include <CLI/CLI.hpp>
 #include <cstdio>

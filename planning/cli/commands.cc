@@ -1,4 +1,4 @@
-#include "planning/commands.h"
+#include "planning/cli/commands.h"
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
@@ -8,12 +8,13 @@
 
 #include "common/error.h"
 #include "common/write_output.h"
-#include "planning/backproject_command.h"
-#include "planning/camera_command.h"
-#include "planning/critical_command.h"
+#include "planning/cli/backproject_command.h"
+#include "planning/cli/camera_command.h"
+#include "planning/cli/critical_command.h"
+#include "planning/cli/plan_command.h"
 #include "planning/cspace.h"
-#include "planning/plan_command.h"
 #include "planning/scene.h"
+#include "planning/scene_problem.h"
 #include "planning/strategy.h"
 #include "planning/vc_rays.h"
 
