@@ -49,6 +49,7 @@
 #include "lcmtypes/channels.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
+#include "planning/scene_file.h"
 #include "planning/strategy.h"
 #include "planning/svg.h"
 #include "planning/vc_rays.h"

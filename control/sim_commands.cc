@@ -22,6 +22,7 @@
 #include "drivers/commands.h"
 #include "drivers/simulated_robot_options.h"
 #include "planning/scene.h"
+#include "planning/scene_file.h"
 
 namespace visco::control {
 namespace {

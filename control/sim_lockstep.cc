@@ -21,6 +21,7 @@
 #include "drivers/robot_link.h"
 #include "lcmtypes/channels.h"
 #include "planning/scene.h"
+#include "planning/scene_file.h"
 #include "visco/sim_truth_t.hpp"
 #include "vision/pipeline.h"
 #include "vision/pipeline_config.h"

@@ -16,6 +16,7 @@
 #include "drivers/driver_transport.h"
 #include "lcmtypes/channels.h"
 #include "planning/scene.h"
+#include "planning/scene_file.h"
 #include "visco/robot_estimate_t.hpp"
 #include "visco/sim_truth_t.hpp"
 #include "visco/visual_events_t.hpp"

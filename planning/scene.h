@@ -1,15 +1,14 @@
 #pragma once
-// The planner's immutable scene model (docs/formats.md "Scene file", docs/semantics.md "Frames and units") and its
-// loader.
+// The planner's immutable scene model (docs/formats.md "Scene file", docs/semantics.md "Frames and units"); scene
+// files are read by planning/scene_file.h.
 //
-// A Scene is plain data, built and validated once by LoadScene / ParseScene and then only read (pass it as
-// `const Scene&`). Polygons are normalised: counter-clockwise, repeated consecutive vertices dropped; the
+// A Scene is plain data, built and validated once by LoadScene / ParseScene (scene_file.h) and then only read (pass it
+// as `const Scene&`). Polygons are normalised: counter-clockwise, repeated consecutive vertices dropped; the
 // `source_index` of each polygon maps a normalised vertex back to its 0-based position in the file, which is what
 // outputs report (docs/formats.md "Indices in outputs"). Angles are radians, lengths metres.
 
 #include <optional>
 #include <string>
-#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -136,24 +135,6 @@ struct Scene {
   /// Half-angle of the friction cone, radians, in [0, pi/2).
   double friction_cone_rad = 0;
 };
-
-/// Reads and validates a scene file. Not real-time safe.
-/// @throws visco::InputError naming the file, the object (e.g. "obstacles[1] (left).polygon") and what is wrong:
-///   unreadable file, invalid JSON, unknown or missing fields, non-finite numbers, polygons with fewer than 3
-///   distinct vertices or self-intersections, a goal or start region entirely inside the C-obstacles, a camera
-///   centre inside an obstacle, an empty or reflex field of view, negative uncertainty, cone or friction angles
-///   outside [0, 90) degrees, bounds with min >= max. Obstacles may touch and overlap (their union is the obstacle
-///   region).
-Scene LoadScene(const std::string& path);
-
-/// As LoadScene, from JSON text; `source` names it in messages.
-Scene ParseScene(std::string_view json_text, const std::string& source);
-
-/// The default demo scene (data/scenes/slot.json, compiled into the program) as JSON text.
-std::string_view DefaultSceneJson();
-
-/// Loads the default demo scene. @throws visco::InputError only if the embedded file is broken (a build bug).
-Scene DefaultScene();
 
 /// Derives the planar camera model from a pinhole camera (docs/semantics.md "Real cameras", docs/planning_cspace.md):
 /// the projection centre is the camera centre's foot point on the motion plane z = 0, the field of view is the

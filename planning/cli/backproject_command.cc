@@ -16,6 +16,7 @@
 #include "planning/backprojection_output.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
+#include "planning/scene_file.h"
 #include "planning/scene_problem.h"
 #include "planning/vc_rays.h"
 

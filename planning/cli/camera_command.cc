@@ -27,6 +27,7 @@
 #include "planning/json_lines.h"
 #include "planning/nondirectional.h"
 #include "planning/scene.h"
+#include "planning/scene_file.h"
 #include "planning/svg.h"
 #include "planning/threads.h"
 

@@ -14,6 +14,7 @@
 #include "planning/cli/plan_command.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
+#include "planning/scene_file.h"
 #include "planning/scene_problem.h"
 #include "planning/strategy.h"
 #include "planning/vc_rays.h"

@@ -18,6 +18,7 @@
 #include "drivers/driver_transport.h"
 #include "drivers/simulated_robot.h"
 #include "planning/scene.h"
+#include "planning/scene_file.h"
 #include "visco/fault_t.hpp"
 #include "vision/camera.h"
 #include "vision/object_model.h"

@@ -13,6 +13,7 @@
 
 #include "common/error.h"
 #include "planning/cspace.h"
+#include "planning/scene_file.h"
 #include "planning/strategy.h"
 #include "planning/vc_rays.h"
 #include "random_vc_scenes.h"

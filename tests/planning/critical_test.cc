@@ -14,6 +14,7 @@
 
 #include "planning/cspace.h"
 #include "planning/scene.h"
+#include "planning/scene_file.h"
 #include "planning/scene_problem.h"
 #include "planning/vc_rays.h"
 #include "tests/bench/planning/pentagon_grid.h"

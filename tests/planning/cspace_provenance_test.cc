@@ -26,6 +26,7 @@
 #include "planning/backprojection.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
+#include "planning/scene_file.h"
 #include "planning/scene_problem.h"
 #include "tests/planning/random_vc_scenes.h"
 

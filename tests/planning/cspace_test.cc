@@ -6,6 +6,8 @@
 #include <map>
 #include <string>
 
+#include "planning/scene_file.h"
+
 namespace visco::planning {
 namespace {
 

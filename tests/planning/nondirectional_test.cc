@@ -33,6 +33,7 @@
 #include "planning/area_profile.h"
 #include "planning/critical.h"
 #include "planning/cspace.h"
+#include "planning/scene_file.h"
 #include "planning/scene_problem.h"
 #include "planning/strategy.h"
 #include "planning/vc_rays.h"

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "common/error.h"
+#include "planning/scene_file.h"
 #include "tests/planning/random_vc_scenes.h"
 #include "tests/planning/scene_json.h"
 

@@ -17,6 +17,7 @@
 
 #include "planning/cspace.h"
 #include "planning/scene.h"
+#include "planning/scene_file.h"
 #include "planning/vc_rays.h"
 #include "tests/planning/random_vc_scenes.h"
 #include "tests/planning/scene_json.h"

@@ -15,6 +15,7 @@
 #include "common/error.h"
 #include "planning/cspace.h"
 #include "planning/scene.h"
+#include "planning/scene_file.h"
 #include "planning/vc_rays.h"
 #include "tests/planning/random_vc_scenes.h"
 

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "planning/cspace.h"
+#include "planning/scene_file.h"
 #include "tests/planning/random_vc_scenes.h"
 
 namespace visco::planning {

@@ -32,6 +32,7 @@
 #include "planning/cspace.h"
 #include "planning/nondirectional.h"
 #include "planning/scene.h"
+#include "planning/scene_file.h"
 #include "planning/scene_problem.h"
 #include "planning/strategy.h"
 #include "planning/threads.h"
