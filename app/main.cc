@@ -9,7 +9,7 @@
 #include "control/commands.h"
 #include "control/sim_commands.h"
 #include "drivers/commands.h"
-#include "planning/cli/apo_command.h"
+#include "face_contact/cli/apo_command.h"
 #include "planning/cli/commands.h"
 #include "replay/commands.h"
 #include "replay/log_tap.h"
@@ -35,7 +35,7 @@ int main(int argc, char** argv) {
   visco::vision::RegisterCommands(app);
   visco::control::RegisterCommands(app);
   visco::control::RegisterSimCommands(app);
-  visco::planning::RegisterApoCommand(app);
+  visco::face_contact::RegisterApoCommand(app);
   visco::replay::RegisterCommands(app);
   visco::replay::InstallEventLog();  // --log of run, sim, track and driver (common/event_log.h)
 

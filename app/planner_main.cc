@@ -14,7 +14,7 @@
 
 #include "app/cli_run.h"
 #include "app/paths.h"
-#include "planning/cli/apo_command.h"
+#include "face_contact/cli/apo_command.h"
 #include "planning/cli/commands.h"
 
 #ifdef VISCO_MIMALLOC
@@ -35,7 +35,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   app.fallthrough(false);
   visco::planning::RegisterCommands(app);
-  visco::planning::RegisterApoCommand(app);
+  visco::face_contact::RegisterApoCommand(app);
 
   bool here = argc >= 2 && std::strcmp(argv[1], "--version") == 0;
   if (argc >= 2) {

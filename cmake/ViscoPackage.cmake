@@ -6,7 +6,7 @@ get_property(visco_libraries GLOBAL PROPERTY VISCO_LIBRARIES)
 install(TARGETS ${visco_libraries} visco_warnings EXPORT viscoTargets
         ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR} LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
-install(DIRECTORY common lcmtypes drivers control vision planning replay
+install(DIRECTORY common lcmtypes face_contact drivers control vision planning replay
         DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} FILES_MATCHING PATTERN "*.h")
 install(EXPORT viscoTargets NAMESPACE visco:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/visco)
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/viscoConfig.cmake.in

@@ -6,7 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "planning/flush_poses.h"
+#include "face_contact/flush_poses.h"
 
 namespace visco::vision {
 namespace {
@@ -25,7 +25,7 @@ struct ContactEquations {
   std::vector<Eigen::Vector3d> face_a;  // a's face vertices (for the residue)
 };
 
-void FacePlane(const planning::Polyhedron& p, int f, Eigen::Vector3d& normal, Eigen::Vector3d& centroid) {
+void FacePlane(const face_contact::Polyhedron& p, int f, Eigen::Vector3d& normal, Eigen::Vector3d& centroid) {
   const auto& face = p.faces[static_cast<std::size_t>(f)];
   normal.setZero();
   centroid.setZero();
@@ -55,10 +55,10 @@ double Residue(const ContactEquations& c, const std::vector<Eigen::Isometry3d>& 
   return worst;
 }
 
-// The object's pose covariance in planning's parametrisation (wMo·ΔT(q), q = (p, φ) in the object frame): to first
+// The object's pose covariance in face_contact's parametrisation (wMo·ΔT(q), q = (p, φ) in the object frame): to first
 // order Exp(w)·R = R·Exp(Rᵀw) and t + v = t + R·(Rᵀv), so q = [Rᵀv, Rᵀw] (and Rx·Ry·Rz of small angles is the
 // rotation vector). Without a covariance: isotropic from the stddevs.
-planning::PoseCovariance PlanningCovariance(const ContactObject& o) {
+face_contact::PoseCovariance PlanningCovariance(const ContactObject& o) {
   PoseCovariance c = o.covariance;
   if (!(c.trace() > 0)) {
     c.setZero();
@@ -74,7 +74,7 @@ planning::PoseCovariance PlanningCovariance(const ContactObject& o) {
 }  // namespace
 
 PrismMesh ObjectPrism(const ObjectModel& model) {
-  // planning::MakePrism extrudes a profile (x, z) along y; turned by Rx(-90 deg) ((x, y, z) -> (x, z, -y), a proper
+  // face_contact::MakePrism extrudes a profile (x, z) along y; turned by Rx(-90 deg) ((x, y, z) -> (x, z, -y), a proper
   // rotation: faces stay outward) and lifted by height / 2, it is the vertical prism over the polygon.
   std::vector<Eigen::Vector2d> profile = model.polygon;
   double area2 = 0;
@@ -84,7 +84,7 @@ PrismMesh ObjectPrism(const ObjectModel& model) {
     area2 += a.x() * b.y() - a.y() * b.x();
   }
   if (area2 < 0) std::reverse(profile.begin(), profile.end());  // MakePrism wants counter-clockwise
-  const planning::Polyhedron p = planning::MakePrism(profile, model.height);
+  const face_contact::Polyhedron p = face_contact::MakePrism(profile, model.height);
   PrismMesh mesh;
   for (const auto& v : p.vertices) mesh.vertices.emplace_back(v.x(), v.z(), -v.y() + model.height / 2);
   mesh.faces = p.faces;
@@ -105,11 +105,11 @@ ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, cons
     out.message = "contact refinement off";
     return out;
   }
-  std::vector<planning::FlushObject> flush;
+  std::vector<face_contact::FlushObject> flush;
   Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e18), hi = Eigen::Vector2d::Constant(-1e18);
   for (const auto& o : objects) {
     const PrismMesh mesh = ObjectPrism(*o.model);
-    planning::FlushObject f;
+    face_contact::FlushObject f;
     f.id = o.model->id;
     f.model.vertices = mesh.vertices;
     f.model.faces = mesh.faces;
@@ -122,14 +122,14 @@ ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, cons
     }
   }
   // The table: a stable box under everything in view, its top face the plane z = 0.
-  planning::FlushObject table;
+  face_contact::FlushObject table;
   table.id = "table";
   table.stable = true;
   const Eigen::Vector2d size = (hi - lo).array() + 1.0;
-  table.model = planning::MakeBox(Eigen::Vector3d(size.x(), size.y(), options.table_thickness_m));
+  table.model = face_contact::MakeBox(Eigen::Vector3d(size.x(), size.y(), options.table_thickness_m));
   table.pose.translation() << (lo + hi) / 2, -options.table_thickness_m;
   if (options.table_covariance.trace() > 0) {
-    // About the world origin -> PerturbPose at the table's pose (t' = t + w x t + v), then planning's convention.
+    // About the world origin -> PerturbPose at the table's pose (t' = t + w x t + v), then face_contact's convention.
     Eigen::Matrix<double, 6, 6> a = Eigen::Matrix<double, 6, 6>::Identity();
     a.block<3, 3>(3, 0) = -Skew(table.pose.translation());
     ContactObject as_object;
@@ -139,13 +139,13 @@ ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, cons
   }
   flush.push_back(table);
 
-  planning::FlushOptions fo;
+  face_contact::FlushOptions fo;
   fo.contact.false_miss_probability = options.false_miss_probability;
   fo.contact.min_distance = options.min_distance_m;
   fo.contact.min_angle_deg = options.min_angle_deg;
-  planning::FlushResult r;
+  face_contact::FlushResult r;
   try {
-    r = planning::MakeFlush(flush, fo);
+    r = face_contact::MakeFlush(flush, fo);
   } catch (const std::invalid_argument& e) {
     out.message = e.what();
     return out;
@@ -180,8 +180,8 @@ ContactRefinement RefineContacts(const std::vector<ContactObject>& objects, cons
   for (const auto& c : r.contacts) {
     ContactEquations e;
     e.a = c.object, e.b = c.against;
-    const planning::Polyhedron& ma = flush[static_cast<std::size_t>(c.object)].model;
-    const planning::Polyhedron& mb = flush[static_cast<std::size_t>(c.against)].model;
+    const face_contact::Polyhedron& ma = flush[static_cast<std::size_t>(c.object)].model;
+    const face_contact::Polyhedron& mb = flush[static_cast<std::size_t>(c.against)].model;
     Eigen::Vector3d cb;
     FacePlane(ma, c.face, e.n_a, e.p_a);
     FacePlane(mb, c.against_face, e.n_b, cb);

@@ -1,13 +1,13 @@
 #pragma once
 // Object poses made mutually consistent with their face contacts (Suehiro & Ikeuchi 1991): the poses measured from
 // the tags are moved, as little as possible, until the faces that touch (each object's base on the table, obstacles
-// side by side, the robot against an obstacle) are exactly flush. The work is planning's MakeFlush
-// (planning/flush_poses.h); this is the glue from vision's object models (vertical prisms standing on the table,
-// world z = 0) to planning's polyhedra. Plain Eigen types only.
+// side by side, the robot against an obstacle) are exactly flush. The work is face_contact's MakeFlush
+// (face_contact/flush_poses.h); this is the glue from vision's object models (vertical prisms standing on the table,
+// world z = 0) to face_contact's polyhedra. Plain Eigen types only.
 //
-// Dependency: vision -> planning (planning does not depend on vision). planning's headers are C++20 and vision is
-// compiled as C++17 for ViSP 3.5's headers, so contact_refinement.cc alone is compiled as C++20 (it includes no
-// ViSP or OpenCV header).
+// Dependency: vision -> face_contact (which depends on neither vision nor the planner). face_contact's headers are
+// C++20 and vision is compiled as C++17 for ViSP 3.5's headers, so contact_refinement.cc alone is compiled as C++20 (it
+// includes no ViSP or OpenCV header).
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -20,7 +20,7 @@ namespace visco::vision {
 
 /// When two faces count as touching: per face pair, within what the two poses' own uncertainty explains (the gaps
 /// and the normals' angle propagated through the pair's geometry from the covariances, thresholded so that a true
-/// contact is missed with probability at most `false_miss_probability`: planning's ContactThresholds), never below
+/// contact is missed with probability at most `false_miss_probability`: face_contact's ContactThresholds), never below
 /// the floors `min_distance_m` and `min_angle_deg` (model tolerance). docs/vision.md, "Face contacts".
 /// 6 x 6 pose covariance.
 using PoseCovariance = Eigen::Matrix<double, 6, 6>;
@@ -81,7 +81,7 @@ struct ContactRefinement {
   std::string message;
 };
 
-/// The vertical prism of `model` as a polyhedron (object frame: polygon in x y, z from 0 to height), as planning's
+/// The vertical prism of `model` as a polyhedron (object frame: polygon in x y, z from 0 to height), as face_contact's
 /// vertices and faces: bottom, top, then one side per polygon edge. Exposed for tests.
 struct PrismMesh {
   std::vector<Eigen::Vector3d> vertices;
@@ -91,9 +91,9 @@ PrismMesh ObjectPrism(const ObjectModel& model);
 
 /// Makes the objects flush with the table (z = 0) and with each other. Not real-time safe (allocates).
 ///
-/// planning's MakeFlush finds the touching faces (thresholds derived from each pair's covariance, ContactOptions). When
-/// every object in a contact has a covariance, the flush poses are then the measured ones projected onto the contact
-/// constraints in the metric of their covariance (the most likely poses that satisfy the contacts: minimise d^T
+/// face_contact's MakeFlush finds the touching faces (thresholds derived from each pair's covariance, ContactOptions).
+/// When every object in a contact has a covariance, the flush poses are then the measured ones projected onto the
+/// contact constraints in the metric of their covariance (the most likely poses that satisfy the contacts: minimise d^T
 /// Sigma^-1 d subject to c(d) = 0, Gauss-Newton from the measurement), and their covariance is propagated to first
 /// order: Sigma' = Sigma - Sigma J^T (J Sigma J^T)^+ J Sigma, J the Jacobian of the contact equations c (per contact:
 /// the two faces' normals opposite, 2 equations, and the face planes coincident, 1 equation) with respect to the

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes the example observation files of data/apo/ (Suehiro & Ikeuchi §5.1–5.3): exact geometry, the human's
 unobserved 1 mm adjustment, and seeded noise (±0.2 mm, ±0.086°) on every observed pose. Run from the repository
-top: data/apo/make_examples.py. The same scenes are built in C++ by tests/planning/apo_examples.h."""
+top: data/apo/make_examples.py. The same scenes are built in C++ by tests/face_contact/apo_examples.h."""
 import json
 import math
 import random

@@ -1,6 +1,6 @@
-// Face-contact refinement of the object poses (vision/contact_refinement.h, planning's MakeFlush) on a rendered scene
-// with ground truth: the robot pushed against a block, a wall standing against the block's other side, all three on
-// the table. The raw poses come from one tag each (noise, blur); the refined ones must be closer to the truth and
+// Face-contact refinement of the object poses (vision/contact_refinement.h, face_contact's MakeFlush) on a rendered
+// scene with ground truth: the robot pushed against a block, a wall standing against the block's other side, all three
+// on the table. The raw poses come from one tag each (noise, blur); the refined ones must be closer to the truth and
 // their face contacts exact.
 
 #include "vision/contact_refinement.h"

@@ -1,14 +1,14 @@
 // The vision-facing call: observed poses made flush.
 
-#include "planning/flush_poses.h"
+#include "face_contact/flush_poses.h"
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
 
-#include "tests/planning/apo_examples.h"
+#include "tests/face_contact/apo_examples.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 namespace {
 
 using Eigen::Isometry3d;
@@ -61,4 +61,4 @@ TEST(MakeFlush, BadModelThrows) {
 }
 
 }  // namespace
-}  // namespace visco::planning
+}  // namespace visco::face_contact

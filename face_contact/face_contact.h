@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-namespace visco::planning {
+namespace visco::face_contact {
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
@@ -130,4 +130,4 @@ SolveReport SolveContacts(const ContactProblem& problem, const SolverOptions& op
 /// Text of a status ("converged", "inconsistent", "not converged").
 const char* ToString(SolveStatus status);
 
-}  // namespace visco::planning
+}  // namespace visco::face_contact

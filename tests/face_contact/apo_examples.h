@@ -11,11 +11,11 @@
 #include <string>
 #include <vector>
 
-#include "planning/assembly_plan.h"
-#include "planning/face_contact.h"
-#include "planning/polyhedron.h"
+#include "face_contact/assembly_plan.h"
+#include "face_contact/face_contact.h"
+#include "face_contact/polyhedron.h"
 
-namespace visco::planning::testing {
+namespace visco::face_contact::testing {
 
 inline Eigen::Matrix4d Pose(double x, double y, double z, double rz_deg = 0, double ry_deg = 0) {
   Vector6d q;
@@ -169,4 +169,4 @@ inline Example DisappearedRelation(unsigned seed, double noise_t = 2e-4, double 
   return ex;
 }
 
-}  // namespace visco::planning::testing
+}  // namespace visco::face_contact::testing

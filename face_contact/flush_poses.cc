@@ -1,4 +1,4 @@
-#include "planning/flush_poses.h"
+#include "face_contact/flush_poses.h"
 
 #include <fmt/format.h>
 
@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <stdexcept>
 
-namespace visco::planning {
+namespace visco::face_contact {
 
 FlushResult MakeFlush(const std::vector<FlushObject>& objects, const FlushOptions& options) {
   FlushResult result;
@@ -65,4 +65,4 @@ FlushResult MakeFlush(const std::vector<FlushObject>& objects, const FlushOption
   return result;
 }
 
-}  // namespace visco::planning
+}  // namespace visco::face_contact

@@ -12,10 +12,10 @@
 #include <string>
 #include <vector>
 
-#include "planning/face_contact.h"
-#include "planning/polyhedron.h"
+#include "face_contact/face_contact.h"
+#include "face_contact/polyhedron.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 
 /// An object of the assembly. Stable objects (the work table) are fixed at `pose` from the start.
 struct ApoObject {
@@ -142,4 +142,4 @@ ApoResult PlanFromObservation(const ApoObservation& observation, const ApoOption
 std::vector<std::optional<Eigen::Matrix4d>> FinalPoses(const ApoObservation& observation, const ApoResult& result,
                                                        bool corrected);
 
-}  // namespace visco::planning
+}  // namespace visco::face_contact

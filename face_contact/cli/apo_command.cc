@@ -1,4 +1,4 @@
-#include "planning/cli/apo_command.h"
+#include "face_contact/cli/apo_command.h"
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
@@ -8,9 +8,9 @@
 #include <string>
 
 #include "common/error.h"
-#include "planning/apo_io.h"
+#include "face_contact/apo_io.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 
 void RegisterApoCommand(CLI::App& app) {
   struct Args {
@@ -59,4 +59,4 @@ void RegisterApoCommand(CLI::App& app) {
   });
 }
 
-}  // namespace visco::planning
+}  // namespace visco::face_contact

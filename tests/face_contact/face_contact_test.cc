@@ -1,16 +1,16 @@
 // Face contact equations (Suehiro & Ikeuchi §2, §7): the variable matrix, its analytic derivatives (eqs. 27–32),
 // the Jacobian against finite differences, ODL algebra, and the solver's smallest-correction certificate.
 
-#include "planning/face_contact.h"
+#include "face_contact/face_contact.h"
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
 #include <random>
 
-#include "planning/polyhedron.h"
+#include "face_contact/polyhedron.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 namespace {
 
 using Eigen::Matrix4d;
@@ -216,4 +216,4 @@ TEST(SolveContacts, NothingVariable) {
 }
 
 }  // namespace
-}  // namespace visco::planning
+}  // namespace visco::face_contact

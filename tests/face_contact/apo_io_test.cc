@@ -1,7 +1,7 @@
 // The observation file (docs/apo.md): the example files in data/apo/ give the paper's trials; bad input is
 // rejected with the file, the object and what is wrong.
 
-#include "planning/apo_io.h"
+#include "face_contact/apo_io.h"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +9,7 @@
 
 #include "common/error.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 namespace {
 
 std::vector<std::vector<int>> Trials(const ApoStep& step) {
@@ -157,4 +157,4 @@ TEST(ApoFiles, PoseNoiseDerivesTheThresholds) {
 }
 
 }  // namespace
-}  // namespace visco::planning
+}  // namespace visco::face_contact

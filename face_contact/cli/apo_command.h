@@ -5,9 +5,9 @@ namespace CLI {
 class App;
 }
 
-namespace visco::planning {
+namespace visco::face_contact {
 
 /// Adds the `apo` subcommand to the `visco` program.
 void RegisterApoCommand(CLI::App& app);
 
-}  // namespace visco::planning
+}  // namespace visco::face_contact

@@ -1,4 +1,4 @@
-#include "planning/polyhedron.h"
+#include "face_contact/polyhedron.h"
 
 #include <fmt/format.h>
 
@@ -10,9 +10,9 @@
 #include <numbers>
 #include <stdexcept>
 
-#include "planning/face_contact.h"
+#include "face_contact/face_contact.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 namespace {
 
 using Eigen::Matrix4d;
@@ -394,4 +394,4 @@ std::vector<FacePatch> FindFaceContacts(const Polyhedron& a, const Matrix4d& wMa
   return patches;
 }
 
-}  // namespace visco::planning
+}  // namespace visco::face_contact

@@ -2,7 +2,7 @@
 // makes the paper's trials, every residue ends ≤ 1e-9 m, the constrained degrees of freedom match the ground truth,
 // the redundant ones keep their observed values, and the robot's disassembly/re-assembly steps are the paper's.
 
-#include "tests/planning/apo_examples.h"
+#include "tests/face_contact/apo_examples.h"
 
 #include <gtest/gtest.h>
 
@@ -10,9 +10,9 @@
 #include <cstdio>
 #include <numbers>
 
-#include "planning/assembly_plan.h"
+#include "face_contact/assembly_plan.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 namespace {
 
 using Eigen::Matrix4d;
@@ -237,4 +237,4 @@ TEST(Examples51, RankAtObservationExceedsStructuralRank) {
 INSTANTIATE_TEST_SUITE_P(Seeds, Examples, ::testing::Values(1u, 2u, 3u, 4u, 5u));
 
 }  // namespace
-}  // namespace visco::planning
+}  // namespace visco::face_contact

@@ -3,9 +3,9 @@
 
 #include <string>
 
-#include "planning/assembly_plan.h"
+#include "face_contact/assembly_plan.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 
 /// An observation file, parsed: the observation and the options its "settings" give.
 struct ApoInput {
@@ -27,4 +27,4 @@ std::string ApoResultJson(const ApoInput& input, const ApoResult& result);
 /// The result as text a person reads: per step the relations, the trials, the corrections and the robot's actions.
 std::string ApoResultText(const ApoInput& input, const ApoResult& result);
 
-}  // namespace visco::planning
+}  // namespace visco::face_contact

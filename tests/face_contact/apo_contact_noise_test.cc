@@ -17,11 +17,11 @@
 #include <string>
 #include <tuple>
 
-#include "planning/assembly_plan.h"
-#include "planning/polyhedron.h"
-#include "tests/planning/apo_examples.h"
+#include "face_contact/assembly_plan.h"
+#include "face_contact/polyhedron.h"
+#include "tests/face_contact/apo_examples.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 namespace {
 
 using Eigen::Matrix4d;
@@ -251,4 +251,4 @@ TEST(ContactNoise, ApoFindsTheRelationsOfTheDerivedThresholds) {
 }
 
 }  // namespace
-}  // namespace visco::planning
+}  // namespace visco::face_contact

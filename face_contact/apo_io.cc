@@ -1,4 +1,4 @@
-#include "planning/apo_io.h"
+#include "face_contact/apo_io.h"
 
 #include <fmt/format.h>
 
@@ -14,7 +14,7 @@
 
 #include "common/error.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 namespace {
 
 using Eigen::Matrix4d;
@@ -656,4 +656,4 @@ std::string ApoResultJson(const ApoInput& input, const ApoResult& result) { retu
 
 std::string ApoResultText(const ApoInput& input, const ApoResult& result) { return Writer(input, result).Text(); }
 
-}  // namespace visco::planning
+}  // namespace visco::face_contact

@@ -1,15 +1,15 @@
 // Polyhedral models and the contact regions of touching faces.
 
-#include "planning/polyhedron.h"
+#include "face_contact/polyhedron.h"
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
 
-#include "planning/face_contact.h"
-#include "tests/planning/apo_examples.h"
+#include "face_contact/face_contact.h"
+#include "tests/face_contact/apo_examples.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 namespace {
 
 using Eigen::Matrix4d;
@@ -95,4 +95,4 @@ TEST(FaceOverlap, EdgeContactsAndFarFacesAreNotFaceContacts) {
 }
 
 }  // namespace
-}  // namespace visco::planning
+}  // namespace visco::face_contact

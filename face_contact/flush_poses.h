@@ -3,10 +3,10 @@
 // objects seen resting on the table or touching each other are moved, as little as possible, until the touching
 // faces are exactly flush. Call it on the poses from the camera before the planner builds its scene.
 //
-//   std::vector<visco::planning::FlushObject> objects = {
-//       {"table", visco::planning::MakeBox({1, 1, 0.05}), wMtable, /*stable=*/true},
-//       {"block", visco::planning::MakeBox({0.1, 0.1, 0.05}), wMblock_seen}};
-//   const visco::planning::FlushResult flush = visco::planning::MakeFlush(objects);
+//   std::vector<visco::face_contact::FlushObject> objects = {
+//       {"table", visco::face_contact::MakeBox({1, 1, 0.05}), wMtable, /*stable=*/true},
+//       {"block", visco::face_contact::MakeBox({0.1, 0.1, 0.05}), wMblock_seen}};
+//   const visco::face_contact::FlushResult flush = visco::face_contact::MakeFlush(objects);
 //   if (flush.ok) use(flush.poses[1]);   // else flush.message says why; flush.poses are the observed ones
 //
 // Units: metres. Poses wMo map object coordinates to world (or camera) coordinates; any one fixed frame will do.
@@ -15,20 +15,20 @@
 #include <string>
 #include <vector>
 
-#include "planning/face_contact.h"
-#include "planning/polyhedron.h"
+#include "face_contact/face_contact.h"
+#include "face_contact/polyhedron.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 
-/// An object as seen: its model (planning/polyhedron.h: MakeBox, MakePrism or vertices and faces), its observed
+/// An object as seen: its model (face_contact/polyhedron.h: MakeBox, MakePrism or vertices and faces), its observed
 /// pose, and whether it is stable (fixed: the table; never moved).
 struct FlushObject {
   std::string id;
   Polyhedron model;
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   bool stable = false;
-  /// Covariance of the observed pose (planning/polyhedron.h PoseCovariance: wMo·ΔT(q), object frame). Zero: exact or
-  /// unknown. When any object of a pair has one, that pair's contact thresholds are derived from it
+  /// Covariance of the observed pose (face_contact/polyhedron.h PoseCovariance: wMo·ΔT(q), object frame). Zero: exact
+  /// or unknown. When any object of a pair has one, that pair's contact thresholds are derived from it
   /// (ContactThresholds: false_miss_probability, min_distance, min_angle_deg) instead of the fixed ones.
   PoseCovariance covariance = PoseCovariance::Zero();
 };
@@ -62,4 +62,4 @@ struct FlushResult {
 /// Not real-time safe (allocates; a few milliseconds for a handful of objects).
 FlushResult MakeFlush(const std::vector<FlushObject>& objects, const FlushOptions& options = {});
 
-}  // namespace visco::planning
+}  // namespace visco::face_contact

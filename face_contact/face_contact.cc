@@ -1,4 +1,4 @@
-#include "planning/face_contact.h"
+#include "face_contact/face_contact.h"
 
 #include <fmt/format.h>
 
@@ -10,7 +10,7 @@
 #include <limits>
 #include <stdexcept>
 
-namespace visco::planning {
+namespace visco::face_contact {
 namespace {
 
 using Eigen::Matrix3d;
@@ -482,4 +482,4 @@ SolveReport SolveContacts(const ContactProblem& problem, const SolverOptions& op
   return report;
 }
 
-}  // namespace visco::planning
+}  // namespace visco::face_contact

@@ -1,4 +1,4 @@
-#include "planning/assembly_plan.h"
+#include "face_contact/assembly_plan.h"
 
 #include <fmt/format.h>
 
@@ -10,7 +10,7 @@
 
 #include "common/error.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 namespace {
 
 using Eigen::Matrix4d;
@@ -563,4 +563,4 @@ std::vector<std::optional<Matrix4d>> FinalPoses(const ApoObservation& observatio
   return poses;
 }
 
-}  // namespace visco::planning
+}  // namespace visco::face_contact

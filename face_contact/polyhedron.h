@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-namespace visco::planning {
+namespace visco::face_contact {
 
 /// A closed polyhedron in its object frame. Faces list vertex indices counter-clockwise seen from outside (so that
 /// the right-hand normal points out of the solid); faces may be non-convex simple polygons.
@@ -52,7 +52,7 @@ struct ContactThresholds {
   double min_angle_deg = 0.5;            ///< floor of the derived angle threshold.
 };
 
-/// Covariance of an observed pose: of the perturbation q = (x, y, z, α, β, γ) in wMo·ΔT(q) (planning/face_contact.h
+/// Covariance of an observed pose: of the perturbation q = (x, y, z, α, β, γ) in wMo·ΔT(q) (face_contact/face_contact.h
 /// DeltaTransform: object frame, metres and radians).
 using PoseCovariance = Eigen::Matrix<double, 6, 6>;
 /// Covariance of two objects' perturbations (q_a, q_b), with their cross terms (objects whose poses share an
@@ -85,4 +85,4 @@ std::vector<FacePatch> FindFaceContacts(const Polyhedron& a, const Eigen::Matrix
                                         const Eigen::Matrix4d& wMb, const ContactThresholds& thresholds,
                                         const PairCovariance* covariance = nullptr);
 
-}  // namespace visco::planning
+}  // namespace visco::face_contact

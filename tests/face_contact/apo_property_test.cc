@@ -9,10 +9,10 @@
 #include <Eigen/Dense>
 #include <random>
 
-#include "planning/assembly_plan.h"
-#include "tests/planning/apo_examples.h"
+#include "face_contact/assembly_plan.h"
+#include "tests/face_contact/apo_examples.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 namespace {
 
 using Eigen::Matrix4d;
@@ -210,4 +210,4 @@ TEST(ApoProperty, RandomAssembliesBothModes) {
 }
 
 }  // namespace
-}  // namespace visco::planning
+}  // namespace visco::face_contact

@@ -12,11 +12,11 @@
 #include <Eigen/Dense>
 #include <random>
 
-#include "planning/assembly_plan.h"
-#include "planning/face_contact.h"
-#include "tests/planning/apo_examples.h"
+#include "face_contact/assembly_plan.h"
+#include "face_contact/face_contact.h"
+#include "tests/face_contact/apo_examples.h"
 
-namespace visco::planning {
+namespace visco::face_contact {
 namespace {
 
 using Eigen::Matrix4d;
@@ -173,6 +173,6 @@ void BM_ApoAllAtOnce50Boxes(benchmark::State& state) {
 BENCHMARK(BM_ApoAllAtOnce50Boxes)->Unit(benchmark::kMillisecond);
 
 }  // namespace
-}  // namespace visco::planning
+}  // namespace visco::face_contact
 
 BENCHMARK_MAIN();
