@@ -282,7 +282,8 @@ def case_d():
 def case_e():
     print("== E: profile velocity on one bus (vcan0) with the controller, the drives consuming the driver's heartbeat",
           flush=True)
-    sim = drives.Sim("vcan0", [2, 3]).start()
+    # The drives' speed uncertain by +-10 % (docs/semantics.md's motion model, as the simulated robot has it).
+    sim = drives.Sim("vcan0", [2, 3], speed_uncertainty=0.1).start()
     driver = start_driver("e", config("/tmp/cia402_e.json", interface="vcan0", mode="profile_velocity",
                                       master_node=1, sync_period_ms=10))
     peer = Peer(1)
@@ -294,12 +295,24 @@ def case_e():
               "node %d: mode 3, RPDO1 asynchronous, consuming the driver's own heartbeat (node 1)" % n)
     if up and enable(peer, sim, "one bus"):
         peer.wait(lambda: False, 1.0, (-0.1, 0.25))
-        s2, s3 = sim.snapshot(2), sim.snapshot(3)
-        check(abs(s2["velocity"] + 0.1 * COUNTS) < 1 and abs(s3["velocity"] - 0.25 * COUNTS) < 1,
-              "one bus: the drives track (-0.1, 0.25) m/s")
+        samples = []
+        peer.wait(lambda: samples.append((sim.snapshot(2)["velocity"], sim.snapshot(3)["velocity"])), 1.0,
+                  (-0.1, 0.25))
+        worst = max(max(abs(v2 / (-0.1 * COUNTS) - 1), abs(v3 / (0.25 * COUNTS) - 1)) for v2, v3 in samples)
+        check(worst <= 0.1 + 1e-3, "one bus: the drives track (-0.1, 0.25) m/s within their 10 %% uncertainty "
+              "(worst %.1f %% of %d samples)" % (worst * 100, len(samples)))
+        check(worst > 0.005, "one bus: the uncertainty is there (the speed varies)")
         peer.command(0, 0, estop=True)
-        check(wait_for(lambda: both(sim, drives.QUICK_STOP) and sim.snapshot(3)["velocity"] == 0, 2.0),
-              "one bus: e-stop -> both drives quick-stopped")
+
+        # Quick-stopped; or, where the emulated CPU stalled this process longer than the drives' consumer time (seen
+        # under a loaded host), faulted by their own heartbeat consumer first: either way stopped and still.
+        def stopped(n):
+            s = sim.snapshot(n)
+            lost = any(what == "heartbeat lost" for _, what, _ in sim.drive(n).history)
+            return s["velocity"] == 0 and (s["state"] == drives.QUICK_STOP or (lost and s["state"] == drives.FAULT))
+        check(wait_for(lambda: stopped(2) and stopped(3), 2.0),
+              "one bus: e-stop -> both drives quick-stopped and still (%s, %s)" %
+              (sim.snapshot(2)["state"], sim.snapshot(3)["state"]))
     driver.send_signal(signal.SIGTERM)
     driver.wait()
     check(wait_for(lambda: all(sim.drive(n).nmt == drives.PRE_OPERATIONAL for n in (2, 3)), 2.0),
