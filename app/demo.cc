@@ -42,9 +42,9 @@
 #include "app/netns_hosts.h"
 #include "app/parameter_file.h"
 #include "app/paths.h"
+#include "app/sim/world.h"
 #include "common/error.h"
 #include "common/write_output.h"
-#include "control/sim_world.h"
 #include "drivers/simulated_robot_options.h"
 #include "lcmtypes/channels.h"
 #include "planning/cspace.h"
@@ -761,7 +761,7 @@ int Run(const Args& a) {
   su.dir = dir;
   su.self = (ExecutableDir() / "visco").string();
   su.rt = (ExecutableDir() / "visco-rt").string();
-  WriteTextOutput(drivers::WorldFileJson(control::MakeWorldFile(scene)), (dir / "world.json").string());
+  WriteTextOutput(drivers::WorldFileJson(sim::MakeWorldFile(scene)), (dir / "world.json").string());
   // The rendered camera for the default scene; other scenes get the synthetic camera (visual events without images).
   const fs::path data = VISCO_SOURCE_DATA_DIR;
   su.rendered = a.scene.empty() && fs::exists(data / "sim" / "slot_camera.xml");

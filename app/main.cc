@@ -5,9 +5,9 @@
 
 #include "app/cli_run.h"
 #include "app/demo.h"
+#include "app/sim/commands.h"
 #include "app/spy_command.h"
 #include "control/commands.h"
-#include "control/sim_commands.h"
 #include "drivers/commands.h"
 #include "face_contact/cli/apo_command.h"
 #include "planning/cli/commands.h"
@@ -34,7 +34,7 @@ int main(int argc, char** argv) {
   visco::planning::RegisterCommands(app);
   visco::vision::RegisterCommands(app);
   visco::control::RegisterCommands(app);
-  visco::control::RegisterSimCommands(app);
+  visco::sim::RegisterCommands(app);
   visco::face_contact::RegisterApoCommand(app);
   visco::replay::RegisterCommands(app);
   visco::replay::InstallEventLog();  // --log of run, sim, track and driver (common/event_log.h)

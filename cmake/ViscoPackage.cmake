@@ -8,6 +8,7 @@ install(TARGETS ${visco_libraries} visco_warnings EXPORT viscoTargets
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(DIRECTORY common lcmtypes face_contact drivers control vision planning replay
         DESTINATION ${CMAKE_INSTALL_INCLUDEDIR} FILES_MATCHING PATTERN "*.h")
+install(DIRECTORY app/sim DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/app FILES_MATCHING PATTERN "*.h")
 install(EXPORT viscoTargets NAMESPACE visco:: DESTINATION ${CMAKE_INSTALL_LIBDIR}/cmake/visco)
 configure_package_config_file(${PROJECT_SOURCE_DIR}/cmake/viscoConfig.cmake.in
                               ${PROJECT_BINARY_DIR}/viscoConfig.cmake

@@ -16,10 +16,10 @@
 #include <thread>
 #include <vector>
 
+#include "app/sim/session.h"
 #include "common/error.h"
 #include "control/control_loop.h"
 #include "control/run.h"
-#include "control/sim_session.h"
 #include "lcmtypes/channels.h"
 #include "visco/controller_telemetry_t.hpp"
 #include "visco/fault_t.hpp"
@@ -70,8 +70,8 @@ class Listener {
   std::vector<controller_telemetry_t> telemetry_;
 };
 
-SimOptions Sim(const std::string& url) {
-  SimOptions o;
+sim::SimOptions Sim(const std::string& url) {
+  sim::SimOptions o;
   o.scene_path = "tests/control/data/post_scene.json";
   o.rays_path = "tests/control/data/post_rays.json";
   o.lcm_url = url;
@@ -98,13 +98,13 @@ RunOptions Controller(const std::string& url) {
 TEST(ControlIntegration, CompliantMotionContactAndGoalOverLcm) {
   const std::string url = PrivateUrl();
   Listener listener(url);
-  SimSession sim(Sim(url));
+  sim::SimSession sim(Sim(url));
   sim.Start();
   const RunOptions options = Controller(url);
   const Task task = LoadTask(options);
   std::atomic<bool> stop{false};
   const RunResult result = RunTask(task, options, stop);
-  const SimSummary summary = sim.Summary();
+  const sim::SimSummary summary = sim.Summary();
   sim.Stop();
   ASSERT_EQ(result.mode, Mode::kDone) << result.ToJson();
   EXPECT_EQ(result.steps_completed, 2);
@@ -134,7 +134,7 @@ TEST(ControlIntegration, CompliantMotionContactAndGoalOverLcm) {
 TEST(ControlIntegration, CameraLossHoldsThenStopsWithTheReasonOnLcm) {
   const std::string url = PrivateUrl();
   Listener listener(url);
-  SimSession sim(Sim(url));
+  sim::SimSession sim(Sim(url));
   sim.Start();
   RunOptions options = Controller(url);
   options.executor.max_hold_s = 0.5;
@@ -146,9 +146,9 @@ TEST(ControlIntegration, CameraLossHoldsThenStopsWithTheReasonOnLcm) {
   });
   const RunResult result = RunTask(task, options, stop);
   cut.join();
-  const SimSummary before = sim.Summary();
+  const sim::SimSummary before = sim.Summary();
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
-  const SimSummary after = sim.Summary();
+  const sim::SimSummary after = sim.Summary();
   sim.Stop();
   EXPECT_EQ(result.mode, Mode::kStopped);
   EXPECT_EQ(result.stop_code, FaultCode::kVisionStale) << result.reason;
@@ -175,7 +175,7 @@ TEST(ControlIntegration, CameraLossHoldsThenStopsWithTheReasonOnLcm) {
 TEST(ControlIntegration, DriverDeathStopsTheController) {
   const std::string url = PrivateUrl();
   Listener listener(url);
-  SimSession sim(Sim(url));
+  sim::SimSession sim(Sim(url));
   sim.Start();
   const RunOptions options = Controller(url);
   const Task task = LoadTask(options);

@@ -1,4 +1,4 @@
-#include "control/sim_camera.h"
+#include "app/sim/camera.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -9,7 +9,7 @@
 #include "vision/object_model.h"
 #include "vision/tag_renderer.h"
 
-namespace visco::control {
+namespace visco::sim {
 
 struct RenderedCamera::Impl {
   RenderedCameraConfig config;
@@ -40,7 +40,7 @@ void AddObject(vision::RenderScene& scene, const vision::ObjectModel& object, co
 
 }  // namespace
 
-ServoCamera ServoCameraFromFiles(const RenderedCameraConfig& config) {
+control::ServoCamera ServoCameraFromFiles(const RenderedCameraConfig& config) {
   const vision::CameraModel camera = vision::LoadCamera(config.calibration_path, config.camera_name);
   const Eigen::Isometry3d wMc = vision::LoadExtrinsics(config.extrinsics_path);
   const vision::ObjectModels models = vision::LoadObjectModels(config.objects_path);
@@ -49,7 +49,7 @@ ServoCamera ServoCameraFromFiles(const RenderedCameraConfig& config) {
     for (int k = 0; k < 3; ++k) r[i][k] = wMc.linear()(i, k);
     t[i] = wMc.translation()[i];
   }
-  return MakeServoCamera(camera.px, camera.py, camera.u0, camera.v0, r, t, models.robot.height);
+  return control::MakeServoCamera(camera.px, camera.py, camera.u0, camera.v0, r, t, models.robot.height);
 }
 
 RenderedCamera::RenderedCamera(const RenderedCameraConfig& config) : impl_(std::make_unique<Impl>()) {
@@ -89,7 +89,7 @@ RenderedCamera::RenderedCamera(const RenderedCameraConfig& config) : impl_(std::
 
 RenderedCamera::~RenderedCamera() = default;
 
-void RenderedCamera::Capture(Vec2 q, std::int64_t utime, std::int64_t seq, const CaptureConditions& conditions,
+void RenderedCamera::Capture(control::Vec2 q, std::int64_t utime, std::int64_t seq, const CaptureConditions& conditions,
                              image_t& image) const {
   vision::RenderScene scene = impl_->fixed;
   if (!conditions.robot_occluded) {
@@ -118,4 +118,4 @@ int RenderedCamera::width() const { return impl_->camera.width; }
 int RenderedCamera::height() const { return impl_->camera.height; }
 const std::string& RenderedCamera::camera_name() const { return impl_->camera.name; }
 
-}  // namespace visco::control
+}  // namespace visco::sim

@@ -14,7 +14,7 @@
 #include "control/types.h"
 #include "visco/image_t.hpp"
 
-namespace visco::control {
+namespace visco::sim {
 
 struct RenderedCameraConfig {
   std::string calibration_path;  // ViSP XML or OpenCV YAML (vision::LoadCamera), with the image size
@@ -34,7 +34,7 @@ struct CaptureConditions {
 
 /// The servo law's calibrated camera (servo_law.h) from the rendered camera's files, through vision's loaders (any
 /// calibration format vision reads): what `visco run --camera --extrinsics --objects` derives. @throws InputError.
-ServoCamera ServoCameraFromFiles(const RenderedCameraConfig& config);
+control::ServoCamera ServoCameraFromFiles(const RenderedCameraConfig& config);
 
 class RenderedCamera {
  public:
@@ -49,7 +49,8 @@ class RenderedCamera {
 
   /// Renders the scene with the robot's reference point at `q` (metres) and fills `image` (GRAY8, row_stride =
   /// width). `utime`/`seq` go into the message unchanged.
-  void Capture(Vec2 q, std::int64_t utime, std::int64_t seq, const CaptureConditions& conditions, image_t& image) const;
+  void Capture(control::Vec2 q, std::int64_t utime, std::int64_t seq, const CaptureConditions& conditions,
+               image_t& image) const;
 
   int width() const;
   int height() const;
@@ -60,4 +61,4 @@ class RenderedCamera {
   std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace visco::control
+}  // namespace visco::sim

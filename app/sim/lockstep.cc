@@ -1,4 +1,4 @@
-#include "control/sim_lockstep.h"
+#include "app/sim/lockstep.h"
 
 #include <spdlog/spdlog.h>
 
@@ -11,12 +11,12 @@
 #include <nlohmann/json.hpp>
 #include <vector>
 
+#include "app/sim/world.h"
 #include "common/error.h"
 #include "common/even_odd.h"
 #include "control/control_loop.h"
 #include "control/lcm_bridge.h"
 #include "control/run.h"
-#include "control/sim_world.h"
 #include "drivers/driver_transport.h"
 #include "drivers/robot_link.h"
 #include "lcmtypes/channels.h"
@@ -26,7 +26,7 @@
 #include "vision/pipeline.h"
 #include "vision/pipeline_config.h"
 
-namespace visco::control {
+namespace visco::sim {
 namespace {
 
 // The simulated monotonic clock starts at 1 s (0 means "never" to some of the loop's timers).
@@ -96,8 +96,8 @@ void CheckOptions(const LockstepOptions& o) {
 
 }  // namespace
 
-ExecutorConfig DemoExecutorConfig() {
-  ExecutorConfig c;
+control::ExecutorConfig DemoExecutorConfig() {
+  control::ExecutorConfig c;
   c.limits.max_speed = 1.0;
   c.limits.max_accel = 4.0;
   c.max_vision_age_s = 0.4;
@@ -109,7 +109,7 @@ ExecutorConfig DemoExecutorConfig() {
 
 std::string LockstepResult::ToJson() const {
   nlohmann::json j;
-  j["result"] = mode == Mode::kDone ? "done" : (mode == Mode::kStopped ? "stopped" : ToString(mode));
+  j["result"] = mode == control::Mode::kDone ? "done" : (mode == control::Mode::kStopped ? "stopped" : ToString(mode));
   j["reason"] = reason;
   j["reached"] = reached();
   j["steps_completed"] = steps_completed;
@@ -145,7 +145,7 @@ LockstepResult RunLockstep(const LockstepOptions& o) {
   auto now_utime = [&] { return utime; };
 
   const planning::Scene scene = planning::LoadScene(o.scene_path);
-  Vec2 start = o.start;
+  control::Vec2 start = o.start;
   if (!o.have_start) {
     if (!scene.start) throw InputError(o.scene_path, "start", "the scene has no start region: give --start X Y");
     const Eigen::Vector2d c = StartRegionCentroid(scene);
@@ -157,11 +157,11 @@ LockstepResult RunLockstep(const LockstepOptions& o) {
   robot_config.velocity_cone = scene.uncertainty.velocity_cone_rad;
   drivers::SimulatedRobot robot(robot_config);
 
-  RunOptions run;  // the controller's files, as `visco run` takes them (and names them in the log)
+  control::RunOptions run;  // the controller's files, as `visco run` takes them (and names them in the log)
   run.strategy_path = o.strategy_path;
   run.scene_path = o.scene_path;
   run.rays_path = o.rays_path;
-  const Task task = LoadTask(run);
+  const control::Task task = control::LoadTask(run);
 
   RenderedCameraConfig render = o.render;
   render.seed = o.robot.seed ^ 0x1a9e5ULL;  // as `visco sim`
@@ -201,20 +201,20 @@ LockstepResult RunLockstep(const LockstepOptions& o) {
   link_config.lockstep = lockstep;
   const std::unique_ptr<drivers::RobotLink> link = drivers::MakeLcmRobotLink(link_config);
 
-  ExecutorConfig executor_config = o.executor;
+  control::ExecutorConfig executor_config = o.executor;
   executor_config.period_s = 1.0 / o.rate_hz;
   // The servo law's interaction from the rendered camera's calibration and pose (docs/control.md).
   if (!executor_config.servo.camera.valid) executor_config.servo.camera = ServoCameraFromFiles(o.render);
-  Executor executor(task, executor_config);
-  Outbox outbox;
-  ControllerBridge bridge(bus, task, outbox, BridgeClock{[&t] { return t * 1000; }, now_utime});
-  CycleRecordQueue records;
-  LoopConfig loop_config;
+  control::Executor executor(task, executor_config);
+  control::Outbox outbox;
+  control::ControllerBridge bridge(bus, task, outbox, control::BridgeClock{[&t] { return t * 1000; }, now_utime});
+  control::CycleRecordQueue records;
+  control::LoopConfig loop_config;
   loop_config.period_s = 1.0 / o.rate_hz;
   loop_config.telemetry_every = std::max(1, static_cast<int>(std::lround(o.rate_hz / o.telemetry_hz)));
   loop_config.realtime = false;
-  const LoopSources sources{link.get(), &bridge.frames(), &bridge.estimates(), &bridge.estop(), &records};
-  ControlLoop loop(executor, sources, loop_config, outbox);
+  const control::LoopSources sources{link.get(), &bridge.frames(), &bridge.estimates(), &bridge.estop(), &records};
+  control::ControlLoop loop(executor, sources, loop_config, outbox);
 
   spdlog::info(
       "sim --lockstep: scene {}, robot at ({:.3f}, {:.3f}), seed {}, camera {:.0f} Hz {}x{}, controller "
@@ -225,9 +225,9 @@ LockstepResult RunLockstep(const LockstepOptions& o) {
   LockstepResult result;
   std::int64_t records_written = 0;
   auto write_records = [&] {
-    CycleRecord r;
+    control::CycleRecord r;
     while (records.TryPop(r)) {
-      if (o.log != nullptr) WriteRecord(*o.log, kCycleChannel, r.input.now_utime, ToCycleMessage(r));
+      if (o.log != nullptr) WriteRecord(*o.log, control::kCycleChannel, r.input.now_utime, control::ToCycleMessage(r));
       ++records_written;
     }
   };
@@ -334,16 +334,17 @@ LockstepResult RunLockstep(const LockstepOptions& o) {
   }
   write_records();
   if (o.log != nullptr) {
-    const log_annotation_t a = ControllerConfigAnnotation(run, executor_config, start_ns, loop.cycles(),
-                                                          records_written, records.dropped(), utime);
-    WriteRecord(*o.log, kAnnotationChannel, a.utime, a);
+    const log_annotation_t a = control::ControllerConfigAnnotation(run, executor_config, start_ns, loop.cycles(),
+                                                                   records_written, records.dropped(), utime);
+    WriteRecord(*o.log, control::kAnnotationChannel, a.utime, a);
   }
   bus.unsubscribe(log_subscription);
 
   result.mode = executor.mode();
   result.reason = executor.stop_reason();
   result.num_steps = static_cast<int>(task.steps.size());
-  result.steps_completed = executor.mode() == Mode::kDone ? result.num_steps : std::max(0, executor.step_index());
+  result.steps_completed =
+      executor.mode() == control::Mode::kDone ? result.num_steps : std::max(0, executor.step_index());
   result.cycles = loop.cycles();
   const drivers::LinkCounters counters = link->counters();
   result.commands_sent = counters.commands_sent;
@@ -359,7 +360,7 @@ LockstepResult RunLockstep(const LockstepOptions& o) {
   result.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   result.driver_state = drivers::ToString(driver.state());
   result.driver = driver.stats();
-  if (result.mode == Mode::kDone) {
+  if (result.mode == control::Mode::kDone) {
     spdlog::info("sim --lockstep: {} ({:.3f} s simulated in {:.1f} s)", result.reason, result.simulated_s,
                  result.wall_s);
   } else {
@@ -368,4 +369,4 @@ LockstepResult RunLockstep(const LockstepOptions& o) {
   return result;
 }
 
-}  // namespace visco::control
+}  // namespace visco::sim

@@ -1,4 +1,4 @@
-#include "control/sim_commands.h"
+#include "app/sim/commands.h"
 
 #include <signal.h>
 #include <spdlog/spdlog.h>
@@ -12,19 +12,19 @@
 #include <utility>
 #include <vector>
 
+#include "app/sim/lockstep.h"
+#include "app/sim/session.h"
+#include "app/sim/world.h"
 #include "common/error.h"
 #include "common/event_log.h"
 #include "common/write_output.h"
 #include "control/run.h"
-#include "control/sim_lockstep.h"
-#include "control/sim_session.h"
-#include "control/sim_world.h"
 #include "drivers/commands.h"
 #include "drivers/simulated_robot_options.h"
 #include "planning/scene.h"
 #include "planning/scene_file.h"
 
-namespace visco::control {
+namespace visco::sim {
 namespace {
 
 std::atomic<bool> g_stop{false};
@@ -58,7 +58,7 @@ FaultWindow Window(const std::vector<double>& v, const char* option) {
   return {v[0], v[1]};
 }
 
-// --lockstep: the closed loop in this process on a simulated clock (control/sim_lockstep.h).
+// --lockstep: the closed loop in this process on a simulated clock (app/sim/lockstep.h).
 void RunLockstepSim(SimCli& cli) {
   const SimOptions& s = cli.sim;
   // What only a live run has: another process's robot, a real bus, CAN, injected camera faults.
@@ -104,13 +104,14 @@ void RunLockstepSim(SimCli& cli) {
     if (report.find("; 0 dropped") == std::string::npos) throw JobFailed("the lockstep log is incomplete: " + report);
   }
   if (!result.reached()) {
-    throw JobFailed(result.mode == Mode::kDone ? "the controller recognised the goal, but the robot is not in it"
-                                               : "run stopped: " + result.reason);
+    throw JobFailed(result.mode == control::Mode::kDone
+                        ? "the controller recognised the goal, but the robot is not in it"
+                        : "run stopped: " + result.reason);
   }
 }
 
 void RunSim(SimCli& cli) {
-  LogToStderr();  // stdout carries only the JSON summary
+  drivers::LogToStderr();  // stdout carries only the JSON summary
   if (cli.lockstep) {
     RunLockstepSim(cli);
     return;
@@ -176,7 +177,7 @@ void RunSim(SimCli& cli) {
 
 }  // namespace
 
-void RegisterSimCommands(CLI::App& app) {
+void RegisterCommands(CLI::App& app) {
   auto cli = std::make_shared<SimCli>();
   SimOptions& o = cli->sim;
   CLI::App* cmd = app.add_subcommand(
@@ -266,4 +267,4 @@ void RegisterSimCommands(CLI::App& app) {
   cmd->callback([cli] { RunSim(*cli); });
 }
 
-}  // namespace visco::control
+}  // namespace visco::sim

@@ -1,9 +1,9 @@
-#include "control/sim_world.h"
+#include "app/sim/world.h"
 
 #include "planning/cspace.h"
 #include "planning/scene.h"
 
-namespace visco::control {
+namespace visco::sim {
 
 MotionWorld MakeMotionWorld(const planning::Scene& scene) {
   MotionWorld world;
@@ -37,4 +37,4 @@ drivers::WorldFile MakeWorldFile(const planning::Scene& scene) {
   return file;
 }
 
-}  // namespace visco::control
+}  // namespace visco::sim

@@ -11,33 +11,33 @@
 // LCM on a private in-process bus (memq://) that this thread serves between the steps (drivers::LockstepBus), and
 // every message on it goes into the event log, stamped with the simulated time it was published at; the controller's
 // period records and its configuration go in as `visco run --log` writes them, so that `visco replay --check`
-// replays the log through vision and the executor. Part of visco::control_sim. Not real-time code.
+// replays the log through vision and the executor. Part of visco::sim. Not real-time code.
 
 #include <atomic>
 #include <cstdint>
 #include <string>
 
+#include "app/sim/camera.h"
 #include "common/event_log.h"
 #include "control/executor.h"
-#include "control/sim_camera.h"
 #include "control/types.h"
 #include "drivers/driver.h"
 #include "drivers/simulated_robot.h"
 
-namespace visco::control {
+namespace visco::sim {
 
 /// The simulated clock's epoch: 2026-01-01T00:00:00Z in microseconds (the run's first message's time).
 inline constexpr std::int64_t kLockstepEpochUtime = 1'767'225'600'000'000;
 
 /// The controller's configuration of `visco demo` (its `visco run` options on a 2-core machine): also the lockstep's.
-ExecutorConfig DemoExecutorConfig();
+control::ExecutorConfig DemoExecutorConfig();
 
 struct LockstepOptions {
   std::string scene_path;     // required: the scene (goal, C-obstacles, start region)
   std::string strategy_path;  // required: `visco plan` output
   std::string rays_path;      // required: `visco vcrays` output
   bool have_start = false;
-  Vec2 start;  // metres; default: the centroid of the scene's start region
+  control::Vec2 start;  // metres; default: the centroid of the scene's start region
   // The simulated robot (seed, adversary, rates); its world, cone and start come from the scene.
   drivers::SimulatedRobotConfig robot;
   drivers::DriverConfig driver;  // session_seed 0: derived from robot.seed (a run's nonces are part of its payloads)
@@ -49,7 +49,7 @@ struct LockstepOptions {
   double rate_hz = 500.0;    // the controller's loop
   double telemetry_hz = 50.0;
   double heartbeat_timeout_s = 1.0;  // the robot link's
-  ExecutorConfig executor = DemoExecutorConfig();
+  control::ExecutorConfig executor = DemoExecutorConfig();
   double max_duration_s = 120.0;  // simulated seconds; then an e-stop, as `visco run --duration`
   std::int64_t start_utime = kLockstepEpochUtime;
   EventLogTap* log = nullptr;               // optional: every message, the period records, the configuration
@@ -57,7 +57,7 @@ struct LockstepOptions {
 };
 
 struct LockstepResult {
-  Mode mode = Mode::kIdle;
+  control::Mode mode = control::Mode::kIdle;
   std::string reason;
   int steps_completed = 0;
   int num_steps = 0;
@@ -69,7 +69,7 @@ struct LockstepResult {
   std::int64_t frames_processed = 0;  // by vision
   std::int64_t messages = 0;          // on the bus (all logged)
   std::int64_t records = 0;           // controller period records logged
-  Vec2 position;                      // the robot's true final position
+  control::Vec2 position;             // the robot's true final position
   bool contact = false;
   double goal_error_m = 0.0;  // distance of the true final position to the goal region (0: inside)
   double simulated_s = 0.0;
@@ -77,7 +77,7 @@ struct LockstepResult {
   std::string driver_state;
   drivers::DriverStats driver;
   /// The controller recognised the goal and the robot truly is in it.
-  bool reached() const { return mode == Mode::kDone && goal_error_m == 0.0; }
+  bool reached() const { return mode == control::Mode::kDone && goal_error_m == 0.0; }
   std::string ToJson() const;
 };
 
@@ -85,4 +85,4 @@ struct LockstepResult {
 /// `max_duration_s` (an e-stop). @throws InputError for bad files or options, JobFailed if the bus cannot be opened.
 LockstepResult RunLockstep(const LockstepOptions& options);
 
-}  // namespace visco::control
+}  // namespace visco::sim

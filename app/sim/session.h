@@ -1,11 +1,11 @@
 #pragma once
 // `visco sim`: the simulated robot (docs/semantics.md's motion model behind the robot driver of drivers/, over LCM or
 // SocketCAN) and a simulated camera. The camera either renders the AprilTags of robot and obstacles from the true
-// poses (sim_camera.h) and publishes image_t on VISCO_CAMERA_IMAGE for the real vision pipeline (`visco track
+// poses (camera.h) and publishes image_t on VISCO_CAMERA_IMAGE for the real vision pipeline (`visco track
 // --lcm`), or -- without object models -- publishes what vision would: visual_events_t for every CVC ray (the
-// signed image distance of its CM vertex to its VC line, synthetic_camera.h) and robot_estimate_t. Noise, blur,
+// signed image distance of its CM vertex to its VC line, control/synthetic_camera.h) and robot_estimate_t. Noise, blur,
 // latency, frame drops, occlusion, black-outs and stale frames on request. Not real-time code; part of
-// visco::control_sim.
+// visco::sim.
 
 #include <atomic>
 #include <cstdint>
@@ -13,13 +13,13 @@
 #include <string>
 #include <thread>
 
-#include "control/sim_camera.h"
+#include "app/sim/camera.h"
 #include "control/synthetic_camera.h"
 #include "control/task.h"
 #include "drivers/driver.h"
 #include "drivers/simulated_robot.h"
 
-namespace visco::control {
+namespace visco::sim {
 
 /// A time window of an injected camera fault, seconds after SimSession::Start (start < 0: never).
 struct FaultWindow {
@@ -35,7 +35,7 @@ struct SimOptions {
   std::string can_interface;  // non-empty: the driver listens on SocketCAN instead of LCM
   int node_id = 1;
   bool have_start = false;
-  Vec2 start;  // metres; default: the centroid of the scene's start region
+  control::Vec2 start;  // metres; default: the centroid of the scene's start region
   // The simulated robot's parameters (seed, adversary, rates); its world, cone and start come from the scene.
   // robot.seed also seeds the camera noise.
   drivers::SimulatedRobotConfig robot;
@@ -60,7 +60,7 @@ struct SimOptions {
 };
 
 struct SimSummary {
-  Vec2 position;
+  control::Vec2 position;
   bool contact = false;
   std::uint64_t frames = 0;
   std::uint64_t dropped_frames = 0;
@@ -96,13 +96,13 @@ class SimSession {
   /// Where the robot is and what the driver did, as of the driver's last update. Any thread, also while the session
   /// runs (through drivers::Driver::Snapshot; the driver's thread is never blocked).
   SimSummary Summary() const;
-  const Task& rays() const { return rays_; }
+  const control::Task& rays() const { return rays_; }
 
  private:
   struct Impl;
   void CameraLoop();
   std::unique_ptr<Impl> impl_;
-  Task rays_;  // the CVC rays with robot vertex offsets (for the synthetic camera)
+  control::Task rays_;  // the CVC rays with robot vertex offsets (for the synthetic camera)
   SimOptions options_;
   std::atomic<bool> stop_driver_{false};
   std::atomic<bool> stop_camera_{false};
@@ -114,4 +114,4 @@ class SimSession {
   std::thread camera_thread_;
 };
 
-}  // namespace visco::control
+}  // namespace visco::sim

@@ -10,9 +10,9 @@
 #include <string>
 #include <vector>
 
+#include "app/sim/camera.h"
+#include "app/sim/world.h"
 #include "common/error.h"
-#include "control/sim_camera.h"
-#include "control/sim_world.h"
 #include "drivers/can_protocol.h"
 #include "drivers/driver.h"
 #include "drivers/driver_transport.h"
@@ -24,7 +24,7 @@
 #include "vision/object_model.h"
 #include "vision/pipeline.h"
 
-namespace visco::control {
+namespace visco::sim {
 namespace {
 
 class FakeTransport final : public drivers::DriverTransport {
@@ -149,10 +149,11 @@ TEST(RenderedCamera, VisionFindsTheTruePoseAndOcclusionHidesTheRobot) {
   const RenderedSlot slot;
   const RenderedCamera camera(slot.Config());
   vision::VisionPipeline pipeline(slot.camera, slot.wMc, slot.models, slot.Options());
-  const std::vector<Vec2> path = {{2.0, 5.2}, {3.0, 5.2}, {4.5, 5.0}, {6.0, 4.6}, {5.0, 3.2}, {4.1, 2.1}, {4.1, 1.0}};
+  const std::vector<control::Vec2> path = {{2.0, 5.2}, {3.0, 5.2}, {4.5, 5.0}, {6.0, 4.6},
+                                           {5.0, 3.2}, {4.1, 2.1}, {4.1, 1.0}};
   std::int64_t seq = 0;
   double worst = 0;
-  for (const Vec2 q : path) {
+  for (const control::Vec2 q : path) {
     image_t image;
     const std::int64_t utime = 1'700'000'000'000'000 + seq * 66'000;
     camera.Capture(q, utime, ++seq, {}, image);
@@ -210,4 +211,4 @@ TEST(RenderedCamera, BadFilesAreInputErrors) {
 }
 
 }  // namespace
-}  // namespace visco::control
+}  // namespace visco::sim

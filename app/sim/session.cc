@@ -1,4 +1,4 @@
-#include "control/sim_session.h"
+#include "app/sim/session.h"
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -10,9 +10,9 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "app/sim/world.h"
 #include "common/error.h"
 #include "control/control_loop.h"
-#include "control/sim_world.h"
 #include "drivers/driver_transport.h"
 #include "lcmtypes/channels.h"
 #include "planning/scene.h"
@@ -21,7 +21,7 @@
 #include "visco/sim_truth_t.hpp"
 #include "visco/visual_events_t.hpp"
 
-namespace visco::control {
+namespace visco::sim {
 
 struct SimSession::Impl {
   planning::Scene scene;
@@ -29,7 +29,7 @@ struct SimSession::Impl {
   std::unique_ptr<drivers::DriverTransport> transport;
   std::unique_ptr<drivers::Driver> driver;
   std::unique_ptr<lcm::LCM> lcm;
-  std::unique_ptr<SyntheticCamera> camera;
+  std::unique_ptr<control::SyntheticCamera> camera;
   std::unique_ptr<RenderedCamera> rendered;
   // --no-driver: the robot is simulated by a driver process; its truth arrives on VISCO_SIM_TRUTH.
   std::unique_ptr<lcm::LCM> truth_lcm;
@@ -43,7 +43,7 @@ struct SimSession::Impl {
   void OnTruth(const lcm::ReceiveBuffer*, const std::string&, const sim_truth_t* m) {
     if (m->node_id != truth_node) return;
     drivers::RobotTruth t;
-    t.time_ns = MonotonicNs() - (WallUtime() - m->utime) * 1000;
+    t.time_ns = control::MonotonicNs() - (control::WallUtime() - m->utime) * 1000;
     for (int i = 0; i < 2; ++i) {
       t.position[i] = m->position[i];
       t.velocity[i] = m->velocity[i];
@@ -96,7 +96,7 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
   if (!(o.noise_px >= 0) || !(o.position_noise_m >= 0)) throw InputError("command line", "--noise", "must be >= 0");
   impl_->scene = planning::LoadScene(o.scene_path);
   const planning::Scene& scene = impl_->scene;
-  Vec2 start = o.start;
+  control::Vec2 start = o.start;
   if (!o.have_start && !o.no_driver) {  // the camera alone needs no start: the driver process has the robot
     if (!scene.start) throw InputError(o.scene_path, "start", "the scene has no start region: give --start X Y");
     const Eigen::Vector2d c = StartRegionCentroid(scene);
@@ -111,12 +111,12 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
   }
 
   if (!o.rays_path.empty()) {
-    const SceneInfo info = LoadScene(o.scene_path);
-    CheckMadeFor(ReadSceneIdentity(o.rays_path), "rays", o.rays_path, info, o.scene_path);
-    rays_.rays = LoadRays(o.rays_path);
+    const control::SceneInfo info = control::LoadScene(o.scene_path);
+    control::CheckMadeFor(control::ReadSceneIdentity(o.rays_path), "rays", o.rays_path, info, o.scene_path);
+    rays_.rays = control::LoadRays(o.rays_path);
     for (std::size_t i = 0; i < rays_.rays.size(); ++i) rays_.ray_index[rays_.rays[i].id] = static_cast<int>(i);
-    AttachScene(rays_, info, o.scene_path);
-    if (rays_.rays.size() > static_cast<std::size_t>(kMaxVisualObservations)) {
+    control::AttachScene(rays_, info, o.scene_path);
+    if (rays_.rays.size() > static_cast<std::size_t>(control::kMaxVisualObservations)) {
       throw InputError(o.rays_path, "cvc_rays", "more rays than the simulated camera's capacity");
     }
   }
@@ -131,8 +131,8 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
     render.seed = o.robot.seed ^ 0x1a9e5ULL;
     impl_->rendered = std::make_unique<RenderedCamera>(render);
   }
-  SyntheticCameraConfig camera_config{o.focal_px, o.on_line_band_px, o.noise_px};
-  impl_->camera = std::make_unique<SyntheticCamera>(rays_, camera_config, o.robot.seed ^ 0x5eedcafeULL);
+  control::SyntheticCameraConfig camera_config{o.focal_px, o.on_line_band_px, o.noise_px};
+  impl_->camera = std::make_unique<control::SyntheticCamera>(rays_, camera_config, o.robot.seed ^ 0x5eedcafeULL);
 
   if (impl_->robot) {
     drivers::DriverTransportConfig transport_config;
@@ -227,7 +227,7 @@ void SimSession::CameraLoop() {
   drivers::RobotTruth truth;
   bool have_truth = false;
   std::int64_t seq = 0;
-  VisualFrame frame;
+  control::VisualFrame frame;
   image_t image;
   bool occlusion_logged = false, blackout_logged = false, stale_logged = false;
   auto log_window = [](bool active, bool& logged, const char* what) {
@@ -253,7 +253,7 @@ void SimSession::CameraLoop() {
     }
     const auto capture_time = Clock::now();
     const std::int64_t capture_utime =
-        WallUtime() - (stale ? static_cast<std::int64_t>(o.stale_s * 1e6) : std::int64_t{0});
+        control::WallUtime() - (stale ? static_cast<std::int64_t>(o.stale_s * 1e6) : std::int64_t{0});
     if (impl_->rendered) {
       impl_->rendered->Capture({truth.position[0], truth.position[1]}, capture_utime, seq, CaptureConditions{occluded},
                                image);
@@ -264,9 +264,9 @@ void SimSession::CameraLoop() {
       frames_.fetch_add(1);
       continue;
     }
-    impl_->camera->Observe({truth.position[0], truth.position[1]}, seq, MonotonicNs(), frame);
+    impl_->camera->Observe({truth.position[0], truth.position[1]}, seq, control::MonotonicNs(), frame);
     std::this_thread::sleep_until(capture_time + latency);
-    const std::int64_t now_utime = WallUtime();
+    const std::int64_t now_utime = control::WallUtime();
     if (!rays_.rays.empty()) {
       visual_events_t events;
       events.utime = now_utime;
@@ -274,7 +274,7 @@ void SimSession::CameraLoop() {
       events.frame_seq = seq;
       events.latency_s = static_cast<double>(now_utime - capture_utime) * 1e-6;
       for (int i = 0; i < frame.count; ++i) {
-        const VisualObservation& obs = frame.items[i];
+        const control::VisualObservation& obs = frame.items[i];
         visual_event_t e;
         e.utime = capture_utime;
         e.cvc_ray = rays_.rays[static_cast<std::size_t>(obs.ray)].id;
@@ -301,4 +301,4 @@ void SimSession::CameraLoop() {
   }
 }
 
-}  // namespace visco::control
+}  // namespace visco::sim
