@@ -6,6 +6,7 @@
 #include <lcm/lcm-cpp.hpp>
 #include <utility>
 
+#include "control/fault_message.h"
 #include "lcmtypes/channels.h"
 #include "visco/controller_telemetry_t.hpp"
 #include "visco/fault_t.hpp"
@@ -127,14 +128,7 @@ void ControllerBridge::PublishLoop() {
 void ControllerBridge::Drain() {
   FaultEvent fault;
   while (outbox_.faults.TryPop(fault)) {
-    fault_t m{};
-    m.utime = fault.utime;
-    m.source = "controller";
-    m.code = static_cast<std::int32_t>(fault.code);
-    m.severity = fault.severity;
-    m.robot_stopped = fault.robot_stopped;
-    m.cleared = fault.cleared;
-    m.message = fault.message;
+    const fault_t m = ToFaultMessage(fault);
     lcm_.publish(channels::kFault, &m);
     counters_.faults.fetch_add(1, std::memory_order_relaxed);
     const char* what = fault.cleared ? "cleared" : (fault.robot_stopped ? "robot stopped" : "fault");

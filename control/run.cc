@@ -14,6 +14,7 @@
 
 #include "common/error.h"
 #include "control/control_loop.h"
+#include "control/cycle_message.h"
 #include "control/lcm_bridge.h"
 #include "drivers/robot_link.h"
 #include "lcmtypes/channels.h"
@@ -54,60 +55,6 @@ void CheckOptions(const RunOptions& o) {
   if (!(e.default_step_timeout_s > 0)) throw InputError("command line", "--step-timeout", "must be positive");
   if (o.node_id < 1 || o.node_id > 127) throw InputError("command line", "--node", "must be in 1..127");
 }
-
-}  // namespace
-
-controller_cycle_t ToCycleMessage(const CycleRecord& r) {
-  controller_cycle_t m{};
-  const ExecutorInput& in = r.input;
-  m.utime = in.now_utime;
-  m.now_ns = in.now_ns;
-  m.cycle = r.cycle;
-  m.have_status = in.have_status;
-  m.status_receive_ns = in.status.receive_ns;
-  m.status_utime = in.status.utime;
-  m.status_seq = in.status.seq;
-  m.status_command_seq = in.status.command_seq;
-  m.status_position[0] = in.status.position.x, m.status_position[1] = in.status.position.y;
-  m.status_velocity[0] = in.status.velocity.x, m.status_velocity[1] = in.status.velocity.y;
-  m.status_contact = in.status.contact;
-  m.status_contact_force[0] = in.status.contact_force.x, m.status_contact_force[1] = in.status.contact_force.y;
-  m.status_state = in.status.state;
-  m.status_fault_bits = in.status.fault_bits;
-  m.heartbeat_ns = in.heartbeat_ns;
-  m.peer_lost = in.peer_lost;
-  m.link_fault_code = in.link_fault_code;
-  m.link_fault = in.link_fault;
-  m.have_frame = in.have_frame;
-  m.frame_capture_ns = in.frame.capture_ns;
-  m.frame_seq = in.frame.frame_seq;
-  m.num_observations = in.frame.count;
-  for (int i = 0; i < in.frame.count; ++i) {
-    const VisualObservation& o = in.frame.items[i];
-    m.ray.push_back(o.ray);
-    m.state.push_back(o.state);
-    m.crossed.push_back(o.crossed);
-    m.signed_distance_px.push_back(o.signed_distance_px);
-    m.stddev_px.push_back(o.stddev_px);
-  }
-  m.have_estimate = in.have_estimate;
-  m.estimate_capture_ns = in.estimate.capture_ns;
-  m.estimate_frame_seq = in.estimate.frame_seq;
-  m.estimate_valid = in.estimate.valid;
-  m.estimate_position[0] = in.estimate.position.x, m.estimate_position[1] = in.estimate.position.y;
-  m.estimate_stddev = in.estimate.stddev;
-  m.estop = in.estop;
-  m.command_velocity[0] = r.command.velocity.x, m.command_velocity[1] = r.command.velocity.y;
-  m.command_estop = r.command.estop;
-  m.command_reset = r.command.reset;
-  m.command_quick_stop = r.command.quick_stop;
-  m.mode = static_cast<std::int8_t>(r.mode);
-  m.step_index = r.step_index;
-  m.holding = r.holding;
-  return m;
-}
-
-namespace {
 
 template <class M>
 void WriteToLog(EventLogTap& log, const char* channel, std::int64_t utime, const M& m) {

@@ -11,7 +11,6 @@
 #include "control/executor.h"
 #include "control/task.h"
 #include "drivers/commands.h"
-#include "visco/controller_cycle_t.hpp"
 #include "visco/log_annotation_t.hpp"
 
 namespace visco::control {
@@ -43,8 +42,6 @@ inline constexpr char kAnnotationChannel[] = "VISCO_LOG_ANNOTATION";
 std::string ExecutorConfigToJson(const ExecutorConfig& config);
 ExecutorConfig ExecutorConfigFromJson(const std::string& json, const std::string& source);
 
-/// One period's record as the log's VISCO_CONTROLLER_CYCLE message. Not real-time safe (allocates).
-controller_cycle_t ToCycleMessage(const CycleRecord& record);
 /// The run's configuration as the log's VISCO_LOG_ANNOTATION message (kind "controller_config", what `visco replay`
 /// reads to run the same executor): the executor's configuration, the executor's start time, the strategy, scene and
 /// rays files (made absolute) and the period records' counts. `utime` stamps it.

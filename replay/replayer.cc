@@ -17,7 +17,9 @@
 #include <utility>
 
 #include "common/error.h"
+#include "control/cycle_message.h"
 #include "control/executor.h"
+#include "control/fault_message.h"
 #include "control/lcm_bridge.h"
 #include "control/run.h"
 #include "lcmtypes/channels.h"
@@ -103,48 +105,6 @@ bool VisionOutputFrame(const LogEvent& e, std::int64_t& frame_utime) {
     return true;
   }
   return false;
-}
-
-control::ExecutorInput FromMessage(const controller_cycle_t& m) {
-  control::ExecutorInput in;
-  in.now_ns = m.now_ns;
-  in.now_utime = m.utime;
-  in.have_status = m.have_status;
-  in.status.receive_ns = m.status_receive_ns;
-  in.status.utime = m.status_utime;
-  in.status.seq = m.status_seq;
-  in.status.command_seq = m.status_command_seq;
-  in.status.position = {m.status_position[0], m.status_position[1]};
-  in.status.velocity = {m.status_velocity[0], m.status_velocity[1]};
-  in.status.contact = m.status_contact;
-  in.status.contact_force = {m.status_contact_force[0], m.status_contact_force[1]};
-  in.status.state = m.status_state;
-  in.status.fault_bits = m.status_fault_bits;
-  in.heartbeat_ns = m.heartbeat_ns;
-  in.peer_lost = m.peer_lost;
-  in.link_fault_code = m.link_fault_code;
-  control::CopyText(in.link_fault, m.link_fault.c_str());
-  in.have_frame = m.have_frame;
-  in.frame.capture_ns = m.frame_capture_ns;
-  in.frame.frame_seq = m.frame_seq;
-  in.frame.count = std::min<std::int32_t>(m.num_observations, control::kMaxVisualObservations);
-  for (int i = 0; i < in.frame.count; ++i) {
-    const auto k = static_cast<std::size_t>(i);
-    control::VisualObservation& o = in.frame.items[i];
-    o.ray = m.ray[k];
-    o.state = m.state[k];
-    o.crossed = m.crossed[k];
-    o.signed_distance_px = m.signed_distance_px[k];
-    o.stddev_px = m.stddev_px[k];
-  }
-  in.have_estimate = m.have_estimate;
-  in.estimate.capture_ns = m.estimate_capture_ns;
-  in.estimate.frame_seq = m.estimate_frame_seq;
-  in.estimate.valid = m.estimate_valid;
-  in.estimate.position = {m.estimate_position[0], m.estimate_position[1]};
-  in.estimate.stddev = m.estimate_stddev;
-  in.estop = m.estop;
-  return in;
 }
 
 // Field-by-field differences of the controller's values, numbers bit for bit.
@@ -349,7 +309,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
     }
     if (channel == channels::kFault) {
       fault_t f;
-      if (DecodeAs(e, f) && f.source == "controller" &&
+      if (DecodeAs(e, f) && f.source == control::kControllerFaultSource &&
           f.code != static_cast<std::int32_t>(control::FaultCode::kOverrun)) {
         controller_faults[f.utime].push_back(i);
       }
@@ -634,7 +594,8 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
       }
       previous_cycle = m.cycle;
       last_utime = m.utime;
-      const control::ExecutorInput recorded = FromMessage(m);
+      const control::CycleRecord record = control::FromCycleMessage(m);
+      const control::ExecutorInput& recorded = record.input;
       control::ExecutorInput in = recorded;
       ControlDiffer d;
       if (in.have_frame) {
@@ -668,15 +629,7 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
       ++s.produced;
       for (int i = 0; i < output.num_faults; ++i) {
         const control::FaultEvent& f = output.faults[i];
-        fault_t message{};
-        message.utime = f.utime;
-        message.source = "controller";
-        message.code = static_cast<std::int32_t>(f.code);
-        message.severity = f.severity;
-        message.robot_stopped = f.robot_stopped;
-        message.cleared = f.cleared;
-        message.message = f.message;
-        emit(channels::kFault, in.now_utime, Encode(message));
+        emit(channels::kFault, in.now_utime, Encode(control::ToFaultMessage(f)));
         ++s.produced;
         if (!o.check || t < o.from_s || d.result) continue;
         auto logged_fault = controller_faults.find(f.utime);
@@ -684,26 +637,28 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
           d.result = FieldDifference{"fault (message)", "absent", "produced: " + std::string(f.message)};
           continue;
         }
-        fault_t live;
-        DecodeAs(events[logged_fault->second.front()], live);
+        fault_t live_message;
+        DecodeAs(events[logged_fault->second.front()], live_message);
         logged_fault->second.pop_front();
         ++s.control_faults_compared;
-        d.Field("fault.code", std::int64_t{live.code}, std::int64_t{message.code});
-        d.Field("fault.severity", std::int64_t{live.severity}, std::int64_t{message.severity});
-        d.Field("fault.robot_stopped", std::int64_t{live.robot_stopped}, std::int64_t{message.robot_stopped});
-        d.Field("fault.cleared", std::int64_t{live.cleared}, std::int64_t{message.cleared});
-        d.Field("fault.message", live.message, message.message);
+        const control::FaultEvent live = control::FromFaultMessage(live_message);
+        d.Field("fault.code", static_cast<std::int64_t>(live.code), static_cast<std::int64_t>(f.code));
+        d.Field("fault.severity", std::int64_t{live.severity}, std::int64_t{f.severity});
+        d.Field("fault.robot_stopped", std::int64_t{live.robot_stopped}, std::int64_t{f.robot_stopped});
+        d.Field("fault.cleared", std::int64_t{live.cleared}, std::int64_t{f.cleared});
+        d.Field("fault.message", live_message.message,
+                std::string(f.message));  // as logged, even past FaultEvent's size
       }
       if (!o.check || t < o.from_s) continue;
       ++s.control_compared;
-      d.Field("command.velocity[0]", m.command_velocity[0], output.command.velocity.x);
-      d.Field("command.velocity[1]", m.command_velocity[1], output.command.velocity.y);
-      d.Field("command.estop", std::int64_t{m.command_estop}, std::int64_t{output.command.estop});
-      d.Field("command.reset", std::int64_t{m.command_reset}, std::int64_t{output.command.reset});
-      d.Field("command.quick_stop", std::int64_t{m.command_quick_stop}, std::int64_t{output.command.quick_stop});
-      d.Field("mode", std::int64_t{m.mode}, static_cast<std::int64_t>(output.mode));
-      d.Field("step_index", std::int64_t{m.step_index}, std::int64_t{output.step_index});
-      d.Field("holding", std::int64_t{m.holding}, std::int64_t{output.holding});
+      d.Field("command.velocity[0]", record.command.velocity.x, output.command.velocity.x);
+      d.Field("command.velocity[1]", record.command.velocity.y, output.command.velocity.y);
+      d.Field("command.estop", std::int64_t{record.command.estop}, std::int64_t{output.command.estop});
+      d.Field("command.reset", std::int64_t{record.command.reset}, std::int64_t{output.command.reset});
+      d.Field("command.quick_stop", std::int64_t{record.command.quick_stop}, std::int64_t{output.command.quick_stop});
+      d.Field("mode", static_cast<std::int64_t>(record.mode), static_cast<std::int64_t>(output.mode));
+      d.Field("step_index", std::int64_t{record.step_index}, std::int64_t{output.step_index});
+      d.Field("holding", std::int64_t{record.holding}, std::int64_t{output.holding});
       if (d.result) {
         s.differences.push_back(
             {control::kCycleChannel, m.utime, in.have_frame ? in.frame.frame_seq : -1, 0, m.cycle, *d.result});

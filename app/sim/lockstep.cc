@@ -15,6 +15,7 @@
 #include "common/error.h"
 #include "common/even_odd.h"
 #include "control/control_loop.h"
+#include "control/cycle_message.h"
 #include "control/lcm_bridge.h"
 #include "control/run.h"
 #include "drivers/driver_transport.h"
