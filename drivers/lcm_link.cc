@@ -17,6 +17,7 @@
 
 #include "common/error.h"
 #include "drivers/driver_transport.h"
+#include "drivers/queued_robot_link.h"
 #include "drivers/ring.h"
 #include "drivers/robot_link.h"
 #include "lcmtypes/channels.h"
@@ -112,12 +113,10 @@ class LcmIo {
 constexpr int kLcmQueueCapacity = 512;
 
 // ---------------------------------------------------------------------------------------------------------------
-class LcmRobotLink final : public RobotLink {
+class LcmRobotLink final : public QueuedRobotLink {
  public:
   explicit LcmRobotLink(const RobotLinkConfig& config)
-      : node_(config.node_id),
-        heartbeat_timeout_us_(config.heartbeat_timeout_us),
-        io_(config.lcm_url, config.lockstep) {
+      : QueuedRobotLink(config.heartbeat_timeout_us), node_(config.node_id), io_(config.lcm_url, config.lockstep) {
     // LCM keeps 30 undelivered messages per subscription and drops the rest: at 500 Hz a thread held off for 60 ms
     // (a loaded machine, an image-rendering neighbour) lost a run of statuses or commands, which the session rules
     // then treat as a fault. Room for one watchdog period of them.
@@ -194,9 +193,7 @@ class LcmRobotLink final : public RobotLink {
       last_status_us_ = now_us;
       s.receive_us = now_us;
       ++counters_.statuses_received;
-      if (session_.OnStatus(s.command_seq) && !faults_.Push(ForeignSessionFault(now_us, fault_t::CODE_BAD_MESSAGE))) {
-        ++counters_.faults_dropped;
-      }
+      if (session_.OnStatus(s.command_seq)) QueueFault(ForeignSessionFault(now_us, fault_t::CODE_BAD_MESSAGE));
       // Another controller's session: the driver is alive (peer_state), but its state is not this controller's to
       // start from; it waits for the fresh session the driver issues when that one ends.
       if (session_.foreign()) continue;
@@ -211,7 +208,7 @@ class LcmRobotLink final : public RobotLink {
       f.receive_us = now_us;
       f.foreign = !session_.owned() && !session_lost_ && f.emcy_code != 0xFF01;  // 0xFF01: can::kEmcyResetRefused
       ++counters_.faults_received;
-      if (!faults_.Push(f)) ++counters_.faults_dropped;
+      QueueFault(f);
     }
     if (session_lost_) {
       session_lost_ = false;
@@ -222,22 +219,10 @@ class LcmRobotLink final : public RobotLink {
     counters_.bad_frames = bad_messages_.load(std::memory_order_relaxed);
   }
 
-  LinkResult TakeStatus(RobotStatus& out) override {
-    if (!fresh_status_) return LinkResult::kNoData;
-    out = status_;
-    fresh_status_ = false;
-    return LinkResult::kOk;
-  }
-  LinkResult TakeFault(LinkFault& out) override { return faults_.Pop(out) ? LinkResult::kOk : LinkResult::kNoData; }
-  PeerState peer_state(std::int64_t now_us) const override {
-    if (last_status_us_ < 0) return PeerState::kUnknown;
-    return now_us - last_status_us_ <= heartbeat_timeout_us_ ? PeerState::kAlive : PeerState::kLost;
-  }
   NmtState peer_nmt_state() const override { return nmt_state_; }
   BusState bus_state() const override { return BusState::kActive; }
   std::uint32_t last_command_seq() const override { return session_.last(); }
   std::uint32_t session() const override { return session_.session(); }
-  LinkCounters counters() const override { return counters_; }
 
  private:
   struct Outgoing {
@@ -278,7 +263,7 @@ class LcmRobotLink final : public RobotLink {
     fault.robot_stopped = true;
     fault.local = true;
     fault.what = what;
-    if (!faults_.Push(fault)) ++counters_.faults_dropped;
+    QueueFault(fault);
   }
 
   // I/O thread.
@@ -341,7 +326,6 @@ class LcmRobotLink final : public RobotLink {
   }
 
   const int node_;
-  const std::int64_t heartbeat_timeout_us_;
   SpscQueue<Outgoing, 256> outgoing_;
   SpscQueue<Incoming, 128> incoming_;
   SpscQueue<LinkFault, 64> incoming_faults_;
@@ -353,11 +337,6 @@ class LcmRobotLink final : public RobotLink {
   bool stale_reported_ = false;
   bool session_lost_ = false;  // this Poll saw the announcement of a session that replaced this controller's
   std::uint32_t status_last_ = 0;
-  RobotStatus status_;
-  bool fresh_status_ = false;
-  std::int64_t last_status_us_ = -1;
-  FixedQueue<LinkFault, 64> faults_;
-  LinkCounters counters_;
   LcmIo io_;  // last: its thread stops before the queues go away
 };
 

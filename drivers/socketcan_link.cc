@@ -9,6 +9,7 @@
 #include "common/error.h"
 #include "drivers/can_protocol.h"
 #include "drivers/driver_transport.h"
+#include "drivers/queued_robot_link.h"
 #include "drivers/ring.h"
 #include "drivers/robot_link.h"
 #include "drivers/socketcan.h"
@@ -69,14 +70,14 @@ class BusTracker {
 };
 
 // ---------------------------------------------------------------------------------------------------------------
-class SocketCanRobotLink final : public RobotLink {
+class SocketCanRobotLink final : public QueuedRobotLink {
  public:
   explicit SocketCanRobotLink(const RobotLinkConfig& config)
       : SocketCanRobotLink(config, std::make_unique<CanSocket>(RxOptions(config)),
                            std::make_unique<CanSocket>(CanSocketOptions{config.can_interface, false, {}, 0, 0})) {}
   SocketCanRobotLink(const RobotLinkConfig& config, std::unique_ptr<CanPort> receive, std::unique_ptr<CanPort> send)
-      : node_((CheckNode(config.node_id), config.node_id)),
-        heartbeat_timeout_us_(config.heartbeat_timeout_us),
+      : QueuedRobotLink(config.heartbeat_timeout_us),
+        node_((CheckNode(config.node_id), config.node_id)),
         rx_holder_(std::move(receive)),
         tx_holder_(std::move(send)),
         rx_(*rx_holder_),
@@ -155,24 +156,10 @@ class SocketCanRobotLink final : public RobotLink {
     }
   }
 
-  LinkResult TakeStatus(RobotStatus& out) override {
-    if (!fresh_status_) return LinkResult::kNoData;
-    out = status_;
-    fresh_status_ = false;
-    return LinkResult::kOk;
-  }
-
-  LinkResult TakeFault(LinkFault& out) override { return faults_.Pop(out) ? LinkResult::kOk : LinkResult::kNoData; }
-
-  PeerState peer_state(std::int64_t now_us) const override {
-    if (last_status_us_ < 0) return PeerState::kUnknown;
-    return now_us - last_status_us_ <= heartbeat_timeout_us_ ? PeerState::kAlive : PeerState::kLost;
-  }
   NmtState peer_nmt_state() const override { return nmt_; }
   BusState bus_state() const override { return bus_.state(); }
   std::uint32_t last_command_seq() const override { return session_.last(); }
   std::uint32_t session() const override { return session_.session(); }
-  LinkCounters counters() const override { return counters_; }
 
  private:
   static CanSocketOptions RxOptions(const RobotLinkConfig& config) {
@@ -269,7 +256,7 @@ class SocketCanRobotLink final : public RobotLink {
           fault.cleared = emcy.cleared || emcy.error_code == can::kEmcyNoError;
           fault.what = DriverFaultWhat(emcy.error_code);
           fault.foreign = !session_.owned() && emcy.error_code != can::kEmcyResetRefused;
-          Push(fault);
+          QueueFault(fault);
         }
         break;
       }
@@ -364,7 +351,7 @@ class SocketCanRobotLink final : public RobotLink {
     const std::uint32_t last = session_.last();
     status_.command_seq = last - static_cast<std::uint8_t>(static_cast<std::uint8_t>(last) - partial_.command_seq);
     ++counters_.statuses_received;
-    if (session_.OnStatus(status_.command_seq)) Push(ForeignSessionFault(now_us, fault_t::CODE_BAD_MESSAGE));
+    if (session_.OnStatus(status_.command_seq)) QueueFault(ForeignSessionFault(now_us, fault_t::CODE_BAD_MESSAGE));
     // Another controller's session: the driver is alive (peer_state), but its state is not this controller's to
     // start from; it waits for the fresh session the driver issues when that one ends.
     if (session_.foreign()) return;
@@ -415,14 +402,10 @@ class SocketCanRobotLink final : public RobotLink {
     fault.robot_stopped = stopped;
     fault.local = true;
     fault.what = what;
-    Push(fault);
-  }
-  void Push(const LinkFault& fault) {
-    if (!faults_.Push(fault)) ++counters_.faults_dropped;
+    QueueFault(fault);
   }
 
   const int node_;
-  const std::int64_t heartbeat_timeout_us_;
   std::unique_ptr<CanPort> rx_holder_;
   std::unique_ptr<CanPort> tx_holder_;
   CanPort& rx_;
@@ -439,12 +422,7 @@ class SocketCanRobotLink final : public RobotLink {
   std::uint32_t status_last_ = 0;   // counter of the last accepted status
   std::uint32_t status_epoch_ = 0;  // from the session frame, until the first accepted status
   bool stale_reported_ = false;
-  RobotStatus status_;
-  bool fresh_status_ = false;
-  std::int64_t last_status_us_ = -1;
   NmtState nmt_ = NmtState::kBootUp;
-  FixedQueue<LinkFault, 64> faults_;
-  LinkCounters counters_;
 };
 
 // ---------------------------------------------------------------------------------------------------------------
