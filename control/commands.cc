@@ -1,7 +1,5 @@
 #include "control/commands.h"
 
-#include <signal.h>
-
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <cstdio>
@@ -9,14 +7,14 @@
 
 #include "common/error.h"
 #include "common/event_log.h"
+#include "common/stop_signals.h"
 #include "control/run.h"
 #include "control/servo_camera.h"
 
 namespace visco::control {
 namespace {
 
-std::atomic<bool> g_stop{false};
-void OnSignal(int) { g_stop.store(true); }
+std::atomic<bool> g_stop{false};  // SIGINT, SIGTERM
 
 struct CliOptions {
   RunOptions run;
@@ -53,10 +51,7 @@ void Run(CliOptions& cli) {
   std::unique_ptr<EventLogTap> log = OpenEventLog(cli.log, o.lcm_url);
   o.log = log.get();
   const Task task = LoadTask(o);
-  struct sigaction action {};
-  action.sa_handler = OnSignal;
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
+  StopOnSignals(g_stop);
   const RunResult result = RunTask(task, o, g_stop);
   std::printf("%s\n", result.ToJson().c_str());
   std::fflush(stdout);

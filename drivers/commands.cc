@@ -1,6 +1,5 @@
 #include "drivers/commands.h"
 
-#include <signal.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -16,6 +15,7 @@
 
 #include "common/error.h"
 #include "common/event_log.h"
+#include "common/stop_signals.h"
 #include "drivers/driver.h"
 #include "drivers/driver_transport.h"
 #include "drivers/robot_backend.h"
@@ -28,13 +28,7 @@
 namespace visco::drivers {
 namespace {
 
-std::atomic<bool> g_stop{false};
-std::atomic<Driver*> g_driver{nullptr};
-void OnSignal(int) { g_stop.store(true); }
-// SIGUSR1: the operator's e-stop release (drivers/README.md): an action at the driver, never a bus message.
-void OnRelease(int) {
-  if (Driver* driver = g_driver.load()) driver->RequestOperatorRelease();
-}
+std::atomic<bool> g_stop{false};  // SIGINT, SIGTERM, --duration
 
 struct DriverCommand {
   std::string can_interface;
@@ -114,15 +108,9 @@ void RunDriver(const DriverCommand& o) {
     throw;
   }
 
-  struct sigaction action {};
-  action.sa_handler = OnSignal;
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
-  g_driver.store(&driver);
-  struct sigaction release {};
-  release.sa_handler = OnRelease;
-  release.sa_flags = SA_RESTART;
-  sigaction(SIGUSR1, &release, nullptr);
+  StopOnSignals(g_stop);
+  // SIGUSR1: the operator's e-stop release (drivers/README.md).
+  ReleaseOnSignal([](void* d) { static_cast<Driver*>(d)->RequestOperatorRelease(); }, &driver);
   if (!(o.truth_hz >= 0.0 && o.truth_hz <= 1000.0))
     throw InputError("command line", "--truth-hz", "must be in [0, 1000]");
   std::thread truth =
@@ -147,8 +135,7 @@ void RunDriver(const DriverCommand& o) {
                    : std::string());
   driver.Run(g_stop);
   robot.Deactivate();
-  signal(SIGUSR1, SIG_IGN);
-  g_driver.store(nullptr);
+  IgnoreReleaseSignal();
   g_stop.store(true);
   if (timer.joinable()) timer.join();
   if (truth.joinable()) truth.join();

@@ -1,6 +1,5 @@
 #include "app/sim/commands.h"
 
-#include <signal.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -17,6 +16,7 @@
 #include "app/sim/world.h"
 #include "common/error.h"
 #include "common/event_log.h"
+#include "common/stop_signals.h"
 #include "common/write_output.h"
 #include "control/run.h"
 #include "drivers/commands.h"
@@ -27,13 +27,7 @@
 namespace visco::sim {
 namespace {
 
-std::atomic<bool> g_stop{false};
-void OnSignal(int) { g_stop.store(true); }
-std::atomic<SimSession*> g_session{nullptr};
-// SIGUSR1: the operator's e-stop release at the simulated robot's driver (drivers/README.md).
-void OnRelease(int) {
-  if (SimSession* session = g_session.load()) session->ReleaseEStop();
-}
+std::atomic<bool> g_stop{false};  // SIGINT, SIGTERM
 
 struct SimCli {
   SimOptions sim;
@@ -90,10 +84,7 @@ void RunLockstepSim(SimCli& cli) {
   o.max_duration_s = cli.duration_s > 0 ? cli.duration_s : o.max_duration_s;
   std::unique_ptr<EventLogTap> log = OpenEventLogFile(cli.log);
   o.log = log.get();
-  struct sigaction action {};
-  action.sa_handler = OnSignal;
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
+  StopOnSignals(g_stop);
   o.stop = &g_stop;
   const LockstepResult result = RunLockstep(o);
   std::printf("%s\n", result.ToJson().c_str());
@@ -149,15 +140,9 @@ void RunSim(SimCli& cli) {
   o.node_id = cli.driver.node;
   std::unique_ptr<EventLogTap> log = OpenEventLog(cli.log, o.lcm_url);
   SimSession session(o);
-  struct sigaction action {};
-  action.sa_handler = OnSignal;
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
-  g_session.store(&session);
-  struct sigaction release {};
-  release.sa_handler = OnRelease;
-  release.sa_flags = SA_RESTART;
-  sigaction(SIGUSR1, &release, nullptr);  // the operator's e-stop release at the driver
+  StopOnSignals(g_stop);
+  // SIGUSR1: the operator's e-stop release at the simulated robot's driver (drivers/README.md).
+  ReleaseOnSignal([](void* s) { static_cast<SimSession*>(s)->ReleaseEStop(); }, &session);
   session.Start();
   const auto start = std::chrono::steady_clock::now();
   while (!g_stop.load()) {
@@ -167,8 +152,7 @@ void RunSim(SimCli& cli) {
       break;
     }
   }
-  signal(SIGUSR1, SIG_IGN);
-  g_session.store(nullptr);
+  IgnoreReleaseSignal();
   session.Stop();
   std::printf("%s\n", session.Summary().ToJson().c_str());
   std::fflush(stdout);
