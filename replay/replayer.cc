@@ -151,9 +151,46 @@ void CompareEstimates(ControlDiffer& d, const control::PositionEstimate& a, cons
   d.Field("input.estimate.stddev", a.stddev, b.stddev);
 }
 
-}  // namespace
+// Adds a remark to the summary (the first few only).
+void AddNote(ReplaySummary& s, std::string text) {
+  if (s.notes.size() < 20) s.notes.push_back(std::move(text));
+}
 
-namespace {
+// Where the replay's output goes: the bus (unless --no-publish) and the --out log, under the replay's prefix (none
+// when armed).
+class Outputs {
+ public:
+  /// @throws InputError if the bus cannot be opened.
+  explicit Outputs(const ReplayOptions& o) : prefix_(o.arm ? "" : o.prefix), out_path_(o.out_path) {
+    if (o.publish) {
+      bus_ = std::make_unique<lcm::LCM>(o.lcm_url);
+      if (!bus_->good()) throw InputError("command line", "--lcm-url", "cannot open LCM bus '" + o.lcm_url + "'");
+    }
+    if (!o.out_path.empty()) {
+      WriterOptions wo;
+      wo.max_queue_bytes = std::size_t{1} << 30;
+      out_ = std::make_unique<EventLogWriter>(o.out_path, wo);
+    }
+  }
+  void Emit(const std::string& channel, std::int64_t timestamp, const std::vector<std::uint8_t>& bytes) {
+    const std::string name = prefix_ + channel;
+    if (bus_) bus_->publish(name, bytes.data(), static_cast<unsigned int>(bytes.size()));
+    if (out_) out_->Write(name, timestamp, bytes);
+  }
+  /// Closes the --out log: what it could not write, in words ("" when everything went in).
+  std::string Close() {
+    if (!out_) return "";
+    const WriterStats ws = out_->Close();
+    if (ws.events_dropped == 0 && ws.error.empty()) return "";
+    return out_path_ + ": " + std::to_string(ws.events_dropped) + " event(s) dropped " + ws.error;
+  }
+
+ private:
+  std::string prefix_;
+  std::string out_path_;
+  std::unique_ptr<lcm::LCM> bus_;
+  std::unique_ptr<EventLogWriter> out_;
+};
 
 // An image folder or a video file instead of a log: the frames go through vision as `visco track` would take them,
 // on the frames' own timestamps (from `start_utime`, so that two replays give the same bytes). Nothing to compare.
@@ -165,18 +202,7 @@ ReplaySummary ReplaySource(const ReplayOptions& o, const vision::LoadedPipeline&
   std::unique_ptr<vision::FrameSource> source = !o.images_dir.empty()
                                                     ? vision::MakeFolderSource(o.images_dir, o.fps, o.start_utime)
                                                     : vision::MakeVideoSource(o.video_path, o.start_utime);
-  std::unique_ptr<lcm::LCM> bus;
-  if (o.publish) {
-    bus = std::make_unique<lcm::LCM>(o.lcm_url);
-    if (!bus->good()) throw InputError("command line", "--lcm-url", "cannot open LCM bus '" + o.lcm_url + "'");
-  }
-  std::unique_ptr<EventLogWriter> out;
-  if (!o.out_path.empty()) {
-    WriterOptions wo;
-    wo.max_queue_bytes = std::size_t{1} << 30;
-    out = std::make_unique<EventLogWriter>(o.out_path, wo);
-  }
-  const std::string prefix = o.arm ? "" : o.prefix;
+  Outputs outputs(o);
   std::int64_t now = 0;
   vision::PipelineOptions options = loaded.options;
   options.clock = [&now] { return now; };
@@ -221,13 +247,11 @@ ReplaySummary ReplaySource(const ReplayOptions& o, const vision::LoadedPipeline&
       continue;
     }
     vision::ForEachMessage(result, [&](const char* channel, const auto& message) {
-      const std::vector<std::uint8_t> bytes = Encode(message);
-      if (bus) bus->publish(prefix + channel, bytes.data(), static_cast<unsigned int>(bytes.size()));
-      if (out) out->Write(prefix + channel, frame.utime, bytes);
+      outputs.Emit(channel, frame.utime, Encode(message));
       ++s.produced;
     });
   }
-  if (out) out->Close();
+  if (std::string dropped = outputs.Close(); !dropped.empty()) AddNote(s, std::move(dropped));
   if (s.images > 1 && s.log_end_utime > s.log_start_utime) {
     s.log_frame_rate_hz = static_cast<double>(s.images - 1) / SecondsBetween(s.log_start_utime, s.log_end_utime);
   }
@@ -236,9 +260,8 @@ ReplaySummary ReplaySource(const ReplayOptions& o, const vision::LoadedPipeline&
   return s;
 }
 
-}  // namespace
-
-ReplaySummary RunReplay(const ReplayOptions& o) {
+// The options a replay cannot run with; the channel filter compiled. @throws InputError.
+std::regex CheckOptions(const ReplayOptions& o) {
   const int sources = (o.log_path.empty() ? 0 : 1) + (o.images_dir.empty() ? 0 : 1) + (o.video_path.empty() ? 0 : 1);
   if (sources != 1) throw InputError("command line", "LOG/--images/--video", "give exactly one of them");
   if (o.seek && o.check) {
@@ -265,162 +288,203 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
   if (!(o.from_s >= 0) || !(o.to_s >= o.from_s)) {
     throw InputError("command line", "--from/--to", "need 0 <= FROM <= TO (seconds after the log's first event)");
   }
-  std::regex channel_filter;
   try {
-    channel_filter = std::regex(o.channels);
+    return std::regex(o.channels);
   } catch (const std::regex_error& e) {
     throw InputError("command line", "--channels", std::string("not a regular expression: ") + e.what());
   }
-  const vision::LoadedPipeline loaded = vision::LoadPipelineConfig(o.pipeline);
-  if (o.log_path.empty()) return ReplaySource(o, loaded);
+}
 
-  const auto wall_start = std::chrono::steady_clock::now();
-  EventLogReader reader(o.log_path);
+// The log, read whole, and where in it the live processes' outputs are.
+struct LogIndex {
   std::vector<LogEvent> events;
-  LogEvent event;
-  while (reader.Next(event)) events.push_back(event);
-  ReplaySummary s;
-  s.publishing = o.publish;
-  s.checked = o.check;
-  s.log = reader.report();
-  if (events.empty()) throw InputError(o.log_path, "", "no usable event: " + s.log.Describe());
-  s.log_start_utime = events.front().timestamp;
-  s.log_end_utime = events.back().timestamp;
+  // What the live vision process published, per channel and frame (image_t.utime), in log order; the replay takes
+  // each once it has compared it.
+  std::map<std::pair<std::string, std::int64_t>, std::deque<std::size_t>> vision_outputs;
+  std::set<std::int64_t> vision_frames;  // the frames the live vision process published anything for
+  std::int64_t last_vision_frame = 0;
+  std::int64_t images = 0;
+  std::vector<std::size_t> cycles;  // the controller's period records
+  std::int64_t annotation = -1;     // the run's configuration (-1: none)
+  // The controller's faults by utime (the period's), overrun warnings aside; taken once compared.
+  std::map<std::int64_t, std::deque<std::size_t>> controller_faults;
+};
 
-  // What the live vision process published, per channel and frame, in log order.
-  std::map<std::pair<std::string, std::int64_t>, std::deque<std::size_t>> logged;
-  std::set<std::int64_t> logged_frames;
-  std::int64_t images_total = 0, first_image = 0, last_image = 0;
-  std::vector<std::size_t> cycle_events;                              // the controller's period records
-  std::int64_t annotation = -1;                                       // the run's configuration
-  std::map<std::int64_t, std::deque<std::size_t>> controller_faults;  // by utime (the period's), overruns aside
-  for (std::size_t i = 0; i < events.size(); ++i) {
-    const LogEvent& e = events[i];
+// Reads and indexes the log; fills the summary's log report, times, frame rate and unknown channels.
+// @throws InputError for a log without any usable event, or without vision output to --check against.
+LogIndex ReadLog(const ReplayOptions& o, ReplaySummary& s) {
+  LogIndex index;
+  EventLogReader reader(o.log_path);
+  LogEvent event;
+  while (reader.Next(event)) index.events.push_back(event);
+  s.log = reader.report();
+  if (index.events.empty()) throw InputError(o.log_path, "", "no usable event: " + s.log.Describe());
+  s.log_start_utime = index.events.front().timestamp;
+  s.log_end_utime = index.events.back().timestamp;
+
+  std::int64_t first_image = 0, last_image = 0;
+  for (std::size_t i = 0; i < index.events.size(); ++i) {
+    const LogEvent& e = index.events[i];
     const std::string channel(e.channel);
     if (!Known(channel, o.prefix)) ++s.unknown_channels[channel];
     if (channel == channels::kCameraImage) {
-      if (images_total++ == 0) first_image = e.timestamp;
+      if (index.images++ == 0) first_image = e.timestamp;
       last_image = e.timestamp;
     }
-    if (channel == control::kCycleChannel) cycle_events.push_back(i);
+    if (channel == control::kCycleChannel) index.cycles.push_back(i);
     if (channel == control::kAnnotationChannel) {
       log_annotation_t a;
-      if (DecodeAs(e, a) && a.kind == "controller_config") annotation = static_cast<std::int64_t>(i);
+      if (DecodeAs(e, a) && a.kind == "controller_config") index.annotation = static_cast<std::int64_t>(i);
     }
     if (channel == channels::kFault) {
       fault_t f;
       if (DecodeAs(e, f) && f.source == control::kControllerFaultSource &&
           f.code != static_cast<std::int32_t>(control::FaultCode::kOverrun)) {
-        controller_faults[f.utime].push_back(i);
+        index.controller_faults[f.utime].push_back(i);
       }
     }
     std::int64_t frame_utime = 0;
     if (VisionOutputFrame(e, frame_utime)) {
-      logged[{channel, frame_utime}].push_back(i);
-      logged_frames.insert(frame_utime);
+      index.vision_outputs[{channel, frame_utime}].push_back(i);
+      index.vision_frames.insert(frame_utime);
     }
   }
-  if (images_total > 1 && last_image > first_image) {
-    s.log_frame_rate_hz = static_cast<double>(images_total - 1) / SecondsBetween(first_image, last_image);
+  if (index.images > 1 && last_image > first_image) {
+    s.log_frame_rate_hz = static_cast<double>(index.images - 1) / SecondsBetween(first_image, last_image);
   }
-  const std::int64_t last_logged_frame = logged_frames.empty() ? 0 : *logged_frames.rbegin();
-  if (o.check && logged_frames.empty()) {
+  index.last_vision_frame = index.vision_frames.empty() ? 0 : *index.vision_frames.rbegin();
+  if (o.check && index.vision_frames.empty()) {
     throw InputError(o.log_path, "",
                      "holds no vision output (VISCO_ROBOT_ESTIMATE, VISCO_VISUAL_EVENTS, ...) to check against: record "
                      "the live run with --log on a process of its bus");
   }
+  return index;
+}
 
-  std::unique_ptr<lcm::LCM> bus;
-  if (o.publish) {
-    bus = std::make_unique<lcm::LCM>(o.lcm_url);
-    if (!bus->good()) throw InputError("command line", "--lcm-url", "cannot open LCM bus '" + o.lcm_url + "'");
+// Pacing by the gaps between consecutive events, each at most 1 s (a damaged timestamp must not stall the replay);
+// the results do not depend on it (the pipeline's clock is the log's).
+class Pacer {
+ public:
+  Pacer(bool fast, double speed) : fast_(fast), speed_(speed) {}
+  void Wait(std::int64_t timestamp) {
+    if (fast_) return;
+    if (!started_) {
+      started_ = true;
+      next_wall_ = std::chrono::steady_clock::now();
+    } else {
+      const double gap = std::clamp(SecondsBetween(previous_timestamp_, timestamp), 0.0, 1.0) / speed_;
+      next_wall_ += std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(gap));
+      std::this_thread::sleep_until(next_wall_);
+    }
+    previous_timestamp_ = timestamp;
   }
-  std::unique_ptr<EventLogWriter> out;
-  if (!o.out_path.empty()) {
-    WriterOptions wo;
-    wo.max_queue_bytes = std::size_t{1} << 30;
-    out = std::make_unique<EventLogWriter>(o.out_path, wo);
-  }
-  const std::string prefix = o.arm ? "" : o.prefix;
 
+ private:
+  bool fast_;
+  double speed_;
+  bool started_ = false;
+  std::int64_t previous_timestamp_ = 0;
+  std::chrono::steady_clock::time_point next_wall_;
+};
+
+// --step: a prompt before each image, answered by a line of the step input.
+class StepPrompt {
+ public:
+  explicit StepPrompt(const ReplayOptions& o) : on_(o.step), progress_(o.progress), input_(o.step_input) {}
+  /// True to process the image, false to stop the replay here.
+  bool Ask(const image_t& image, double t) {
+    if (!on_) return true;
+    if (skip_ > 0) {
+      --skip_;
+      return true;
+    }
+    std::fprintf(stderr, "%sreplay: image seq %lld at %.3f s (log time): Enter = next, N = N on, c = go on, q = stop: ",
+                 progress_ ? "\n" : "", static_cast<long long>(image.seq), t);
+    std::fflush(stderr);
+    char line[64];
+    if (std::fgets(line, sizeof(line), input_) == nullptr) {
+      on_ = false;  // the input ended: go on without stopping
+      return true;
+    }
+    if (line[0] == 'q') return false;
+    if (line[0] == 'c') on_ = false;
+    const long n = std::strtol(line, nullptr, 10);
+    if (n > 1) skip_ = n - 1;
+    return true;
+  }
+
+ private:
+  bool on_;
+  bool progress_;
+  std::FILE* input_;
+  std::int64_t skip_ = 0;
+};
+
+// What the replayed vision produced, for the controller.
+struct ReplayedVision {
+  std::map<std::int64_t, visual_events_t> events;      // by frame seq
+  std::map<std::int64_t, robot_estimate_t> estimates;  // by frame seq
+  bool differs = false;                                // --check stopped at a difference
+};
+
+constexpr const char* kVisionChannels[] = {channels::kTagDetections, channels::kObjectPoses, channels::kRobotEstimate,
+                                           channels::kVisualEvents, channels::kFault};
+
+// Compares what vision produced for a frame with what the live process published for it (--check): the first
+// difference goes into the summary. Returns true when the log ends inside this frame's outputs.
+bool CompareVisionOutput(const char* channel, const std::vector<std::uint8_t>& produced, std::int64_t log_utime,
+                         const image_t& image, LogIndex& log, ReplaySummary& s) {
+  Difference d{channel, log_utime, image.seq, image.utime, -1, {}};
+  auto found = log.vision_outputs.find({channel, image.utime});
+  if (found == log.vision_outputs.end() || found->second.empty()) {
+    if (image.utime == log.last_vision_frame) return true;  // the process was stopped or killed while publishing
+    d.field = {"(message)", "absent", "produced"};
+    s.differences.push_back(d);
+    return false;
+  }
+  const LogEvent& live = log.events[found->second.front()];
+  found->second.pop_front();
+  ++s.compared;
+  if (auto diff = CompareMessages(channel, live.data, produced)) {
+    d.field = *diff;
+    s.differences.push_back(d);
+  }
+  return false;
+}
+
+// The logged images through vision again, on the log's clock; the other logged channels the filter selects are
+// republished unchanged. With --check, each output is compared with the live one.
+ReplayedVision ReplayVision(const ReplayOptions& o, const std::regex& channel_filter,
+                            const vision::LoadedPipeline& loaded, LogIndex& log, Outputs& outputs, ReplaySummary& s) {
+  ReplayedVision replayed;
   std::int64_t log_now = 0;
   vision::PipelineOptions options = loaded.options;
   options.clock = [&log_now] { return log_now; };
   vision::VisionPipeline pipeline(loaded.camera, loaded.wMc, loaded.models, options);
-
-  // Pacing by the gaps between consecutive events, each at most 1 s (a damaged timestamp must not stall the replay);
-  // the results do not depend on it (the pipeline's clock is the log's).
-  bool paced = false;
-  std::int64_t previous_timestamp = 0;
-  auto next_wall = std::chrono::steady_clock::now();
-  auto pace = [&](std::int64_t timestamp) {
-    if (o.fast) return;
-    if (!paced) {
-      paced = true;
-      next_wall = std::chrono::steady_clock::now();
-    } else {
-      const double gap = std::clamp(SecondsBetween(previous_timestamp, timestamp), 0.0, 1.0) / o.speed;
-      next_wall += std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(gap));
-      std::this_thread::sleep_until(next_wall);
-    }
-    previous_timestamp = timestamp;
-  };
-  auto emit = [&](const std::string& channel, std::int64_t timestamp, const std::vector<std::uint8_t>& bytes) {
-    const std::string name = prefix + channel;
-    if (bus) bus->publish(name, bytes.data(), static_cast<unsigned int>(bytes.size()));
-    if (out) out->Write(name, timestamp, bytes);
-  };
-  auto note = [&](std::string text) {
-    if (s.notes.size() < 20) s.notes.push_back(std::move(text));
-  };
-
-  bool stopped = false;
+  Pacer pacer(o.fast, o.speed);
+  StepPrompt step(o);
   bool cut_off = false;
-  bool stepping = o.step;
-  std::int64_t step_skip = 0;
-  // --step: true to process the image, false to stop the replay here.
-  auto step_prompt = [&](const image_t& image, double t) {
-    if (!stepping) return true;
-    if (step_skip > 0) {
-      --step_skip;
-      return true;
-    }
-    std::fprintf(stderr, "%sreplay: image seq %lld at %.3f s (log time): Enter = next, N = N on, c = go on, q = stop: ",
-                 o.progress ? "\n" : "", static_cast<long long>(image.seq), t);
-    std::fflush(stderr);
-    char line[64];
-    if (std::fgets(line, sizeof(line), o.step_input) == nullptr) {
-      stepping = false;  // the input ended: go on without stopping
-      return true;
-    }
-    if (line[0] == 'q') return false;
-    if (line[0] == 'c') stepping = false;
-    const long n = std::strtol(line, nullptr, 10);
-    if (n > 1) step_skip = n - 1;
-    return true;
-  };
-  std::map<std::int64_t, visual_events_t> replayed_events;      // by frame seq, for the controller
-  std::map<std::int64_t, robot_estimate_t> replayed_estimates;  // by frame seq
   std::int64_t images_seen = 0;
-  // --seek: the first event at or after --from, found in the event table (one scan of the mapped file's headers,
-  // above) without decoding anything; a plain scan, since a damaged log's timestamps need not be sorted.
+  // --seek: the first event at or after --from, found in the event table (one scan of the mapped file's headers)
+  // without decoding anything; a plain scan, since a damaged log's timestamps need not be sorted.
   std::size_t first_event = 0;
   if (o.seek) {
-    while (first_event < events.size() && SecondsBetween(s.log_start_utime, events[first_event].timestamp) < o.from_s) {
+    while (first_event < log.events.size() &&
+           SecondsBetween(s.log_start_utime, log.events[first_event].timestamp) < o.from_s) {
       ++first_event;
     }
     s.seeked_events = static_cast<std::int64_t>(first_event);
   }
-  for (std::size_t event_index = first_event; event_index < events.size(); ++event_index) {
-    const LogEvent& e = events[event_index];
+  for (std::size_t event_index = first_event; event_index < log.events.size(); ++event_index) {
+    const LogEvent& e = log.events[event_index];
     const double t = SecondsBetween(s.log_start_utime, e.timestamp);
     if (t > o.to_s) break;
     const std::string channel(e.channel);
     if (!std::regex_match(channel, channel_filter)) continue;
     if (channel != channels::kCameraImage) {
       if (t < o.from_s || !Known(channel, o.prefix) || channel == "LCM_SELF_TEST") continue;
-      pace(e.timestamp);
-      emit(channel, e.timestamp, std::vector<std::uint8_t>(e.data.begin(), e.data.end()));
+      pacer.Wait(e.timestamp);
+      outputs.Emit(channel, e.timestamp, std::vector<std::uint8_t>(e.data.begin(), e.data.end()));
       ++s.republished;
       continue;
     }
@@ -428,25 +492,25 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
     ++images_seen;
     if (o.progress && images_seen % 10 == 0) {
       std::fprintf(stderr, "\rreplay: %lld/%lld images (%.0f%%), %zu difference(s)",
-                   static_cast<long long>(images_seen), static_cast<long long>(images_total),
-                   100.0 * static_cast<double>(images_seen) / static_cast<double>(images_total), s.differences.size());
+                   static_cast<long long>(images_seen), static_cast<long long>(log.images),
+                   100.0 * static_cast<double>(images_seen) / static_cast<double>(log.images), s.differences.size());
     }
     image_t message;
     if (!DecodeAs(e, message)) {
       ++s.undecodable;
-      note("event " + std::to_string(e.number) + " at byte " + std::to_string(e.offset) + " on " + channel +
-           " does not decode as visco.image_t: skipped (a live subscriber drops it too)");
+      AddNote(s, "event " + std::to_string(e.number) + " at byte " + std::to_string(e.offset) + " on " + channel +
+                     " does not decode as visco.image_t: skipped (a live subscriber drops it too)");
       continue;
     }
-    if (!logged_frames.empty() && logged_frames.count(message.utime) == 0) {
+    if (!log.vision_frames.empty() && log.vision_frames.count(message.utime) == 0) {
       ++s.skipped_frames;  // the live pipeline never saw it (its queue dropped it, or it was killed first)
       continue;
     }
-    if (t >= o.from_s && !step_prompt(message, t)) {
+    if (t >= o.from_s && !step.Ask(message, t)) {
       s.stopped_at_step = true;
       break;
     }
-    pace(e.timestamp);
+    pacer.Wait(e.timestamp);
     log_now = e.timestamp;
     vision::Frame frame;
     std::string error;
@@ -458,74 +522,53 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
     }
     if (result.processed) {
       ++s.frames;
-      replayed_events[result.events.frame_seq] = result.events;
-      replayed_estimates[result.robot.frame_seq] = result.robot;
+      replayed.events[result.events.frame_seq] = result.events;
+      replayed.estimates[result.robot.frame_seq] = result.robot;
     } else {
       ++s.bad_frames;
     }
     if (t < o.from_s) {
       ++s.warmup_frames;
-      for (const char* c : {channels::kTagDetections, channels::kObjectPoses, channels::kRobotEstimate,
-                            channels::kVisualEvents, channels::kFault}) {
-        logged.erase({c, message.utime});
-      }
+      for (const char* c : kVisionChannels) log.vision_outputs.erase({c, message.utime});
       continue;
     }
     vision::ForEachMessage(result, [&](const char* produced_channel, const auto& produced) {
       const std::vector<std::uint8_t> bytes = Encode(produced);
-      emit(produced_channel, e.timestamp, bytes);
+      outputs.Emit(produced_channel, e.timestamp, bytes);
       ++s.produced;
       if (!o.check || !s.differences.empty()) return;
-      Difference d{produced_channel, e.timestamp, message.seq, message.utime, -1, {}};
-      auto found = logged.find({produced_channel, message.utime});
-      if (found == logged.end() || found->second.empty()) {
-        if (message.utime == last_logged_frame) {
-          cut_off = true;  // the log ends inside the last frame's outputs (the process was stopped or killed)
-          return;
-        }
-        d.field = {"(message)", "absent", "produced"};
-        s.differences.push_back(d);
-        return;
-      }
-      const LogEvent& live = events[found->second.front()];
-      found->second.pop_front();
-      ++s.compared;
-      if (auto diff = CompareMessages(produced_channel, live.data, bytes)) {
-        d.field = *diff;
-        s.differences.push_back(d);
-      }
+      if (CompareVisionOutput(produced_channel, bytes, e.timestamp, message, log, s)) cut_off = true;
     });
     if (cut_off) {
-      note("the log ends inside the outputs of frame seq " + std::to_string(message.seq) +
-           " (the live process stopped): compared up to there");
+      AddNote(s, "the log ends inside the outputs of frame seq " + std::to_string(message.seq) +
+                     " (the live process stopped): compared up to there");
       break;
     }
     if (o.check && s.differences.empty()) {
       // Whatever the live process published for this frame and the replay did not.
-      for (const char* c : {channels::kTagDetections, channels::kObjectPoses, channels::kRobotEstimate,
-                            channels::kVisualEvents, channels::kFault}) {
-        auto found = logged.find({c, message.utime});
-        if (found != logged.end() && !found->second.empty()) {
+      for (const char* c : kVisionChannels) {
+        auto found = log.vision_outputs.find({c, message.utime});
+        if (found != log.vision_outputs.end() && !found->second.empty()) {
           s.differences.push_back({c, e.timestamp, message.seq, message.utime, -1, {"(message)", "present", "absent"}});
           break;
         }
       }
     }
     if (o.check && !s.differences.empty()) {
-      stopped = true;
+      replayed.differs = true;
       break;
     }
   }
   if (o.progress) std::fprintf(stderr, "\n");
-  if (o.check && !stopped) {
+  if (o.check && !replayed.differs) {
     // Vision outputs in the replayed window whose image is not in the log (lost by the logger, or cut off).
-    for (const auto& [key, indices] : logged) {
+    for (const auto& [key, indices] : log.vision_outputs) {
       for (std::size_t i : indices) {
-        const double t = SecondsBetween(s.log_start_utime, events[i].timestamp);
+        const double t = SecondsBetween(s.log_start_utime, log.events[i].timestamp);
         if (t < o.from_s || t > o.to_s) continue;
         if (s.unmatched_logged++ == 0) {
           s.differences.push_back({key.first,
-                                   events[i].timestamp,
+                                   log.events[i].timestamp,
                                    -1,
                                    key.second,
                                    -1,
@@ -534,156 +577,204 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
       }
     }
   }
-  // The controller, period by period on its recorded inputs, with the replayed vision in place of the recorded one.
+  return replayed;
+}
+
+// The executor that replays the run: the run's task (the files the log names, or the options' overrides) and its
+// configuration, started at the recorded time. @throws InputError for a configuration that is not JSON, a strategy
+// that came over LCM without --strategy, or files that do not load.
+struct ReplayedExecutor {
+  control::Task task;
+  std::unique_ptr<control::Executor> executor;
+};
+ReplayedExecutor MakeExecutor(const ReplayOptions& o, const LogEvent& annotation) {
+  log_annotation_t a;
+  DecodeAs(annotation, a);
+  nlohmann::json config;
+  try {
+    config = nlohmann::json::parse(a.text);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(o.log_path, "controller_config", std::string("not JSON: ") + e.what());
+  }
+  control::RunOptions run;
+  // The files the log names: a relative name is relative to the log's folder (docs/replay.md), so that a replay
+  // works from any directory; those given on the command line are the user's, relative to the working directory.
+  auto named = [&](const char* key) {
+    const std::filesystem::path path = config.value(key, std::string());
+    if (path.empty() || path.is_absolute()) return path.string();
+    return (std::filesystem::path(o.log_path).parent_path() / path).lexically_normal().string();
+  };
+  run.strategy_path = !o.strategy_path.empty() ? o.strategy_path : named("strategy");
+  run.scene_path = !o.scene_path.empty() ? o.scene_path : named("scene");
+  run.rays_path = !o.rays_path.empty() ? o.rays_path : named("rays");
+  if (run.strategy_path.empty()) {
+    throw InputError(o.log_path, "controller_config",
+                     "the run's strategy came over LCM: give the strategy file with --strategy (or --no-control)");
+  }
+  ReplayedExecutor r;
+  r.task = control::LoadTask(run);
+  const control::ExecutorConfig executor_config =
+      control::ExecutorConfigFromJson(config.value("executor", nlohmann::json()).dump(), o.log_path);
+  r.executor = std::make_unique<control::Executor>(r.task, executor_config);
+  r.executor->Start(config.value("start_ns", std::int64_t{0}));
+  return r;
+}
+
+// Compares a fault the replayed executor raised with the controller's logged fault of the same period (--check).
+void CompareFault(const control::FaultEvent& f, LogIndex& log, ReplaySummary& s, ControlDiffer& d) {
+  auto logged_fault = log.controller_faults.find(f.utime);
+  if (logged_fault == log.controller_faults.end() || logged_fault->second.empty()) {
+    d.result = FieldDifference{"fault (message)", "absent", "produced: " + std::string(f.message)};
+    return;
+  }
+  fault_t live_message;
+  DecodeAs(log.events[logged_fault->second.front()], live_message);
+  logged_fault->second.pop_front();
+  ++s.control_faults_compared;
+  const control::FaultEvent live = control::FromFaultMessage(live_message);
+  d.Field("fault.code", static_cast<std::int64_t>(live.code), static_cast<std::int64_t>(f.code));
+  d.Field("fault.severity", std::int64_t{live.severity}, std::int64_t{f.severity});
+  d.Field("fault.robot_stopped", std::int64_t{live.robot_stopped}, std::int64_t{f.robot_stopped});
+  d.Field("fault.cleared", std::int64_t{live.cleared}, std::int64_t{f.cleared});
+  d.Field("fault.message", live_message.message, std::string(f.message));  // as logged, even past FaultEvent's size
+}
+
+// Compares the replayed period's command, mode, step and hold with the record (--check).
+void CompareCommand(const control::CycleRecord& record, const control::ExecutorOutput& output, ControlDiffer& d) {
+  d.Field("command.velocity[0]", record.command.velocity.x, output.command.velocity.x);
+  d.Field("command.velocity[1]", record.command.velocity.y, output.command.velocity.y);
+  d.Field("command.estop", std::int64_t{record.command.estop}, std::int64_t{output.command.estop});
+  d.Field("command.reset", std::int64_t{record.command.reset}, std::int64_t{output.command.reset});
+  d.Field("command.quick_stop", std::int64_t{record.command.quick_stop}, std::int64_t{output.command.quick_stop});
+  d.Field("mode", static_cast<std::int64_t>(record.mode), static_cast<std::int64_t>(output.mode));
+  d.Field("step_index", std::int64_t{record.step_index}, std::int64_t{output.step_index});
+  d.Field("holding", std::int64_t{record.holding}, std::int64_t{output.holding});
+}
+
+// The controller, period by period on its recorded inputs, with the replayed vision in place of the recorded one.
+void ReplayController(const ReplayOptions& o, LogIndex& log, const ReplayedVision& vision, Outputs& outputs,
+                      ReplaySummary& s) {
   if (!o.control) {
     s.control_note = "not replayed (--no-control)";
-  } else if (cycle_events.empty()) {
+    return;
+  }
+  if (log.cycles.empty()) {
     s.control_note = "the log holds no controller records (they are written by visco run --log)";
-  } else if (annotation < 0) {
+    return;
+  }
+  if (log.annotation < 0) {
     s.control_note = "the log holds controller records but not the run's configuration (the run did not end normally)";
-  } else if (stopped) {
+    return;
+  }
+  if (vision.differs) {
     s.control_note = "not replayed: vision already differs";
-  } else if (s.stopped_at_step) {
+    return;
+  }
+  if (s.stopped_at_step) {
     s.control_note = "not replayed: the replay was stopped at a --step prompt";
-  } else {
-    log_annotation_t a;
-    DecodeAs(events[static_cast<std::size_t>(annotation)], a);
-    nlohmann::json config;
-    try {
-      config = nlohmann::json::parse(a.text);
-    } catch (const nlohmann::json::exception& e) {
-      throw InputError(o.log_path, "controller_config", std::string("not JSON: ") + e.what());
+    return;
+  }
+  const ReplayedExecutor replayed = MakeExecutor(o, log.events[static_cast<std::size_t>(log.annotation)]);
+  control::Executor& executor = *replayed.executor;
+  control::ExecutorOutput output;
+  std::int64_t previous_cycle = -1, last_utime = 0;
+  for (std::size_t index : log.cycles) {
+    const LogEvent& e = log.events[index];
+    controller_cycle_t m;
+    if (!DecodeAs(e, m)) {
+      ++s.undecodable;
+      AddNote(s, "event " + std::to_string(e.number) + " on " + control::kCycleChannel +
+                     " does not decode as visco.controller_cycle_t: skipped");
+      continue;
     }
-    control::RunOptions run;
-    // The files the log names: a relative name is relative to the log's folder (docs/replay.md), so that a replay
-    // works from any directory; those given on the command line are the user's, relative to the working directory.
-    auto named = [&](const char* key) {
-      const std::filesystem::path path = config.value(key, std::string());
-      if (path.empty() || path.is_absolute()) return path.string();
-      return (std::filesystem::path(o.log_path).parent_path() / path).lexically_normal().string();
-    };
-    run.strategy_path = !o.strategy_path.empty() ? o.strategy_path : named("strategy");
-    run.scene_path = !o.scene_path.empty() ? o.scene_path : named("scene");
-    run.rays_path = !o.rays_path.empty() ? o.rays_path : named("rays");
-    if (run.strategy_path.empty()) {
-      throw InputError(o.log_path, "controller_config",
-                       "the run's strategy came over LCM: give the strategy file with --strategy (or --no-control)");
+    const double t = SecondsBetween(s.log_start_utime, m.utime);
+    if (t > o.to_s) break;
+    if (m.cycle != previous_cycle + 1) {
+      s.control_note = "period records missing before cycle " + std::to_string(m.cycle) +
+                       " (dropped by the run's recorder or the log): the controller is compared up to there";
+      break;
     }
-    const control::Task task = control::LoadTask(run);
-    const control::ExecutorConfig executor_config =
-        control::ExecutorConfigFromJson(config.value("executor", nlohmann::json()).dump(), o.log_path);
-    control::Executor executor(task, executor_config);
-    executor.Start(config.value("start_ns", std::int64_t{0}));
-    control::ExecutorOutput output;
-    std::int64_t previous_cycle = -1, last_utime = 0;
-    for (std::size_t index : cycle_events) {
-      const LogEvent& e = events[index];
-      controller_cycle_t m;
-      if (!DecodeAs(e, m)) {
-        ++s.undecodable;
-        note("event " + std::to_string(e.number) + " on " + control::kCycleChannel +
-             " does not decode as visco.controller_cycle_t: skipped");
-        continue;
+    previous_cycle = m.cycle;
+    last_utime = m.utime;
+    const control::CycleRecord record = control::FromCycleMessage(m);
+    const control::ExecutorInput& recorded = record.input;
+    control::ExecutorInput in = recorded;
+    ControlDiffer d;
+    if (in.have_frame) {
+      auto found = vision.events.find(in.frame.frame_seq);
+      if (found != vision.events.end()) {
+        in.frame =
+            control::ToVisualFrame(found->second, replayed.task, recorded.frame.capture_ns, found->second.frame_utime);
+        CompareFrames(d, recorded.frame, in.frame);
+        ++s.control_frames_from_vision;
+      } else {
+        ++s.control_frames_recorded;
       }
-      const double t = SecondsBetween(s.log_start_utime, m.utime);
-      if (t > o.to_s) break;
-      if (m.cycle != previous_cycle + 1) {
-        s.control_note = "period records missing before cycle " + std::to_string(m.cycle) +
-                         " (dropped by the run's recorder or the log): the controller is compared up to there";
-        break;
+    }
+    if (in.have_estimate) {
+      auto found = vision.estimates.find(in.estimate.frame_seq);
+      if (found != vision.estimates.end()) {
+        in.estimate = control::ToPositionEstimate(found->second, recorded.estimate.capture_ns, found->second.utime);
+        CompareEstimates(d, recorded.estimate, in.estimate);
       }
-      previous_cycle = m.cycle;
-      last_utime = m.utime;
-      const control::CycleRecord record = control::FromCycleMessage(m);
-      const control::ExecutorInput& recorded = record.input;
-      control::ExecutorInput in = recorded;
-      ControlDiffer d;
-      if (in.have_frame) {
-        auto found = replayed_events.find(in.frame.frame_seq);
-        if (found != replayed_events.end()) {
-          in.frame = control::ToVisualFrame(found->second, task, recorded.frame.capture_ns, found->second.frame_utime);
-          CompareFrames(d, recorded.frame, in.frame);
-          ++s.control_frames_from_vision;
-        } else {
-          ++s.control_frames_recorded;
-        }
-      }
-      if (in.have_estimate) {
-        auto found = replayed_estimates.find(in.estimate.frame_seq);
-        if (found != replayed_estimates.end()) {
-          in.estimate = control::ToPositionEstimate(found->second, recorded.estimate.capture_ns, found->second.utime);
-          CompareEstimates(d, recorded.estimate, in.estimate);
-        }
-      }
-      executor.Update(in, output);
-      ++s.control_cycles;
-      velocity_command_t command{};
-      command.utime = in.now_utime;
-      command.seq = output.command.seq;
-      command.velocity[0] = output.command.velocity.x;
-      command.velocity[1] = output.command.velocity.y;
-      command.estop = output.command.estop;
-      command.reset = output.command.reset;
-      command.quick_stop = output.command.quick_stop;
-      emit(channels::kCommand, in.now_utime, Encode(command));
+    }
+    executor.Update(in, output);
+    ++s.control_cycles;
+    velocity_command_t command{};
+    command.utime = in.now_utime;
+    command.seq = output.command.seq;
+    command.velocity[0] = output.command.velocity.x;
+    command.velocity[1] = output.command.velocity.y;
+    command.estop = output.command.estop;
+    command.reset = output.command.reset;
+    command.quick_stop = output.command.quick_stop;
+    outputs.Emit(channels::kCommand, in.now_utime, Encode(command));
+    ++s.produced;
+    for (int i = 0; i < output.num_faults; ++i) {
+      const control::FaultEvent& f = output.faults[i];
+      outputs.Emit(channels::kFault, in.now_utime, Encode(control::ToFaultMessage(f)));
       ++s.produced;
-      for (int i = 0; i < output.num_faults; ++i) {
-        const control::FaultEvent& f = output.faults[i];
-        emit(channels::kFault, in.now_utime, Encode(control::ToFaultMessage(f)));
-        ++s.produced;
-        if (!o.check || t < o.from_s || d.result) continue;
-        auto logged_fault = controller_faults.find(f.utime);
-        if (logged_fault == controller_faults.end() || logged_fault->second.empty()) {
-          d.result = FieldDifference{"fault (message)", "absent", "produced: " + std::string(f.message)};
-          continue;
-        }
-        fault_t live_message;
-        DecodeAs(events[logged_fault->second.front()], live_message);
-        logged_fault->second.pop_front();
-        ++s.control_faults_compared;
-        const control::FaultEvent live = control::FromFaultMessage(live_message);
-        d.Field("fault.code", static_cast<std::int64_t>(live.code), static_cast<std::int64_t>(f.code));
-        d.Field("fault.severity", std::int64_t{live.severity}, std::int64_t{f.severity});
-        d.Field("fault.robot_stopped", std::int64_t{live.robot_stopped}, std::int64_t{f.robot_stopped});
-        d.Field("fault.cleared", std::int64_t{live.cleared}, std::int64_t{f.cleared});
-        d.Field("fault.message", live_message.message,
-                std::string(f.message));  // as logged, even past FaultEvent's size
-      }
-      if (!o.check || t < o.from_s) continue;
-      ++s.control_compared;
-      d.Field("command.velocity[0]", record.command.velocity.x, output.command.velocity.x);
-      d.Field("command.velocity[1]", record.command.velocity.y, output.command.velocity.y);
-      d.Field("command.estop", std::int64_t{record.command.estop}, std::int64_t{output.command.estop});
-      d.Field("command.reset", std::int64_t{record.command.reset}, std::int64_t{output.command.reset});
-      d.Field("command.quick_stop", std::int64_t{record.command.quick_stop}, std::int64_t{output.command.quick_stop});
-      d.Field("mode", static_cast<std::int64_t>(record.mode), static_cast<std::int64_t>(output.mode));
-      d.Field("step_index", std::int64_t{record.step_index}, std::int64_t{output.step_index});
-      d.Field("holding", std::int64_t{record.holding}, std::int64_t{output.holding});
-      if (d.result) {
-        s.differences.push_back(
-            {control::kCycleChannel, m.utime, in.have_frame ? in.frame.frame_seq : -1, 0, m.cycle, *d.result});
-        break;
-      }
+      if (o.check && t >= o.from_s && !d.result) CompareFault(f, log, s, d);
     }
-    if (o.check && s.differences.empty()) {
-      for (const auto& [utime, indices] : controller_faults) {
-        if (indices.empty()) continue;
-        const double t = SecondsBetween(s.log_start_utime, utime);
-        if (t < o.from_s || t > o.to_s || utime > last_utime) continue;
-        fault_t live;
-        DecodeAs(events[indices.front()], live);
-        s.differences.push_back(
-            {channels::kFault, utime, -1, 0, -1, {"fault (message)", "present: " + live.message, "absent"}});
-        break;
-      }
+    if (!o.check || t < o.from_s) continue;
+    ++s.control_compared;
+    CompareCommand(record, output, d);
+    if (d.result) {
+      s.differences.push_back(
+          {control::kCycleChannel, m.utime, in.have_frame ? in.frame.frame_seq : -1, 0, m.cycle, *d.result});
+      break;
     }
   }
-  if (out) {
-    const WriterStats ws = out->Close();
-    if (ws.events_dropped > 0 || !ws.error.empty()) {
-      note(o.out_path + ": " + std::to_string(ws.events_dropped) + " event(s) dropped " + ws.error);
+  if (o.check && s.differences.empty()) {
+    for (const auto& [utime, indices] : log.controller_faults) {
+      if (indices.empty()) continue;
+      const double t = SecondsBetween(s.log_start_utime, utime);
+      if (t < o.from_s || t > o.to_s || utime > last_utime) continue;
+      fault_t live;
+      DecodeAs(log.events[indices.front()], live);
+      s.differences.push_back(
+          {channels::kFault, utime, -1, 0, -1, {"fault (message)", "present: " + live.message, "absent"}});
+      break;
     }
   }
+}
+
+}  // namespace
+
+ReplaySummary RunReplay(const ReplayOptions& o) {
+  const std::regex channel_filter = CheckOptions(o);
+  const vision::LoadedPipeline loaded = vision::LoadPipelineConfig(o.pipeline);
+  if (o.log_path.empty()) return ReplaySource(o, loaded);
+
+  const auto wall_start = std::chrono::steady_clock::now();
+  ReplaySummary s;
+  s.publishing = o.publish;
+  s.checked = o.check;
+  LogIndex log = ReadLog(o, s);
+  Outputs outputs(o);
+  const ReplayedVision vision = ReplayVision(o, channel_filter, loaded, log, outputs, s);
+  ReplayController(o, log, vision, outputs, s);
+  if (std::string dropped = outputs.Close(); !dropped.empty()) AddNote(s, std::move(dropped));
   s.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   if (s.frames == 0 && s.bad_frames == 0 && s.republished == 0 && s.skipped_frames == 0) {
     throw InputError(o.log_path, "",
