@@ -297,6 +297,8 @@ std::regex CheckOptions(const ReplayOptions& o) {
 
 // The log, read whole, and where in it the live processes' outputs are.
 struct LogIndex {
+  // The mapped log: `events` point into it (their channels and payloads), so it lives as long as they do.
+  std::unique_ptr<EventLogReader> reader;
   std::vector<LogEvent> events;
   // What the live vision process published, per channel and frame (image_t.utime), in log order; the replay takes
   // each once it has compared it.
@@ -314,10 +316,10 @@ struct LogIndex {
 // @throws InputError for a log without any usable event, or without vision output to --check against.
 LogIndex ReadLog(const ReplayOptions& o, ReplaySummary& s) {
   LogIndex index;
-  EventLogReader reader(o.log_path);
+  index.reader = std::make_unique<EventLogReader>(o.log_path);
   LogEvent event;
-  while (reader.Next(event)) index.events.push_back(event);
-  s.log = reader.report();
+  while (index.reader->Next(event)) index.events.push_back(event);
+  s.log = index.reader->report();
   if (index.events.empty()) throw InputError(o.log_path, "", "no usable event: " + s.log.Describe());
   s.log_start_utime = index.events.front().timestamp;
   s.log_end_utime = index.events.back().timestamp;
