@@ -11,12 +11,17 @@ tmp=$(mktemp -d)
 trap 'kill $sim_pid 2>/dev/null; rm -rf "$tmp"' EXIT
 failures=0
 fail() { echo "FAIL: $*"; failures=$((failures + 1)); }
+# Watchdog and silence limits are timing matters, not this test's: generous ones, so that a loaded machine or a
+# sanitizer build does not stop the runs (the stops themselves are tested in tests/control/realtime_loop_test.cc and
+# tests/drivers/driver_test.cc).
+sim_patience=(--watchdog-ms 500)
+run_patience=(--status-timeout-ms 500 --heartbeat-timeout-ms 1000)
 
 "$visco" sim "$data/post_scene.json" --rays "$data/post_rays.json" --start 1.84 1.55 --seed 3 --lcm-url "$url" \
-  --duration 30 >"$tmp/sim.json" 2>"$tmp/sim.log" &
+  --duration 30 "${sim_patience[@]}" >"$tmp/sim.json" 2>"$tmp/sim.log" &
 sim_pid=$!
 "$visco" run "$data/post_plan.json" --scene "$data/post_scene.json" --rays "$data/post_rays.json" --lcm-url "$url" \
-  --max-speed 0.4 --max-accel 4 --no-realtime >"$tmp/run.json" 2>"$tmp/run.log"
+  --max-speed 0.4 --max-accel 4 --no-realtime "${run_patience[@]}" >"$tmp/run.json" 2>"$tmp/run.log"
 status=$?
 kill -INT $sim_pid; wait $sim_pid
 [[ $status -eq 0 ]] || fail "visco run exited $status"
@@ -29,10 +34,10 @@ grep -q '"commands_applied"' "$tmp/sim.json" || { fail "sim printed no summary:"
 echo '{"steps": [{"theta_deg": 90, "active_rays": [], "terminate": {"kind": "contact"}, "timeout_s": 30}]}' \
   >"$tmp/up.json"
 "$visco" sim "$data/post_scene.json" --start 1.84 1.55 --seed 3 --lcm-url "$url" --duration 30 \
-  >"$tmp/sim2.json" 2>"$tmp/sim2.log" &
+  "${sim_patience[@]}" >"$tmp/sim2.json" 2>"$tmp/sim2.log" &
 sim_pid=$!
-"$visco" run "$tmp/up.json" --lcm-url "$url" --max-speed 0.4 --max-accel 4 --no-realtime >"$tmp/run2.json" \
-  2>"$tmp/run2.log"
+"$visco" run "$tmp/up.json" --lcm-url "$url" --max-speed 0.4 --max-accel 4 --no-realtime "${run_patience[@]}" \
+  >"$tmp/run2.json" 2>"$tmp/run2.log"
 status=$?
 kill -INT $sim_pid; wait $sim_pid
 [[ $status -eq 1 ]] || fail "the run out of bounds exited $status, expected 1"
