@@ -99,6 +99,21 @@ std::string MonteCarloSvg(const Setup& su, const std::vector<RunOutcome>& outcom
               fmt::format("{}: {} of {} runs reached the goal ({:.1f} %)", su.scene->name, ok, outcomes.size(),
                           100.0 * ok / static_cast<double>(outcomes.size())),
               13, "fill=\"black\"");
+  // The legend: the runs', then the plan's underneath (preimages and commanded directions, three to a row so that
+  // the legend stays inside this panel), then the scene's.
+  std::vector<std::vector<planning::SvgCanvas::LegendItem>> legend = {{{"━", "#2a2", "a run that reached the goal"},
+                                                                       {"━", "#d00", "a run that did not"},
+                                                                       {"●", "#2a2", "its start, same colour"}}};
+  const auto plan_rows = planning::StrategyLegend(*su.strategy);
+  if (plan_rows.size() > 1) {
+    for (std::size_t i = 0; i < plan_rows[1].size(); i += 3) {
+      legend.emplace_back(plan_rows[1].begin() + static_cast<std::ptrdiff_t>(i),
+                          plan_rows[1].begin() + static_cast<std::ptrdiff_t>(std::min(i + 3, plan_rows[1].size())));
+    }
+  }
+  legend.push_back(
+      {{"■", "#7c7", "start region"}, {"■", "black", "goal"}, {"■", "#bbb", "obstacle"}, {"✕", "black", "camera"}});
+  plan.Legend(legend);
   const planning::SvgCanvas time_panel = HistogramPanel(times, "time in motion (successful runs)", "s");
   const planning::SvgCanvas command_panel = HistogramPanel(commands, "velocity commands sent", "commands");
   return planning::SideBySide({{"runs", &plan}, {"motion-time", &time_panel}, {"commands", &command_panel}});
