@@ -1,14 +1,23 @@
 #include "planning/strategy.h"
 
 #include <fmt/format.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <exception>
+#include <fstream>
 #include <limits>
 #include <map>
+#include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <random>
 #include <set>
+#include <thread>
 
 #include "common/error.h"
 #include "common/motion_model.h"
@@ -302,6 +311,33 @@ std::vector<ContactFeature> ContactFeatures(const CSpace& cspace, double velocit
   return out;
 }
 
+// Drops from a child's nondirectional backprojection what the search never reads again (a child's step complies
+// to no ray, so only its B_θ regions matter): the VC regions, the structures and ray lists, the orientations' refs,
+// the regions' edge provenance strings. Kept: each slice's θ, interval and B_θ region with each edge's kind, line,
+// source and sign (what carrying a region to another θ, containment and clearance read).
+void KeepWhatTheSearchReads(NondirectionalBackprojection& nd) {
+  nd.orientations.clear();
+  nd.orientations.shrink_to_fit();
+  nd.stats.unexplained_at.clear();
+  nd.stats.unexplained_at.shrink_to_fit();
+  for (Slice& slice : nd.slices) {
+    slice.structure = SliceStructure{};
+    Region classic = std::move(slice.vc.classic);
+    slice.vc = VcBackprojection{};
+    for (RegionPolygon& poly : classic.polygons) {
+      auto lean = [](RegionRing& ring) {
+        for (RegionEdge& e : ring.edges) std::string().swap(e.ref);
+        ring.vertices.shrink_to_fit();
+        ring.edges.shrink_to_fit();
+      };
+      lean(poly.outer);
+      for (RegionRing& h : poly.holes) lean(h);
+    }
+    slice.vc.classic = std::move(classic);
+  }
+  nd.slices.shrink_to_fit();
+}
+
 NondirectionalOptions NdOptions(const PlanOptions& o) {
   NondirectionalOptions n;
   n.threads = o.threads;
@@ -325,6 +361,13 @@ NamedPolygon Strip(const Vector2d& a, const Vector2d& b, double half_width, cons
     p.edge_refs.push_back(ref + ".e[" + std::to_string(k) + "]");
   }
   return p;
+}
+
+double ResidentMemoryMiB() {
+  std::ifstream statm("/proc/self/statm");
+  double pages_total = 0, pages_resident = 0;
+  if (!(statm >> pages_total >> pages_resident)) return 0.0;
+  return pages_resident * static_cast<double>(sysconf(_SC_PAGESIZE)) / (1024.0 * 1024.0);
 }
 
 const char* TerminationName(Termination t) {
@@ -359,6 +402,13 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
     if (options.progress) options.progress(std::clamp(f, 0.0, 1.0));
   };
 
+  const auto search_start = std::chrono::steady_clock::now();
+  auto seconds = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - search_start).count(); };
+  if (options.search_progress) {
+    PlanProgress p;
+    p.max_steps = options.max_steps;
+    options.search_progress(p);
+  }
   // The last step: goal termination, preimage B_vcθ(kernel).
   Node goal;
   goal.terminate = Termination::kGoal;
@@ -411,30 +461,34 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
     });
     return best_len;
   };
+  const bool lean = options.search == SearchMode::kLean;
+  auto note_memory = [&] {
+    const double mib = ResidentMemoryMiB();
+    out.peak_memory_mib = std::max(out.peak_memory_mib, mib);
+    return mib;
+  };
+  note_memory();
+  bool memory_reached = false;
+  int stopped_level = 0;
+  std::int64_t stopped_done = 0, stopped_total = 0;
   for (int level = 2; level <= options.max_steps && !options.kernel_only && !budget_reached; ++level) {
+    out.levels = level;
     std::vector<Node> next;
     std::vector<Candidate> found;
-    // A child target of `node` (its target `child.ref` used up): its nondirectional backprojection, and whether the
-    // start region fits it. False, and nothing computed, when the budget of backprojections is spent.
+    // The level's child targets, in the order the search meets them: a child of `node` (its target `child.ref` used
+    // up) with the step into `node` that follows it. False, and nothing added, when the budget of backprojections is
+    // spent. Their nondirectional backprojections are computed below, after the whole level is known (which children
+    // there are depends only on the frontier and on what is used up, not on the children's own backprojections).
+    std::vector<Node> pending;
     auto expand = [&](Node child, const Node& node, const ThetaInterval& fit, const std::string& what) {
-      if (out.nondirectional >= options.max_nondirectional) {
+      if (out.nondirectional + static_cast<std::int64_t>(pending.size()) >= options.max_nondirectional) {
         budget_reached = true;
         return false;
       }
       used.insert(child.ref);
       child.rest = node.rest;
       child.rest.insert(child.rest.begin(), MakeStep(node, fit, what));
-      child.nd = ComputeNondirectional(child.problem, nullptr, NdOptions(options));
-      ++out.nondirectional;
-      const std::vector<ThetaInterval> start_fits = Fits(child, start);
-      if (const ThetaInterval* st = Best(start_fits)) {
-        Candidate c;
-        c.steps = child.rest;
-        c.steps.insert(c.steps.begin(), MakeStep(child, *st, "the start region"));
-        c.margin = st->margin;
-        found.push_back(std::move(c));
-      }
-      next.push_back(std::move(child));
+      pending.push_back(std::move(child));
       return true;
     };
     for (size_t f = 0; f < frontier.size() && !budget_reached; ++f) {
@@ -572,7 +626,110 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
                     std::string("the places where the step before sticks (") + feature.ref + ")"))
           break;
       }
-      progress(0.2 + 0.8 * (level - 2 + static_cast<double>(f + 1) / frontier.size()) / (options.max_steps - 1));
+    }
+    // The children's nondirectional backprojections, and whether the start region fits each one's preimage.
+    const bool last = level == options.max_steps;
+    std::vector<std::optional<Candidate>> fits(pending.size());
+    std::vector<char> computed(pending.size(), 0);
+    std::atomic<std::size_t> next_child{0};
+    std::atomic<bool> stop{false};
+    std::mutex mutex;
+    std::condition_variable changed;
+    std::size_t done = 0;
+    const double level_start = seconds();
+    auto report = [&] {
+      progress(0.2 + 0.8 * (level - 2 + (pending.empty() ? 1.0 : static_cast<double>(done) / pending.size())) /
+                         (options.max_steps - 1));
+      if (!options.search_progress) return;
+      PlanProgress p;
+      p.level = level;
+      p.max_steps = options.max_steps;
+      p.done = static_cast<std::int64_t>(done);
+      p.total = static_cast<std::int64_t>(pending.size());
+      p.elapsed_s = seconds();
+      if (done > 0) p.level_left_s = (p.elapsed_s - level_start) / done * (pending.size() - done);
+      options.search_progress(p);
+    };
+    report();
+    const int workers =
+        lean ? std::clamp(options.threads, 1, static_cast<int>(std::max<std::size_t>(pending.size(), 1))) : 1;
+    NondirectionalOptions nd_options = NdOptions(options);
+    if (lean) nd_options.threads = std::max(1, options.threads / workers);
+    auto work = [&] {
+      for (;;) {
+        if (stop.load()) return;
+        const std::size_t i = next_child.fetch_add(1);
+        if (i >= pending.size()) return;
+        Node& child = pending[i];
+        child.nd = ComputeNondirectional(child.problem, nullptr, nd_options);
+        const std::vector<ThetaInterval> start_fits = Fits(child, start);
+        if (const ThetaInterval* st = Best(start_fits)) {
+          Candidate c;
+          c.steps = child.rest;
+          c.steps.insert(c.steps.begin(), MakeStep(child, *st, "the start region"));
+          c.margin = st->margin;
+          fits[i] = std::move(c);
+        }
+        if (lean) {
+          // What the next level reads of a child; the last level's children are never read again.
+          if (last) {
+            child.nd = NondirectionalBackprojection{};
+          } else {
+            KeepWhatTheSearchReads(child.nd);
+          }
+        }
+        const double mib = ResidentMemoryMiB();
+        std::lock_guard<std::mutex> lock(mutex);
+        computed[i] = 1;
+        ++done;
+        out.peak_memory_mib = std::max(out.peak_memory_mib, mib);
+        if (options.max_memory_mib > 0 && mib > options.max_memory_mib) stop.store(true);
+        changed.notify_all();
+      }
+    };
+    {
+      // `workers` threads compute; this one reports progress (from the calling thread, as the callback promises).
+      std::exception_ptr error;
+      auto guarded = [&] {
+        try {
+          work();
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(mutex);
+          if (!error) error = std::current_exception();
+          stop.store(true);
+          changed.notify_all();
+        }
+      };
+      std::vector<std::thread> threads;
+      for (int t = 0; t < workers; ++t) threads.emplace_back(guarded);
+      std::unique_lock<std::mutex> lock(mutex);
+      std::size_t seen = 0;
+      while (done < pending.size() && !stop.load()) {
+        changed.wait(lock, [&] { return done != seen || stop.load(); });
+        seen = done;
+        lock.unlock();
+        report();
+        lock.lock();
+      }
+      lock.unlock();
+      for (auto& th : threads) th.join();
+      if (error) std::rethrow_exception(error);
+    }
+    // In the order the children were met (the answer does not depend on the threads): the first found wins ties.
+    for (std::size_t i = 0; i < pending.size(); ++i) {
+      if (!computed[i]) break;
+      ++out.nondirectional;
+      ++out.children;
+      if (fits[i]) found.push_back(std::move(*fits[i]));
+      if (!lean || !last) next.push_back(std::move(pending[i]));
+    }
+    note_memory();
+    if (stop.load()) {
+      memory_reached = true;
+      stopped_level = level;
+      stopped_done = static_cast<std::int64_t>(done);
+      stopped_total = static_cast<std::int64_t>(pending.size());
+      break;
     }
     if (!found.empty()) {
       // Fewest steps (this level), then the largest margin; the first found wins ties (rays in id order, then
@@ -600,6 +757,18 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
   if (budget_reached) {
     out.reason += fmt::format("; the search stopped after {} nondirectional backprojections (--max-backprojections)",
                               out.nondirectional);
+  }
+  if (memory_reached) {
+    out.memory_limit_reached = true;
+    out.reason =
+        fmt::format(
+            "the search stopped at the memory limit ({:.0f} MiB in use, --max-memory {:.0f} MiB) while trying {} steps "
+            "({} of that level's {} child targets done, {} nondirectional backprojections in all): no strategy within "
+            "{} "
+            "step(s); ",
+            out.peak_memory_mib, options.max_memory_mib, stopped_level, stopped_done, stopped_total, out.nondirectional,
+            stopped_level - 1) +
+        out.reason;
   }
   progress(1.0);
   return out;

@@ -96,6 +96,35 @@ struct Strategy {
   double best_coverage = 0.0;  ///< share of the start region inside the best one-step preimage (0..1)
   double best_theta = 0.0;
   std::int64_t nondirectional = 0;  ///< nondirectional backprojections computed
+  /// What the search explored: child targets computed (each one nondirectional backprojection) and the levels
+  /// (steps) it reached; the most memory (resident set, MiB) it saw; whether it stopped at the memory limit.
+  std::int64_t children = 0;
+  int levels = 1;
+  double peak_memory_mib = 0.0;
+  bool memory_limit_reached = false;
+};
+
+/// Where the search is, for a progress line: the level (the number of steps of the strategies it now tries), the
+/// child targets of that level done and in all, the seconds since the start and an estimate of those left for the
+/// level (0 when unknown).
+struct PlanProgress {
+  int level = 1;
+  int max_steps = 1;
+  std::int64_t done = 0, total = 0;
+  double elapsed_s = 0.0;
+  double level_left_s = 0.0;
+};
+
+/// How the multi-step search treats the child targets of a level (docs/planning_strategy.md, "Multi-step search:
+/// time and memory").
+enum class SearchMode : std::uint8_t {
+  /// The default: the children are computed `threads` at a time (each nondirectional backprojection on one thread),
+  /// a child keeps only what the next level reads (its slices' B_θ regions, without provenance strings), and the
+  /// children of the last level keep nothing (only whether the start region fits).
+  kLean,
+  /// The search before: one child at a time (each nondirectional backprojection on `threads` threads), every child
+  /// keeping its whole nondirectional backprojection. The same strategies; kept to compare.
+  kBaseline,
 };
 
 struct PlanOptions {
@@ -107,8 +136,17 @@ struct PlanOptions {
   int max_contact_features = 8;
   /// At most this many nondirectional backprojections (each a few seconds); the reason says when it was reached.
   int max_nondirectional = 60;
+  /// Stop the search (no strategy, the reason says what was explored) when the process's resident memory exceeds
+  /// this many MiB; 0: no limit.
+  double max_memory_mib = 0.0;
+  SearchMode search = SearchMode::kLean;
   std::function<void(double)> progress;
+  /// Called from the calling thread after each child target and at each level's start.
+  std::function<void(const PlanProgress&)> search_progress;
 };
+
+/// The process's resident memory now (MiB; 0 where unknown).
+double ResidentMemoryMiB();
 
 /// Why a scene has no strategy when its goal kernel is empty: `visco plan`'s reason, `visco vcrays`'s warning.
 inline constexpr char kEmptyGoalKernel[] =

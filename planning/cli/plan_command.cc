@@ -39,7 +39,16 @@ struct Args {
   int check = 0;
   double speed = 0.25;
   int max_backprojections = 60;
+  double max_memory = -1;  // MiB; < 0: half the machine's memory
+  std::string search = "lean";
 };
+
+// Half the machine's physical memory (MiB): the default memory limit of the search.
+double HalfTheMachinesMemory() {
+  const double pages = static_cast<double>(sysconf(_SC_PHYS_PAGES));
+  const double page = static_cast<double>(sysconf(_SC_PAGESIZE));
+  return pages > 0 && page > 0 ? 0.5 * pages * page / (1024.0 * 1024.0) : 0.0;
+}
 
 }  // namespace
 
@@ -50,6 +59,8 @@ void Run(const Args& a) {
   if (a.check < 0) throw InputError("command line", "--check", "must not be negative");
   if (!(a.speed > 0)) throw InputError("command line", "--speed", "must be positive");
   if (a.max_backprojections < 1) throw InputError("command line", "--max-backprojections", "must be at least 1");
+  if (a.search != "lean" && a.search != "baseline")
+    throw InputError("command line", "--search", "must be lean or baseline, not '" + a.search + "'");
   const Scene scene = LoadScene(a.scene);
   if (!scene.start) throw InputError(a.scene, "start", "planning needs a start region");
   PlanOptions options;
@@ -58,17 +69,26 @@ void Run(const Args& a) {
   options.use_camera = !a.no_camera;
   options.threads = a.threads;
   options.max_nondirectional = a.max_backprojections;
+  options.max_memory_mib = a.max_memory >= 0 ? a.max_memory : HalfTheMachinesMemory();
+  options.search = a.search == "baseline" ? SearchMode::kBaseline : SearchMode::kLean;
   const bool tty = isatty(fileno(stderr)) != 0;
-  int last = -1;
-  options.progress = [&](double f) {
-    const int pct = static_cast<int>(f * 100);
-    if (!tty || pct == last) return;
-    last = pct;
-    std::fprintf(stderr, "\rplanning %3d%%", pct);
-    std::fflush(stderr);
-  };
+  // On a terminal: the level (steps tried), the child targets done of that level's, the time so far and an estimate
+  // of the level's rest; nothing otherwise.
+  std::size_t shown = 0;
+  if (tty) {
+    options.search_progress = [&](const PlanProgress& p) {
+      std::string line = p.level == 1
+                             ? fmt::format("planning: 1 step, {:.0f} s", p.elapsed_s)
+                             : fmt::format("planning: {} of at most {} steps, {} of {} child targets, {:.0f} s",
+                                           p.level, p.max_steps, p.done, p.total, p.elapsed_s);
+      if (p.level_left_s > 0) line += fmt::format(", about {:.0f} s left for this level", p.level_left_s);
+      std::fprintf(stderr, "\r%-*s", static_cast<int>(std::max(shown, line.size())), line.c_str());
+      shown = line.size();
+      std::fflush(stderr);
+    };
+  }
   const Strategy strategy = PlanStrategy(scene, options);
-  if (tty) std::fprintf(stderr, "\r%20s\r", "");
+  if (tty && shown > 0) std::fprintf(stderr, "\r%*s\r", static_cast<int>(shown), "");
   std::string json = StrategyToJson(scene, strategy, a.speed);
   if (a.check > 0 && strategy.feasible) {
     const CSpace cspace(scene);
@@ -123,9 +143,17 @@ void RegisterPlanCommand(CLI::App& app) {
   cmd->add_option("--max-backprojections", args->max_backprojections,
                   "stop the search after this many nondirectional backprojections (a few seconds each)")
       ->capture_default_str();
+  cmd->add_option("--max-memory", args->max_memory,
+                  "stop the search when the process uses more than this much memory (MiB; default: half the "
+                  "machine's memory; 0: no limit): exit 1 with what was explored")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--threads", args->threads,
-                  "worker threads for the nondirectional backprojections (default: the machine's cores; the result "
-                  "does not depend on it)")
+                  "worker threads: the child targets of a multi-step search are computed this many at a time, a "
+                  "single backprojection's slices too (default: the machine's cores; the result does not depend on it)")
+      ->capture_default_str();
+  cmd->add_option("--search", args->search,
+                  "lean (default) or baseline: the multi-step search before (one child target at a time, each "
+                  "keeping its whole nondirectional backprojection), kept to compare; the same strategies")
       ->capture_default_str();
   cmd->add_option("--check", args->check,
                   "simulate the strategy from N sampled start configurations with adversarial velocities; exit 1 if "
