@@ -2,8 +2,7 @@
 // what the next level reads) against the search before it (kBaseline) on seeded random scenes of the kind users bring
 // (tests/planning/multistep_scenes.h): wherever the baseline finds a strategy within --max-steps the lean search finds
 // one with no more steps (here: the same strategy, byte for byte, after the same number of backprojections), and
-// every strategy passes the adversarial simulator. CI runs a few small scenes with two steps; VISCO_FULL_PROPERTY=1
-// runs many, with three.
+// every strategy passes the adversarial simulator.
 
 #include <gtest/gtest.h>
 
@@ -13,8 +12,11 @@
 #include <string>
 
 #include "planning/cspace.h"
+#include "planning/scene.h"
+#include "planning/scene_file.h"
 #include "planning/strategy.h"
 #include "planning/vc_rays.h"
+#include "tests/planning/corner_rooms.h"
 #include "tests/planning/multistep_scenes.h"
 #include "tests/planning/scene_json.h"
 
@@ -69,20 +71,53 @@ void Compare(const Scene& s, int max_steps, int budget, bool use_camera, Tally& 
               static_cast<long long>(lean.nondirectional), c.successes, c.starts);
 }
 
+// CI: random corner rooms (two steps, a contact step first, cheap) and the example scenes whose strategies have two
+// steps; VISCO_FULL_PROPERTY=1 adds many more corner rooms and the random scenes users bring (tests/planning/
+// multistep_scenes.h, 40 obstacle vertices, three steps, with and without the camera: minutes each).
 TEST(MultiStepProperty, LeanSearchFindsWhatTheBaselineFinds) {
-  const std::uint64_t last = FullProperty() ? 40 : kSanitized ? 2 : 6;
-  const int max_steps = FullProperty() ? 3 : 2;
-  const int budget = FullProperty() ? 30 : 6;
-  const std::size_t vertices = FullProperty() ? 40 : 16;
   Tally t;
-  for (std::uint64_t seed = 1; seed <= last; ++seed) {
+  const std::uint64_t rooms = FullProperty() ? 40 : kSanitized ? 2 : 5;
+  for (std::uint64_t seed = 1; seed <= rooms; ++seed) {
     Scene s;
-    if (!testing::MultiStepScene(seed, vertices, s)) continue;
-    Compare(s, max_steps, budget, /*use_camera=*/true, t);
-    if (FullProperty()) Compare(s, max_steps, budget, /*use_camera=*/false, t);
+    if (RandomCornerRoom(seed, s)) Compare(s, 2, 60, /*use_camera=*/false, t);
+  }
+  if (!kSanitized) {
+    Compare(LoadScene("data/scenes/corner.json"), 3, 60, /*use_camera=*/true, t);
+    Compare(LoadScene("data/scenes/slot.json"), 3, 60, /*use_camera=*/false, t);
+  }
+  if (FullProperty()) {
+    for (std::uint64_t seed = 1; seed <= 40; ++seed) {
+      Scene s;
+      if (!testing::MultiStepScene(seed, 40, s)) continue;
+      Compare(s, 3, 30, /*use_camera=*/true, t);
+      Compare(s, 3, 30, /*use_camera=*/false, t);
+    }
   }
   std::printf("%d plans, %d with a strategy, %d of them multi-step\n", t.scenes, t.feasible, t.multi_step);
-  EXPECT_GE(t.scenes, static_cast<int>(last) / 2);
+  EXPECT_GE(t.multi_step, kSanitized ? 1 : 3);
+}
+
+// A memory limit the search cannot keep stops it after the first child target, with what was explored in the reason
+// (the corner needs two steps: the goal's backprojection, then the children of level 2).
+TEST(MultiStep, MemoryLimitStopsWithWhatWasExplored) {
+  const Scene s = LoadScene("data/scenes/corner.json");
+  PlanOptions o;
+  o.threads = 1;
+  o.max_memory_mib = 1;
+  const Strategy st = PlanStrategy(s, o);
+  EXPECT_FALSE(st.feasible);
+  EXPECT_TRUE(st.memory_limit_reached);
+  EXPECT_EQ(st.levels, 2);
+  EXPECT_EQ(st.nondirectional, 2);  // the goal's and the first child's
+  EXPECT_NE(st.reason.find("the search stopped at the memory limit"), std::string::npos) << st.reason;
+  EXPECT_NE(st.reason.find("while trying 2 steps (1 of that level's"), std::string::npos) << st.reason;
+  EXPECT_NE(st.reason.find("no strategy within 1 step(s)"), std::string::npos) << st.reason;
+  // Without the limit the corner has its two steps.
+  o.max_memory_mib = 0;
+  const Strategy full = PlanStrategy(s, o);
+  EXPECT_TRUE(full.feasible) << full.reason;
+  EXPECT_FALSE(full.memory_limit_reached);
+  EXPECT_GT(full.peak_memory_mib, 0.0);
 }
 
 }  // namespace
