@@ -115,6 +115,9 @@ struct PlanProgress {
   double level_left_s = 0.0;
 };
 
+/// The process's resident memory now (MiB; 0 where unknown).
+double ResidentMemoryMiB();
+
 /// How the multi-step search treats the child targets of a level (docs/planning_strategy.md, "Multi-step search:
 /// time and memory").
 enum class SearchMode : std::uint8_t {
@@ -145,8 +148,6 @@ struct PlanOptions {
   std::function<void(const PlanProgress&)> search_progress;
 };
 
-/// The process's resident memory now (MiB; 0 where unknown).
-double ResidentMemoryMiB();
 
 /// Why a scene has no strategy when its goal kernel is empty: `visco plan`'s reason, `visco vcrays`'s warning.
 inline constexpr char kEmptyGoalKernel[] =
