@@ -16,8 +16,10 @@
 // docs/planning_nondirectional.md explains the design and gives the figures.
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <functional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -140,6 +142,15 @@ struct NondirectionalOptions {
   bool check_updates = false;
   /// Called now and then with the fraction done (0..1), from the calling thread.
   std::function<void(double)> progress;
+  /// When it points to true the computation ends at its next backprojection, throwing NondirectionalStopped (the
+  /// planner's memory limit sets it from another thread).
+  const std::atomic<bool>* stop = nullptr;
+};
+
+/// Thrown by ComputeNondirectional when NondirectionalOptions::stop is set.
+class NondirectionalStopped : public std::runtime_error {
+ public:
+  NondirectionalStopped() : std::runtime_error("the nondirectional backprojection was stopped") {}
 };
 
 /// Computes the nondirectional backprojection of `problem` (problem.theta ignored). `start` (may be null) adds its

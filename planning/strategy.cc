@@ -10,6 +10,7 @@
 #include <condition_variable>
 #include <exception>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <map>
 #include <mutex>
@@ -18,6 +19,7 @@
 #include <random>
 #include <set>
 #include <thread>
+#include <utility>
 
 #include "common/error.h"
 #include "common/motion_model.h"
@@ -344,6 +346,53 @@ NondirectionalOptions NdOptions(const PlanOptions& o) {
   return n;
 }
 
+// The memory limit, watched while the search runs: with a limit, a thread of its own reads the resident memory every
+// 20 ms, keeps the peak and, past the limit, sets the flag that ends the nondirectional backprojection in flight at its
+// next sweep (NondirectionalOptions::stop). One sweep and one period are the most the search can overrun it by.
+class MemoryWatch {
+ public:
+  MemoryWatch(double limit_mib, std::function<double()> read)
+      : limit_mib_(limit_mib), read_(read ? std::move(read) : std::function<double()>(ResidentMemoryMiB)) {
+    Sample();
+    if (limit_mib_ > 0) thread_ = std::thread([this] { Run(); });
+  }
+  MemoryWatch(const MemoryWatch&) = delete;
+  MemoryWatch& operator=(const MemoryWatch&) = delete;
+  ~MemoryWatch() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      finished_ = true;
+    }
+    wake_.notify_all();
+    if (thread_.joinable()) thread_.join();
+  }
+  // Reads the resident memory now; sets the flag past the limit.
+  void Sample() {
+    const double mib = read_();
+    double peak = peak_mib_.load();
+    while (mib > peak && !peak_mib_.compare_exchange_weak(peak, mib)) {
+    }
+    if (limit_mib_ > 0 && mib > limit_mib_) exceeded_.store(true);
+  }
+  bool Exceeded() const { return exceeded_.load(); }
+  const std::atomic<bool>* Flag() const { return &exceeded_; }
+  double PeakMiB() const { return peak_mib_.load(); }
+
+ private:
+  void Run() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    while (!wake_.wait_for(lock, std::chrono::milliseconds(20), [&] { return finished_; })) Sample();
+  }
+  const double limit_mib_;
+  const std::function<double()> read_;
+  std::atomic<bool> exceeded_{false};
+  std::atomic<double> peak_mib_{0.0};
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool finished_ = false;
+  std::thread thread_;
+};
+
 }  // namespace
 
 NamedPolygon Strip(const Vector2d& a, const Vector2d& b, double half_width, const std::string& ref) {
@@ -414,14 +463,31 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
   goal.terminate = Termination::kGoal;
   goal.problem = base;
   goal.vc = camera;
-  goal.nd = ComputeNondirectional(base, nullptr, NdOptions(options));
+  MemoryWatch memory(options.max_memory_mib, options.resident_memory_mib);
+  NondirectionalOptions goal_options = NdOptions(options);
+  goal_options.stop = memory.Flag();
+  try {
+    goal.nd = ComputeNondirectional(base, nullptr, goal_options);
+  } catch (const NondirectionalStopped&) {
+    out.memory_limit_reached = true;
+    out.peak_memory_mib = memory.PeakMiB();
+    out.reason = fmt::format(
+        "the search stopped at the memory limit ({:.0f} MiB in use, --max-memory {:.0f} MiB) while computing the "
+        "goal's preimage over all θ (the one-step strategies): no strategy",
+        out.peak_memory_mib, options.max_memory_mib);
+    return out;
+  }
   ++out.nondirectional;
+  out.goal_seconds = seconds();
+  out.goal_sweeps = goal.nd.stats.backprojections;
   progress(0.2);
   {
     const auto intervals = IntervalsContaining(goal.nd, base, start, goal.vc);
     if (const ThetaInterval* best = Best(intervals)) {
       out.feasible = true;
       out.steps.push_back(MakeStep(goal, *best, "the start region"));
+      memory.Sample();
+      out.peak_memory_mib = memory.PeakMiB();
       progress(1.0);
       return out;
     }
@@ -462,12 +528,7 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
     return best_len;
   };
   const bool lean = options.search == SearchMode::kLean;
-  auto note_memory = [&] {
-    const double mib = ResidentMemoryMiB();
-    out.peak_memory_mib = std::max(out.peak_memory_mib, mib);
-    return mib;
-  };
-  note_memory();
+  memory.Sample();
   bool memory_reached = false;
   int stopped_level = 0;
   std::int64_t stopped_done = 0, stopped_total = 0;
@@ -632,7 +693,7 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
     std::vector<std::optional<Candidate>> fits(pending.size());
     std::vector<char> computed(pending.size(), 0);
     std::atomic<std::size_t> next_child{0};
-    std::atomic<bool> stop{false};
+    std::atomic<bool> stop{false};  // a worker failed
     std::mutex mutex;
     std::condition_variable changed;
     std::size_t done = 0;
@@ -651,17 +712,26 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
       options.search_progress(p);
     };
     report();
+    memory.Sample();
     const int workers =
         lean ? std::clamp(options.threads, 1, static_cast<int>(std::max<std::size_t>(pending.size(), 1))) : 1;
     NondirectionalOptions nd_options = NdOptions(options);
     if (lean) nd_options.threads = std::max(1, options.threads / workers);
+    nd_options.stop = memory.Flag();
     auto work = [&] {
       for (;;) {
-        if (stop.load()) return;
+        if (stop.load() || memory.Exceeded()) return;
         const std::size_t i = next_child.fetch_add(1);
         if (i >= pending.size()) return;
         Node& child = pending[i];
-        child.nd = ComputeNondirectional(child.problem, nullptr, nd_options);
+        const double t0 = seconds();
+        try {
+          child.nd = ComputeNondirectional(child.problem, nullptr, nd_options);
+        } catch (const NondirectionalStopped&) {
+          return;  // the memory limit: this child is not computed
+        }
+        const double child_s = seconds() - t0;
+        const std::int64_t child_sweeps = child.nd.stats.backprojections;
         const std::vector<ThetaInterval> start_fits = Fits(child, start);
         if (const ThetaInterval* st = Best(start_fits)) {
           Candidate c;
@@ -678,18 +748,20 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
             KeepWhatTheSearchReads(child.nd);
           }
         }
-        const double mib = ResidentMemoryMiB();
+        memory.Sample();
         std::lock_guard<std::mutex> lock(mutex);
         computed[i] = 1;
         ++done;
-        out.peak_memory_mib = std::max(out.peak_memory_mib, mib);
-        if (options.max_memory_mib > 0 && mib > options.max_memory_mib) stop.store(true);
+        out.children_seconds += child_s;
+        out.slowest_child_seconds = std::max(out.slowest_child_seconds, child_s);
+        out.children_sweeps += child_sweeps;
         changed.notify_all();
       }
     };
     {
       // `workers` threads compute; this one reports progress (from the calling thread, as the callback promises).
       std::exception_ptr error;
+      int exited = 0;  // workers that have returned (all children taken, a failure or the memory limit)
       auto guarded = [&] {
         try {
           work();
@@ -697,15 +769,17 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
           std::lock_guard<std::mutex> lock(mutex);
           if (!error) error = std::current_exception();
           stop.store(true);
-          changed.notify_all();
         }
+        std::lock_guard<std::mutex> lock(mutex);
+        ++exited;
+        changed.notify_all();
       };
       std::vector<std::thread> threads;
       for (int t = 0; t < workers; ++t) threads.emplace_back(guarded);
       std::unique_lock<std::mutex> lock(mutex);
       std::size_t seen = 0;
-      while (done < pending.size() && !stop.load()) {
-        changed.wait(lock, [&] { return done != seen || stop.load(); });
+      while (exited < workers) {
+        changed.wait(lock, [&] { return done != seen || exited == workers; });
         seen = done;
         lock.unlock();
         report();
@@ -723,8 +797,8 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
       if (fits[i]) found.push_back(std::move(*fits[i]));
       if (!lean || !last) next.push_back(std::move(pending[i]));
     }
-    note_memory();
-    if (stop.load()) {
+    memory.Sample();
+    if (memory.Exceeded()) {
       memory_reached = true;
       stopped_level = level;
       stopped_done = static_cast<std::int64_t>(done);
@@ -740,6 +814,7 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
       }
       out.feasible = true;
       out.steps = best->steps;
+      out.peak_memory_mib = memory.PeakMiB();
       progress(1.0);
       return out;
     }
@@ -758,6 +833,7 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
     out.reason += fmt::format("; the search stopped after {} nondirectional backprojections (--max-backprojections)",
                               out.nondirectional);
   }
+  out.peak_memory_mib = memory.PeakMiB();
   if (memory_reached) {
     out.memory_limit_reached = true;
     out.reason =

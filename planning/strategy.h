@@ -102,6 +102,10 @@ struct Strategy {
   int levels = 1;
   double peak_memory_mib = 0.0;
   bool memory_limit_reached = false;
+  /// Where the time went (wall clock): the goal's nondirectional backprojection, the children's summed over the
+  /// threads, and the slowest child; the VC-enlarged backprojections (sweeps) the goal's and the children's ran.
+  double goal_seconds = 0.0, children_seconds = 0.0, slowest_child_seconds = 0.0;
+  std::int64_t goal_sweeps = 0, children_sweeps = 0;
 };
 
 /// Where the search is, for a progress line: the level (the number of steps of the strategies it now tries), the
@@ -142,12 +146,13 @@ struct PlanOptions {
   /// Stop the search (no strategy, the reason says what was explored) when the process's resident memory exceeds
   /// this many MiB; 0: no limit.
   double max_memory_mib = 0.0;
+  /// How the memory limit reads the memory in use (MiB; empty: the process's resident memory). For the tests.
+  std::function<double()> resident_memory_mib;
   SearchMode search = SearchMode::kLean;
   std::function<void(double)> progress;
   /// Called from the calling thread after each child target and at each level's start.
   std::function<void(const PlanProgress&)> search_progress;
 };
-
 
 /// Why a scene has no strategy when its goal kernel is empty: `visco plan`'s reason, `visco vcrays`'s warning.
 inline constexpr char kEmptyGoalKernel[] =

@@ -160,6 +160,7 @@ NondirectionalBackprojection KineticWalk::Run() {
 }
 
 Slice KineticWalk::Evaluate(double theta, SweepPurpose purpose) {
+  if (options_.stop != nullptr && options_.stop->load(std::memory_order_relaxed)) throw NondirectionalStopped();
   const auto t0 = std::chrono::steady_clock::now();
   BackprojectionProblem p = pr_;
   p.theta = theta;

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -97,27 +98,49 @@ TEST(MultiStepProperty, LeanSearchFindsWhatTheBaselineFinds) {
   EXPECT_GE(t.multi_step, kSanitized ? 1 : 3);
 }
 
-// A memory limit the search cannot keep stops it after the first child target, with what was explored in the reason
-// (the corner needs two steps: the goal's backprojection, then the children of level 2).
+// The memory limit stops the search where it is, with what was explored in the reason. The memory the limit reads
+// is the test's: none until the search starts on the children of level 2 (the corner needs two steps: the goal's
+// backprojection, then the children), then more than the limit.
 TEST(MultiStep, MemoryLimitStopsWithWhatWasExplored) {
   const Scene s = LoadScene("data/scenes/corner.json");
+  std::atomic<double> in_use{0.0};
   PlanOptions o;
-  o.threads = 1;
-  o.max_memory_mib = 1;
+  o.threads = 2;
+  o.max_memory_mib = 100;
+  o.resident_memory_mib = [&] { return in_use.load(); };
+  o.search_progress = [&](const PlanProgress& p) {
+    if (p.level == 2) in_use = 150;
+  };
   const Strategy st = PlanStrategy(s, o);
   EXPECT_FALSE(st.feasible);
   EXPECT_TRUE(st.memory_limit_reached);
   EXPECT_EQ(st.levels, 2);
-  EXPECT_EQ(st.nondirectional, 2);  // the goal's and the first child's
-  EXPECT_NE(st.reason.find("the search stopped at the memory limit"), std::string::npos) << st.reason;
-  EXPECT_NE(st.reason.find("while trying 2 steps (1 of that level's"), std::string::npos) << st.reason;
+  EXPECT_EQ(st.nondirectional, 1);  // the goal's
+  EXPECT_EQ(st.peak_memory_mib, 150);
+  EXPECT_NE(st.reason.find("the search stopped at the memory limit (150 MiB in use, --max-memory 100 MiB)"),
+            std::string::npos)
+      << st.reason;
+  EXPECT_NE(st.reason.find("while trying 2 steps (0 of that level's"), std::string::npos) << st.reason;
   EXPECT_NE(st.reason.find("no strategy within 1 step(s)"), std::string::npos) << st.reason;
-  // Without the limit the corner has its two steps.
+  // Over the limit from the start: the goal's backprojection stops at its next sweep.
+  in_use = 150;
+  o.search_progress = nullptr;
+  const Strategy none = PlanStrategy(s, o);
+  EXPECT_FALSE(none.feasible);
+  EXPECT_TRUE(none.memory_limit_reached);
+  EXPECT_EQ(none.nondirectional, 0);
+  EXPECT_NE(none.reason.find("while computing the goal's preimage"), std::string::npos) << none.reason;
+  // The process's own memory and no limit: the corner has its two steps.
+  o.resident_memory_mib = nullptr;
   o.max_memory_mib = 0;
   const Strategy full = PlanStrategy(s, o);
   EXPECT_TRUE(full.feasible) << full.reason;
   EXPECT_FALSE(full.memory_limit_reached);
   EXPECT_GT(full.peak_memory_mib, 0.0);
+  EXPECT_GT(full.goal_seconds, 0.0);
+  EXPECT_GT(full.children_seconds, 0.0);
+  EXPECT_GT(full.goal_sweeps, 0);
+  EXPECT_GT(full.children_sweeps, 0);
 }
 
 }  // namespace

@@ -7,7 +7,9 @@
 // memory limit of 4 GiB (a search that reaches it stops: memory_stop = 1). Counters: the scene's obstacle vertices (n)
 // and C-obstacle vertices (cn), whether a strategy was found and its steps, the levels reached, the child targets
 // computed (children; each one nondirectional backprojection, as is the goal's: nondirectional), the CPU seconds of the
-// process and its peak resident memory (peak_MiB, reset before each benchmark).
+// process and its peak resident memory (peak_MiB, reset before each benchmark); where the time went (wall clock): the
+// goal's nondirectional backprojection (goal_s) and its VC-enlarged backprojections (goal_sweeps), the children's
+// summed over the threads (children_s, children_sweeps) and the slowest child (slowest_child_s).
 //
 // With VISCO_SCENE_DUMP=DIR each benchmark writes its scene to DIR/multistep_n<n>_s<seed>.json instead of planning
 // (for `visco plan` under /usr/bin/time -v or heaptrack).
@@ -92,6 +94,11 @@ void BM_MultiStep(benchmark::State& state) {
   state.counters["children"] = static_cast<double>(st.children);
   state.counters["levels"] = st.levels;
   state.counters["memory_stop"] = st.memory_limit_reached ? 1 : 0;
+  state.counters["goal_s"] = st.goal_seconds;
+  state.counters["goal_sweeps"] = static_cast<double>(st.goal_sweeps);
+  state.counters["children_s"] = st.children_seconds;
+  state.counters["slowest_child_s"] = st.slowest_child_seconds;
+  state.counters["children_sweeps"] = static_cast<double>(st.children_sweeps);
 }
 // The lean search on every size, the search before it beside it up to 100 vertices.
 void Sizes(benchmark::internal::Benchmark* b) {
