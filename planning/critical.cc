@@ -311,7 +311,9 @@ bool Crossing(const Seg& s, const Seg& t, Vector2d* out) {
 
 class CandidateGenerator {
  public:
-  CandidateGenerator(const BackprojectionProblem& pr, const NamedPolygon* start, CandidateSearch search) : pr_(pr) {
+  CandidateGenerator(const BackprojectionProblem& pr, const NamedPolygon* start, CandidateSearch search,
+                     const std::atomic<bool>* stop = nullptr)
+      : pr_(pr), stop_(stop) {
     eps_ = std::max(pr.velocity_cone, 1e-9);
     phi_ = pr.friction_cone;
     Collect(start);
@@ -362,12 +364,14 @@ class CandidateGenerator {
            std::vector<std::int8_t> signs = {}, std::vector<Vector2d> feature = {}, std::vector<Vector2d> point = {}) {
     if (!std::isfinite(theta)) return;
     if (r_only_ && kind != CriticalKind::kR) return;
+    CheckStop();
     out_.push_back({theta, kind, std::move(refs), std::move(sources), std::move(signs), std::move(feature),
                     std::move(point), SlidingCause::kNone});
   }
 
   void AddSliding(double theta, const std::string& ref, std::vector<Vector2d> feature, SlidingCause cause) {
     if (!std::isfinite(theta) || r_only_) return;
+    CheckStop();
     out_.push_back({theta, CriticalKind::kSliding, {ref}, {}, {}, std::move(feature), {}, cause});
   }
 
@@ -665,7 +669,15 @@ class CandidateGenerator {
     }
   }
 
+  // The stop flag, read every 4096 candidates: the candidates of a large scene with a camera can take gigabytes.
+  void CheckStop() {
+    if (stop_ != nullptr && (out_.size() & 4095) == 0 && stop_->load(std::memory_order_relaxed)) {
+      throw NondirectionalStopped();
+    }
+  }
+
   const BackprojectionProblem& pr_;
+  const std::atomic<bool>* stop_ = nullptr;
   bool r_only_ = false;
   double eps_ = 0, phi_ = 0;
   std::vector<Pt> points_;
@@ -743,8 +755,9 @@ double WrapAngle(double theta) {
 }
 
 std::vector<CriticalOrientation> CriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon* start,
-                                                    CriticalCounts* counts, CandidateSearch search) {
-  return CandidateGenerator(problem, start, search).Run(counts);
+                                                    CriticalCounts* counts, CandidateSearch search,
+                                                    const std::atomic<bool>* stop) {
+  return CandidateGenerator(problem, start, search, stop).Run(counts);
 }
 
 std::vector<CriticalOrientation> RCriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon& start,

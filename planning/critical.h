@@ -22,7 +22,9 @@
 // segments, the start region's vertices, and every crossing of two of their edges.
 
 #include <Eigen/Core>
+#include <atomic>
 #include <cstdint>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -108,7 +110,15 @@ enum class CandidateSearch : std::uint8_t { kIndexed, kScan };
 /// those where the structure really changes. Not real-time safe.
 std::vector<CriticalOrientation> CriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon* start,
                                                     CriticalCounts* counts = nullptr,
-                                                    CandidateSearch search = CandidateSearch::kIndexed);
+                                                    CandidateSearch search = CandidateSearch::kIndexed,
+                                                    const std::atomic<bool>* stop = nullptr);
+
+/// Thrown by CriticalCandidates and ComputeNondirectional (nondirectional.h) when their stop flag is set (the
+/// planner's memory limit sets it from another thread).
+class NondirectionalStopped : public std::runtime_error {
+ public:
+  NondirectionalStopped() : std::runtime_error("the nondirectional backprojection was stopped") {}
+};
 
 /// Only the R-critical candidates of region `start` (the same as CriticalCandidates's of kind R).
 std::vector<CriticalOrientation> RCriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon& start,

@@ -19,7 +19,6 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -145,12 +144,6 @@ struct NondirectionalOptions {
   /// When it points to true the computation ends at its next backprojection, throwing NondirectionalStopped (the
   /// planner's memory limit sets it from another thread).
   const std::atomic<bool>* stop = nullptr;
-};
-
-/// Thrown by ComputeNondirectional when NondirectionalOptions::stop is set.
-class NondirectionalStopped : public std::runtime_error {
- public:
-  NondirectionalStopped() : std::runtime_error("the nondirectional backprojection was stopped") {}
 };
 
 /// Computes the nondirectional backprojection of `problem` (problem.theta ignored). `start` (may be null) adds its

@@ -33,7 +33,7 @@ NondirectionalBackprojection KineticWalk::Run() {
     for (const auto& ray : pr_.rays)
       ray_segments_.insert(ray_segments_.end(), ray.segments.begin(), ray.segments.end());
   }
-  auto candidates = CriticalCandidates(pr_, start_, &nd.stats.counts);
+  auto candidates = CriticalCandidates(pr_, start_, &nd.stats.counts, CandidateSearch::kIndexed, options_.stop);
   nd.stats.candidates = static_cast<std::int64_t>(candidates.size());
   std::vector<CriticalOrientation> r_candidates;
   for (auto& c : candidates) {
