@@ -8,6 +8,8 @@ find_package(nlohmann_json 3 CONFIG REQUIRED)
 find_package(CLI11 CONFIG REQUIRED)
 find_package(fmt CONFIG REQUIRED)
 find_package(spdlog CONFIG REQUIRED)
+# ROS camera_info calibrations (vision/ros_camera_info.cc): OpenCV's FileStorage refuses their YAML.
+find_package(yaml-cpp CONFIG REQUIRED)
 # mimalloc, for the planner program `visco` only (app/CMakeLists.txt): CGAL's exact arithmetic allocates and frees
 # small numbers all the time, and mimalloc makes `visco plan` take 0.8x the wall time of glibc's malloc. Not in the
 # sanitizer builds, which replace malloc themselves.

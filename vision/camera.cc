@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "vision/ros_camera_info.h"
 
 namespace visco::vision {
 namespace {
@@ -247,10 +248,13 @@ CameraModel LoadCamera(const std::string& path, const std::string& camera_name) 
     } else {
       cam = LoadViSPXml(path, camera_name);
     }
-  } else if (ext == ".yaml" || ext == ".yml" || ext == ".json") {
+  } else if (ext == ".yaml" || ext == ".yml") {
+    cam = IsRosCameraInfo(path) ? LoadRosCameraInfo(path) : LoadOpenCV(path);
+  } else if (ext == ".json") {
     cam = LoadOpenCV(path);
   } else {
-    throw InputError(path, "", "unknown calibration format (expected .xml for ViSP, .yaml/.yml for OpenCV)");
+    throw InputError(path, "",
+                     "unknown calibration format (expected .xml for ViSP, .yaml/.yml for OpenCV or ROS camera_info)");
   }
   Validate(cam, path);
   return cam;

@@ -1,8 +1,8 @@
 #pragma once
 // The calibrated pinhole camera of the runtime: intrinsics, lens distortion and the camera pose in the world.
-// Loaded from ViSP's XML (vpXmlParserCamera) or OpenCV's YAML calibration files; no OpenCV or ViSP type appears
-// here. Frames follow ViSP: cMo is the pose of frame o in frame c; the camera frame has x right, y down, z along
-// the optical axis; the world has z up, the motion plane (the table) is z = 0.
+// Loaded from ViSP's XML (vpXmlParserCamera), OpenCV's YAML or ROS's camera_info YAML calibration files; no OpenCV or
+// ViSP type appears here. Frames follow ViSP: cMo is the pose of frame o in frame c; the camera frame has x right, y
+// down, z along the optical axis; the world has z up, the motion plane (the table) is z = 0.
 
 #include <Eigen/Geometry>
 #include <array>
@@ -53,9 +53,10 @@ struct CameraModel {
   }
 };
 
-/// Loads a calibration: ViSP XML (`.xml`) or OpenCV YAML/XML FileStorage (`.yaml`, `.yml`, `.json`, or an XML file
-/// whose root is `opencv_storage`). For ViSP XML, the model with distortion is preferred when both are present;
-/// `camera_name` selects a camera in a multi-camera file (empty: the first).
+/// Loads a calibration: ViSP XML (`.xml`), OpenCV YAML/XML FileStorage (`.yaml`, `.yml`, `.json`, or an XML file
+/// whose root is `opencv_storage`) or ROS camera_info YAML (`.yaml`, `.yml` without OpenCV's `%YAML:` header or
+/// `!!opencv-matrix`: vision/ros_camera_info.h). For ViSP XML, the model with distortion is preferred when both are
+/// present; `camera_name` selects a camera in a multi-camera file (empty: the first).
 /// @throws InputError naming the file, the missing or bad entry and what is wrong (missing file, unparsable file,
 ///         no camera, non-positive focal length, wrong number of distortion coefficients, non-finite values).
 CameraModel LoadCamera(const std::string& path, const std::string& camera_name = "");

@@ -12,10 +12,12 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/calib3d.hpp>
+#include <opencv2/core/persistence.hpp>
 #include <random>
 #include <vector>
 
 #include "common/error.h"
+#include "vision/ros_camera_info.h"
 
 namespace visco::vision {
 namespace {
@@ -161,6 +163,147 @@ TEST(Camera, BadOrMissingCalibrationIsAnInputErrorNamingFileAndObject) {
   WriteText(TempPath("cam.txt"), "px 1\n");
   EXPECT_NE(InputErrorOf([] { LoadCamera(TempPath("cam.txt")); }).find("unknown calibration format"),
             std::string::npos);
+}
+
+// ROS camera_info YAML as camera_calibration writes it (numpy-printed matrices over several lines, "0." numbers).
+TEST(Camera, LoadsRosCameraInfoAsCameraCalibrationWritesIt) {
+  const CameraModel c = LoadCamera("tests/vision/data/ros_ost.yaml");
+  EXPECT_EQ(c.name, "narrow_stereo");
+  EXPECT_EQ(c.width, 640);
+  EXPECT_EQ(c.height, 480);
+  EXPECT_DOUBLE_EQ(c.px, 612.43208);
+  EXPECT_DOUBLE_EQ(c.py, 613.07751);
+  EXPECT_DOUBLE_EQ(c.u0, 318.95127);
+  EXPECT_DOUBLE_EQ(c.v0, 244.61903);
+  EXPECT_EQ(c.distortion, DistortionModel::kOpenCV);
+  EXPECT_EQ(c.dist, (std::vector<double>{0.117521, -0.238702, 0.001392, -0.000841, 0.0}));
+  // The reason for a reader of its own: OpenCV's FileStorage does not read this file.
+  bool opencv_reads = true;
+  try {
+    cv::FileStorage fs("tests/vision/data/ros_ost.yaml", cv::FileStorage::READ);
+    cv::Mat k;
+    fs["camera_matrix"] >> k;
+    opencv_reads = fs.isOpened() && k.rows == 3 && k.cols == 3;
+  } catch (const cv::Exception&) {
+    opencv_reads = false;
+  }
+  EXPECT_FALSE(opencv_reads);
+}
+
+// As usb_cam ships it (one line per matrix, a rectification that is not the identity), rational_polynomial.
+TEST(Camera, LoadsRosCameraInfoAsUsbCamShipsIt) {
+  const CameraModel c = LoadCamera("tests/vision/data/ros_usb_cam.yaml");
+  EXPECT_EQ(c.name, "head_camera");
+  EXPECT_DOUBLE_EQ(c.px, 431.905012);
+  EXPECT_DOUBLE_EQ(c.v0, 238.554017);
+  EXPECT_EQ(c.distortion, DistortionModel::kOpenCV);
+  ASSERT_EQ(c.dist.size(), 8u);
+  EXPECT_DOUBLE_EQ(c.dist[7], -0.00125);
+  // ROS's models are OpenCV's: the same projection as cv::projectPoints with the same coefficients.
+  const cv::Matx33d k(c.px, 0, c.u0, 0, c.py, c.v0, 0, 0, 1);
+  std::vector<cv::Point3d> obj{{0.21, -0.13, 1}};
+  std::vector<cv::Point2d> img;
+  cv::projectPoints(obj, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), k, c.dist, img);
+  const Eigen::Vector2d p = c.NormalizedToPixel({0.21, -0.13});
+  EXPECT_NEAR(p.x(), img[0].x, 1e-9);
+  EXPECT_NEAR(p.y(), img[0].y, 1e-9);
+}
+
+TEST(Camera, RosCameraInfoRoundTripsAndZeroDistortionIsNone) {
+  CameraModel o = CameraModel::Pinhole(800.25, 805.5, 330.125, 250.75, 752, 480);
+  o.name = "cam_r";
+  o.distortion = DistortionModel::kOpenCV;
+  o.dist = {-0.2, 0.05, 0.001, -0.002, 0.01};
+  SaveCameraRos(o, TempPath("r.yaml"));
+  const CameraModel r = LoadCamera(TempPath("r.yaml"));
+  EXPECT_EQ(r.name, "cam_r");
+  EXPECT_EQ(r.width, 752);
+  EXPECT_DOUBLE_EQ(r.px, 800.25);
+  EXPECT_DOUBLE_EQ(r.v0, 250.75);
+  EXPECT_EQ(r.dist, o.dist);
+  o.distortion = DistortionModel::kNone;
+  o.dist.clear();
+  SaveCameraRos(o, TempPath("r0.yaml"));
+  EXPECT_EQ(LoadCamera(TempPath("r0.yaml")).distortion, DistortionModel::kNone);
+}
+
+TEST(Camera, BadRosCameraInfoNamesFileAndField) {
+  const std::string k = "camera_matrix:\n  rows: 3\n  cols: 3\n  data: [600, 0, 320, 0, 600, 240, 0, 0, 1]\n";
+  const std::string size = "image_width: 640\nimage_height: 480\n";
+  const std::string d5 =
+      "distortion_model: plumb_bob\ndistortion_coefficients:\n  rows: 1\n  cols: 5\n"
+      "  data: [0.1, -0.2, 0, 0, 0]\n";
+  auto error_of = [](const std::string& name, const std::string& text) {
+    WriteText(TempPath(name), text);
+    return InputErrorOf([&] { LoadCamera(TempPath(name)); });
+  };
+  EXPECT_EQ(error_of("ok.yaml", size + k + d5), "no InputError");
+  EXPECT_NE(error_of("nok.yaml", size + d5).find("nok.yaml: camera_matrix: missing"), std::string::npos);
+  EXPECT_NE(error_of("now.yaml", "image_height: 480\n" + k).find("now.yaml: image_width: missing"), std::string::npos);
+  EXPECT_NE(
+      error_of("k8.yaml", size + "camera_matrix:\n  rows: 3\n  cols: 3\n  data: [600, 0, 320, 0, 600, 240, 0, 0]\n")
+          .find("k8.yaml: camera_matrix.data: holds 8 numbers, rows x cols = 3 x 3 needs 9"),
+      std::string::npos);
+  EXPECT_NE(error_of("k23.yaml", size + "camera_matrix:\n  rows: 2\n  cols: 3\n  data: [600, 0, 320, 0, 600, 240]\n")
+                .find("k23.yaml: camera_matrix: must be 3x3, got rows: 2, cols: 3"),
+            std::string::npos);
+  EXPECT_NE(error_of("kno.yaml", size + "camera_matrix: [600, 0, 320, 0, 600, 240, 0, 0, 1]\n")
+                .find("kno.yaml: camera_matrix: must be a map {rows: 3, cols: 3, data:"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of("kstr.yaml", size + "camera_matrix:\n  rows: 3\n  cols: 3\n  data: [600, 0, 320, 0, x, 240, 0, 0, 1]\n")
+          .find("kstr.yaml: camera_matrix.data[4]: must be a number (line 6)"),
+      std::string::npos);
+  EXPECT_NE(error_of("skew.yaml",
+                     size + "camera_matrix:\n  rows: 3\n  cols: 3\n  data: [600, 2, 320, 0, 600, 240, 0, 0, 1]\n")
+                .find("camera_matrix: must be [fx 0 cx; 0 fy cy; 0 0 1]"),
+            std::string::npos);
+  EXPECT_NE(error_of("neg.yaml",
+                     size + "camera_matrix:\n  rows: 3\n  cols: 3\n  data: [-600, 0, 320, 0, 600, 240, 0, 0, 1]\n")
+                .find("focal lengths must be positive"),
+            std::string::npos);
+  EXPECT_NE(error_of("d3.yaml", size + k +
+                                    "distortion_model: plumb_bob\ndistortion_coefficients:\n  rows: 1\n"
+                                    "  cols: 3\n  data: [0.1, 0, 0]\n")
+                .find("d3.yaml: distortion_coefficients: plumb_bob has 5 coefficients"),
+            std::string::npos);
+  EXPECT_NE(error_of("rp5.yaml", size + k +
+                                     "distortion_model: rational_polynomial\ndistortion_coefficients:\n"
+                                     "  rows: 1\n  cols: 5\n  data: [0.1, 0, 0, 0, 0]\n")
+                .find("rp5.yaml: distortion_coefficients: rational_polynomial has 8 coefficients"),
+            std::string::npos);
+  EXPECT_NE(error_of("fish.yaml", size + k +
+                                      "distortion_model: equidistant\ndistortion_coefficients:\n"
+                                      "  rows: 1\n  cols: 4\n  data: [0.1, 0.01, 0, 0]\n")
+                .find("fish.yaml: distortion_model: 'equidistant' (fisheye) is not supported"),
+            std::string::npos);
+  EXPECT_NE(error_of("what.yaml", size + k + "distortion_model: bob\n")
+                .find("what.yaml: distortion_model: unknown model 'bob'"),
+            std::string::npos);
+  EXPECT_NE(error_of("nomodel.yaml", size + k +
+                                         "distortion_coefficients:\n  rows: 1\n  cols: 5\n"
+                                         "  data: [0.1, -0.2, 0, 0, 0]\n")
+                .find("nomodel.yaml: distortion_model: missing"),
+            std::string::npos);
+  EXPECT_NE(error_of("typo.yaml", size + k +
+                                      "distortion_coeficients:\n  rows: 1\n  cols: 5\n"
+                                      "  data: [0.1, -0.2, 0, 0, 0]\n")
+                .find("typo.yaml: distortion_coeficients: unknown field (line 7)"),
+            std::string::npos);
+  EXPECT_NE(error_of("rect.yaml", size + k + d5 +
+                                      "rectification_matrix:\n  rows: 3\n  cols: 3\n"
+                                      "  data: [1, 0, 0, 0, 2, 0, 0, 0, 1]\n")
+                .find("rect.yaml: rectification_matrix: is not a rotation"),
+            std::string::npos);
+  EXPECT_NE(error_of("p33.yaml", size + k + d5 +
+                                     "projection_matrix:\n  rows: 3\n  cols: 3\n"
+                                     "  data: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n")
+                .find("p33.yaml: projection_matrix: must be 3x4"),
+            std::string::npos);
+  EXPECT_NE(error_of("broken.yaml", size + "camera_matrix:\n  rows: 3\n  data: [1, 2\n")
+                .find("broken.yaml: not valid YAML (line"),
+            std::string::npos);
+  EXPECT_NE(error_of("list.yaml", "- 1\n- 2\n").find("list.yaml: not a ROS camera_info file"), std::string::npos);
 }
 
 TEST(Extrinsics, LoadsRotationOrRpyAndRejectsBadInput) {
