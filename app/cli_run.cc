@@ -47,6 +47,9 @@ int RunCommandLine(CLI::App& app, const char* program, int argc, char** argv) {
   } catch (const visco::InputError& e) {
     std::fprintf(stderr, "%s: %s\n", program, e.what());
     return 2;
+  } catch (const visco::Incomplete& e) {
+    std::fprintf(stderr, "%s: %s\n", program, e.what());
+    return 3;
   } catch (const visco::JobFailed& e) {
     std::fprintf(stderr, "%s: %s\n", program, e.what());
     return 1;

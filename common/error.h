@@ -1,6 +1,7 @@
 #pragma once
-// The two ways visco reports failure to users (docs/formats.md): bad input exits 2 with
-// "visco: FILE: OBJECT: what is wrong"; a job that ran and failed exits 1.
+// The ways visco reports failure to users (docs/formats.md): bad input exits 2 with
+// "visco: FILE: OBJECT: what is wrong"; a job that ran and failed exits 1; one whose input was partly damaged or
+// missing, and whose answer covers only the rest, exits 3.
 
 #include <stdexcept>
 #include <string>
@@ -34,6 +35,14 @@ class InputError : public std::runtime_error {
 class JobFailed : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
+};
+
+/// The job ran, and what it could check passed, but part of its input was damaged or missing, so the answer covers
+/// only part of it (for example: `visco replay --check` on a log with skipped bytes). `visco` prints "visco: <what>"
+/// and exits 3.
+class Incomplete : public JobFailed {
+ public:
+  using JobFailed::JobFailed;
 };
 
 }  // namespace visco

@@ -34,11 +34,15 @@ void RunOnce(const ReplayOptions& o, int loop, int loops) {
   std::fprintf(stderr, "replay: %lld frame(s) through vision (%lld rejected as live), %lld message(s) produced%s",
                static_cast<long long>(s.frames), static_cast<long long>(s.bad_frames),
                static_cast<long long>(s.produced), o.publish ? "" : " (not published: --no-publish)");
+  const CheckVerdict verdict = JudgeCheck(s);
   if (o.check) {
     std::fprintf(stderr, ", %lld compared (%lld vision message(s), %lld controller period(s)), %s\n",
                  static_cast<long long>(s.compared_total()), static_cast<long long>(s.compared),
                  static_cast<long long>(s.control_compared),
-                 s.identical() ? "identical" : (s.differences.empty() ? "nothing compared" : "DIFFERENT"));
+                 verdict == CheckVerdict::kIdentical ? "identical"
+                 : verdict == CheckVerdict::kIncomplete
+                     ? "identical as far as compared, but the LOG IS INCOMPLETE"
+                     : (s.differences.empty() ? "nothing compared" : "DIFFERENT"));
   } else {
     std::fprintf(stderr, "\n");
   }
@@ -57,6 +61,11 @@ void RunOnce(const ReplayOptions& o, int loop, int loops) {
     throw JobFailed("replay --check: first difference on " + d.channel + " at log time " + std::to_string(d.log_utime) +
                     " (" + where + "), field " + d.field.field + ": log " + d.field.logged + ", replay " +
                     d.field.replayed);
+  }
+  if (o.check && verdict == CheckVerdict::kIncomplete) {
+    throw Incomplete("replay --check: " + o.log_path + " is incomplete (" + IncompleteLogReason(s) + "): the " +
+                     std::to_string(s.compared_total()) +
+                     " message(s) and period(s) compared are identical, what is damaged or missing was not checked");
   }
   if (s.stopped_at_step) throw Interrupted();
 }

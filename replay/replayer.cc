@@ -328,6 +328,7 @@ LogIndex ReadLog(const ReplayOptions& o, ReplaySummary& s) {
   for (std::size_t i = 0; i < index.events.size(); ++i) {
     const LogEvent& e = index.events[i];
     const std::string channel(e.channel);
+    if (i > 0 && SecondsBetween(index.events[i - 1].timestamp, e.timestamp) < -1.0) ++s.timestamps_backwards;
     if (!Known(channel, o.prefix)) ++s.unknown_channels[channel];
     if (channel == channels::kCameraImage) {
       if (index.images++ == 0) first_image = e.timestamp;
@@ -666,6 +667,7 @@ void ReplayController(const ReplayOptions& o, LogIndex& log, const ReplayedVisio
   }
   if (log.annotation < 0) {
     s.control_note = "the log holds controller records but not the run's configuration (the run did not end normally)";
+    s.control_incomplete = true;
     return;
   }
   if (vision.differs) {
@@ -685,6 +687,7 @@ void ReplayController(const ReplayOptions& o, LogIndex& log, const ReplayedVisio
     controller_cycle_t m;
     if (!DecodeAs(e, m)) {
       ++s.undecodable;
+      s.control_incomplete = true;
       AddNote(s, "event " + std::to_string(e.number) + " on " + control::kCycleChannel +
                      " does not decode as visco.controller_cycle_t: skipped");
       continue;
@@ -694,6 +697,7 @@ void ReplayController(const ReplayOptions& o, LogIndex& log, const ReplayedVisio
     if (m.cycle != previous_cycle + 1) {
       s.control_note = "period records missing before cycle " + std::to_string(m.cycle) +
                        " (dropped by the run's recorder or the log): the controller is compared up to there";
+      s.control_incomplete = true;
       break;
     }
     previous_cycle = m.cycle;
@@ -786,11 +790,41 @@ ReplaySummary RunReplay(const ReplayOptions& o) {
   return s;
 }
 
+CheckVerdict JudgeCheck(const ReplaySummary& s) {
+  if (!s.identical()) return CheckVerdict::kDifferent;
+  return IncompleteLogReason(s).empty() ? CheckVerdict::kIdentical : CheckVerdict::kIncomplete;
+}
+
+std::string IncompleteLogReason(const ReplaySummary& s) {
+  std::vector<std::string> parts;
+  if (s.log.skipped_ranges > 0) {
+    parts.push_back(std::to_string(s.log.skipped_bytes) + " byte(s) skipped in " +
+                    std::to_string(s.log.skipped_ranges) + " range(s)" +
+                    (s.log.truncated_tail ? " (the file ends in a cut-off event)" : ""));
+  }
+  if (s.log.number_gaps > 0) {
+    parts.push_back(std::to_string(s.log.missing_numbers) + " event(s) missing by their numbers");
+  }
+  if (s.timestamps_backwards > 0) {
+    parts.push_back(std::to_string(s.timestamps_backwards) + " timestamp(s) more than 1 s before the previous event's");
+  }
+  if (s.undecodable > 0) parts.push_back(std::to_string(s.undecodable) + " message(s) that do not decode");
+  std::int64_t unknown = 0;
+  for (const auto& [channel, count] : s.unknown_channels) unknown += channel.rfind("VISCO_", 0) == 0 ? count : 0;
+  if (unknown > 0) parts.push_back(std::to_string(unknown) + " event(s) on unknown VISCO_ channels (damaged names?)");
+  if (s.control_incomplete) parts.push_back("the controller's records are incomplete: " + s.control_note);
+  std::string out;
+  for (const std::string& p : parts) out += (out.empty() ? "" : "; ") + p;
+  return out;
+}
+
 std::string ReplaySummary::ToJson() const {
   nlohmann::json j;
-  // Claimed only when shown: null without --check; false when --check compared nothing.
+  // Claimed only when shown: null without --check; false when --check compared nothing, found a difference or the
+  // log is not whole (JudgeCheck: a damaged log is never called identical).
   j["checked"] = checked;
-  j["identical"] = checked ? nlohmann::json(identical()) : nlohmann::json(nullptr);
+  j["identical"] = checked ? nlohmann::json(JudgeCheck(*this) == CheckVerdict::kIdentical) : nlohmann::json(nullptr);
+  j["incomplete_log"] = IncompleteLogReason(*this);
   j["stopped_at_step"] = stopped_at_step;
   j["seeked_events"] = seeked_events;
   j["images"] = images;

@@ -96,6 +96,12 @@ struct ReplaySummary {
   std::int64_t control_frames_recorded = 0;     // ... from the record (their frame was not replayed)
   std::int64_t control_faults_compared = 0;
   std::string control_note;                              // why the controller was not replayed, if it was not
+  // The controller's records are incomplete: missing or undecodable period records, or records without the run's
+  // configuration (written at the end: a log cut off). Its comparison covers only part of the run.
+  bool control_incomplete = false;
+  // Events whose receive time is more than a second before the previous event's (a damaged timestamp: logs written
+  // by visco's or LCM's logger go back by a few milliseconds at most, when two threads of one process publish).
+  std::int64_t timestamps_backwards = 0;
   std::map<std::string, std::int64_t> unknown_channels;  // channel -> events
   std::vector<std::string> notes;                        // undecodable events and other remarks (the first few)
   double wall_s = 0;
@@ -108,5 +114,17 @@ struct ReplaySummary {
 
 /// Runs the replay. @throws InputError for bad options or a log with nothing usable (exit 2).
 ReplaySummary RunReplay(const ReplayOptions& options);
+
+/// What `visco replay --check` concludes from a summary (docs/replay.md, "Exit statuses").
+enum class CheckVerdict {
+  kIdentical,   ///< exit 0: everything compared is identical, and the log is whole
+  kDifferent,   ///< exit 1: a difference
+  kIncomplete,  ///< exit 3: what could be compared is identical, but part of the log is damaged or missing
+};
+CheckVerdict JudgeCheck(const ReplaySummary& summary);
+/// What is damaged or missing in the log, for users ("" when nothing is): skipped bytes, a cut-off tail, missing
+/// event numbers, timestamps going back, undecodable messages, unknown VISCO_ channels (a damaged name), incomplete
+/// controller records.
+std::string IncompleteLogReason(const ReplaySummary& summary);
 
 }  // namespace visco::replay
