@@ -13,6 +13,7 @@
 #include "planning/cli/commands.h"
 #include "replay/commands.h"
 #include "replay/log_tap.h"
+#include "vision/calibration_commands.h"
 #include "vision/commands.h"
 
 #ifndef VISCO_VERSION
@@ -33,6 +34,7 @@ int main(int argc, char** argv) {
   visco::drivers::RegisterCommands(app);
   visco::planning::RegisterCommands(app);
   visco::vision::RegisterCommands(app);
+  visco::vision::RegisterCalibrationCommands(app);
   visco::control::RegisterCommands(app);
   visco::sim::RegisterCommands(app);
   visco::face_contact::RegisterApoCommand(app);
