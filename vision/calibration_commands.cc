@@ -1,12 +1,14 @@
 #include "vision/calibration_commands.h"
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "common/error.h"
 #include "common/robot_frame.h"
@@ -38,7 +40,7 @@ struct ExtrinsicsArgs {
   std::string out;
 };
 
-nlohmann::json Triple(const Eigen::Vector3d& v, double scale = 1) {
+nlohmann::ordered_json Triple(const Eigen::Vector3d& v, double scale = 1) {
   return {v.x() * scale, v.y() * scale, v.z() * scale};
 }
 

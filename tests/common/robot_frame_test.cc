@@ -4,6 +4,7 @@
 #include "common/robot_frame.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>

@@ -113,7 +113,7 @@ TEST(TableExtrinsics, RenderedFramesErrorWithinReportedUncertainty) {
       if (!prior && !view->pose.ambiguous) prior = view->pose.cMo;
       views.push_back(*view);
     }
-    if (views.size() < frames / 2) {
+    if (static_cast<int>(views.size()) < frames / 2) {
       ++failed_cases;
       continue;
     }
