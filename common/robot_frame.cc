@@ -16,6 +16,33 @@ Eigen::Matrix2d Rotation(double theta) {
   return r;
 }
 
+// Umeyama's least-squares similarity in 2-D, closed form: with the points centred (a from x, b from y), the rotation
+// angle is atan2(sum a x b, sum a . b) and the scale sqrt((sum a . b)^2 + (sum a x b)^2) / sum |a|^2.
+// (Eigen::umeyama does the same through an SVD; GCC 12 warns inside its vectorised copies.)
+struct Similarity {
+  double theta = 0, scale = 1;
+  Eigen::Vector2d t = Eigen::Vector2d::Zero();
+  double ssr = 0;  // sum of squared residuals
+};
+
+Similarity FitSimilarity(const Eigen::Matrix2Xd& x, const Eigen::Matrix2Xd& y, bool with_scale) {
+  const Eigen::Vector2d mx = x.rowwise().mean(), my = y.rowwise().mean();
+  double dot = 0, cross = 0, norm = 0;
+  for (Eigen::Index i = 0; i < x.cols(); ++i) {
+    const Eigen::Vector2d a = x.col(i) - mx, b = y.col(i) - my;
+    dot += a.dot(b);
+    cross += a.x() * b.y() - a.y() * b.x();
+    norm += a.squaredNorm();
+  }
+  Similarity s;
+  s.theta = std::atan2(cross, dot);
+  s.scale = with_scale ? std::hypot(dot, cross) / norm : 1.0;
+  const Eigen::Matrix2d r = Rotation(s.theta);
+  s.t = my - s.scale * r * mx;
+  for (Eigen::Index i = 0; i < x.cols(); ++i) s.ssr += (y.col(i) - (s.scale * r * x.col(i) + s.t)).squaredNorm();
+  return s;
+}
+
 // RMS distance of points from their centroid.
 double Spread(const Eigen::Matrix2Xd& p) {
   if (p.cols() == 0) return 0;
@@ -59,21 +86,16 @@ RobotFrame FitRobotFrame(const std::vector<FramePoint>& points, bool with_scale,
   }
   RobotFrame f;
   f.with_scale = with_scale;
-  const Eigen::Matrix3d m = Eigen::umeyama(x, y, with_scale);
-  f.theta = std::atan2(m(1, 0), m(0, 0));
-  f.scale = with_scale ? std::hypot(m(0, 0), m(1, 0)) : 1.0;
-  f.t = m.block<2, 1>(0, 2);
-  // Umeyama keeps a proper rotation. A command frame whose axes are mirrored (left-handed) against the world's fits
-  // a reflection far better: say so rather than return the best rotation with large residuals.
+  const Similarity fit = FitSimilarity(x, y, with_scale);
+  f.theta = fit.theta;
+  f.scale = fit.scale;
+  f.t = fit.t;
+  // A proper rotation is fitted. A command frame whose axes are mirrored (left-handed) against the world's fits a
+  // reflection far better: say so rather than return the best rotation with large residuals.
   {
     Eigen::Matrix2Xd y_mirror = y;
     y_mirror.row(1) *= -1;
-    const Eigen::Matrix3d mm = Eigen::umeyama(x, y_mirror, with_scale);
-    double ssr = 0, ssr_mirror = 0;
-    for (int i = 0; i < k; ++i) {
-      ssr += (y.col(i) - (m.block<2, 2>(0, 0) * x.col(i) + f.t)).squaredNorm();
-      ssr_mirror += (y_mirror.col(i) - (mm.block<2, 2>(0, 0) * x.col(i) + mm.block<2, 1>(0, 2))).squaredNorm();
-    }
+    const double ssr = fit.ssr, ssr_mirror = FitSimilarity(x, y_mirror, with_scale).ssr;
     if (ssr_mirror < 0.01 * ssr && ssr > kDistinct * kDistinct * k) {
       throw InputError(source, "points",
                        "the robot's command axes are mirrored against the world's (a reflection fits " +

@@ -33,7 +33,7 @@ struct RobotFrame {
   Eigen::Vector2d ToWorld(const Eigen::Vector2d& p_r) const;
 };
 
-/// Least-squares fit (Umeyama's closed form, then the parameters' covariance from the Jacobian). Refused, with
+/// Least-squares fit (Umeyama's closed form in 2-D, then the parameters' covariance from the Jacobian). Refused, with
 /// InputError(`source`, "points", ...), when the points do not determine the transform: fewer than two distinct
 /// commanded positions, or (with scale) observed positions that all coincide, or non-finite numbers.
 RobotFrame FitRobotFrame(const std::vector<FramePoint>& points, bool with_scale, const std::string& source = "points");
