@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <random>
 #include <vector>
 
@@ -73,7 +74,7 @@ TEST(TableExtrinsics, CovarianceTransferMatchesFiniteDifferences) {
 }
 
 // Over seeded random camera poses (0.45-0.9 m above a 10 cm tag lying on the table at a known pose, looking at it
-// from up to ~45 degrees off vertical), 8 rendered frames each (blur, noise; each frame its own noise, as from a
+// from up to ~45 degrees off vertical), 6 rendered frames each (blur, noise; each frame its own noise, as from a
 // still camera): every component of the error of the estimate against the true pose (rotation and position per
 // world axis) within 3 of the reported sigmas in at least 95 % of the cases, and the sigmas small enough to matter.
 TEST(TableExtrinsics, RenderedFramesErrorWithinReportedUncertainty) {
@@ -88,7 +89,9 @@ TEST(TableExtrinsics, RenderedFramesErrorWithinReportedUncertainty) {
   scene.tags.push_back({tag.family, tag.id, tag.size, tag.wMt});
   std::mt19937 rng(4040);
   std::uniform_real_distribution<double> unit(-1, 1), height(0.45, 0.9);
-  const int cases = 30, frames = 8;
+  // 20 cases in CI (~6 s); VISCO_EXTRINSICS_CASES=N for more (the figures in docs/camera.md).
+  const char* env = std::getenv("VISCO_EXTRINSICS_CASES");
+  const int cases = env != nullptr ? std::max(1, std::atoi(env)) : 20, frames = 6;
   int within = 0, failed_cases = 0;
   std::vector<double> position_sd, rotation_sd, z_scores;
   double worst_position_error = 0, worst_rotation_error = 0;
@@ -107,6 +110,7 @@ TEST(TableExtrinsics, RenderedFramesErrorWithinReportedUncertainty) {
       ro.blur_sigma = 0.6;
       ro.noise_stddev = 2;
       ro.seed = static_cast<std::uint32_t>(1000 * i + f + 1);
+      ro.supersample = 2;
       const GrayImage image = Render(camera, truth, scene, ro);
       const auto view = ObserveTableTag(detector, image.view(), camera, tag, pose_options, prior);
       if (!view) continue;
@@ -153,13 +157,13 @@ TEST(TableExtrinsics, PlacementUncertaintyIsAddedAndSpreadAveraged) {
   TableTag tag;
   tag.size = 0.1;
   tag.position_stddev_m = 0.001;
-  TableTagView a, b;
-  a.wMc = b.wMc = Eigen::Isometry3d::Identity();
-  a.wMc.translation() = Eigen::Vector3d(0.001, 0, 1);
-  b.wMc.translation() = Eigen::Vector3d(-0.001, 0, 1);
-  a.unit_covariance = b.unit_covariance = Eigen::Matrix<double, 6, 6>::Zero();
-  a.pose.rms_error_px = b.pose.rms_error_px = 0;
-  const TableExtrinsics e = CombineTableTagViews({a, b}, tag);
+  std::vector<TableTagView> views(2);  // filled in place (GCC 12 misreads copies of the empty optional inside)
+  for (int i = 0; i < 2; ++i) {
+    views[i].wMc = Eigen::Isometry3d::Identity();
+    views[i].wMc.translation() = Eigen::Vector3d(i == 0 ? 0.001 : -0.001, 0, 1);
+    views[i].unit_covariance = Eigen::Matrix<double, 6, 6>::Zero();
+  }
+  const TableExtrinsics e = CombineTableTagViews(views, tag);
   EXPECT_NEAR(e.wMc.translation().x(), 0, 1e-15);
   EXPECT_NEAR(e.spread(3, 3), 2e-6, 1e-15);
   EXPECT_NEAR(e.covariance(3, 3), 1e-6 + 1e-6, 1e-15);  // spread / 2 + placement
