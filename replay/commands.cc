@@ -24,6 +24,7 @@ void RunOnce(const ReplayOptions& o, int loop, int loops) {
                  static_cast<long long>(count));
   }
   for (const std::string& note : s.notes) std::fprintf(stderr, "replay: %s\n", note.c_str());
+  for (const std::string& m : s.config_mismatches) std::fprintf(stderr, "replay: mismatch: %s\n", m.c_str());
   std::printf("%s\n", s.ToJson().c_str());
   std::fflush(stdout);
   if (!s.control_note.empty()) std::fprintf(stderr, "replay: controller: %s\n", s.control_note.c_str());
@@ -105,7 +106,7 @@ void RegisterCommands(CLI::App& app) {
   cmd->add_option("--start-utime", o->start_utime,
                   "capture time of a folder's or video's first frame, microseconds since the epoch")
       ->capture_default_str();
-  vision::AddPipelineConfigOptions(*cmd, o->pipeline);
+  vision::AddPipelineConfigOptions(*cmd, o->pipeline, vision::ConfigDefaults::kLog);
   cmd->add_flag("--fast", o->fast, "as fast as possible instead of at the log's pace");
   cmd->add_option("--speed", o->speed, "pace as a multiple of the log's")->capture_default_str();
   cmd->add_option("--from", o->from_s,

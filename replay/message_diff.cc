@@ -65,6 +65,7 @@ void Compare(Differ& d, const tag_detections_t& a, const tag_detections_t& b) {
   d.Field("frame_utime", a.frame_utime, b.frame_utime);
   d.Field("frame_seq", a.frame_seq, b.frame_seq);
   d.Field("camera", a.camera, b.camera);
+  d.Field("pixel_digest", a.pixel_digest, b.pixel_digest);
   d.Field("num_detections", a.num_detections, b.num_detections);
   for (std::size_t i = 0; i < a.detections.size() && i < b.detections.size(); ++i) {
     Compare(d, "detections[" + std::to_string(i) + "].", a.detections[i], b.detections[i]);

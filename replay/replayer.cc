@@ -24,6 +24,7 @@
 #include "control/run.h"
 #include "lcmtypes/channels.h"
 #include "replay/safe_decode.h"
+#include "visco/camera_info_t.hpp"
 #include "visco/controller_cycle_t.hpp"
 #include "visco/fault_t.hpp"
 #include "visco/image_t.hpp"
@@ -33,6 +34,7 @@
 #include "visco/tag_detections_t.hpp"
 #include "visco/velocity_command_t.hpp"
 #include "visco/visual_events_t.hpp"
+#include "vision/camera_info.h"
 #include "vision/pipeline.h"
 
 namespace visco::replay {
@@ -44,13 +46,30 @@ double SecondsBetween(std::int64_t from, std::int64_t to) {
 }
 
 const std::set<std::string>& KnownChannels() {
-  static const std::set<std::string> known = {
-      channels::kCameraImage,     channels::kTagDetections,   channels::kObjectPoses, channels::kRobotEstimate,
-      channels::kVisualEvents,    channels::kStrategy,        channels::kCommand,     channels::kStatus,
-      channels::kTelemetry,       channels::kFault,           channels::kEstop,       channels::kHeartbeatController,
-      channels::kHeartbeatDriver, channels::kHeartbeatVision, control::kCycleChannel, control::kAnnotationChannel,
-      channels::kSimTruth};
+  static const std::set<std::string> known = {channels::kCameraImage,     channels::kTagDetections,
+                                              channels::kObjectPoses,     channels::kRobotEstimate,
+                                              channels::kVisualEvents,    channels::kStrategy,
+                                              channels::kCommand,         channels::kStatus,
+                                              channels::kTelemetry,       channels::kFault,
+                                              channels::kEstop,           channels::kHeartbeatController,
+                                              channels::kHeartbeatDriver, channels::kHeartbeatVision,
+                                              control::kCycleChannel,     control::kAnnotationChannel,
+                                              channels::kSimTruth,        vision::kVisionConfigChannel,
+                                              channels::kCameraInfo};
   return known;
+}
+
+// An unknown channel that is visco's by its name (VISCO_...) or one of visco's with up to 3 characters changed: a
+// damaged name rather than another program's channel on the bus.
+bool LooksLikeDamagedName(const std::string& channel) {
+  if (channel.rfind("VISCO_", 0) == 0) return true;
+  for (const std::string& known : KnownChannels()) {
+    if (known.size() != channel.size()) continue;
+    int changed = 0;
+    for (std::size_t i = 0; i < known.size(); ++i) changed += known[i] != channel[i] ? 1 : 0;
+    if (changed <= 3) return true;
+  }
+  return false;
 }
 
 bool Known(const std::string& channel, const std::string& prefix) {
@@ -308,6 +327,8 @@ struct LogIndex {
   std::int64_t images = 0;
   std::vector<std::size_t> cycles;  // the controller's period records
   std::int64_t annotation = -1;     // the run's configuration (-1: none)
+  std::string vision_config;              // the live vision's configuration (the first one in the log), "" if none
+  std::vector<std::size_t> camera_infos;  // the calibrations on VISCO_CAMERA_INFO
   // The controller's faults by utime (the period's), overrun warnings aside; taken once compared.
   std::map<std::int64_t, std::deque<std::size_t>> controller_faults;
 };
@@ -335,6 +356,11 @@ LogIndex ReadLog(const ReplayOptions& o, ReplaySummary& s) {
       last_image = e.timestamp;
     }
     if (channel == control::kCycleChannel) index.cycles.push_back(i);
+    if (channel == channels::kCameraInfo) index.camera_infos.push_back(i);
+    if (channel == vision::kVisionConfigChannel && index.vision_config.empty()) {
+      log_annotation_t a;
+      if (DecodeAs(e, a) && a.kind == vision::kVisionConfigKind) index.vision_config = a.text;
+    }
     if (channel == control::kAnnotationChannel) {
       log_annotation_t a;
       if (DecodeAs(e, a) && a.kind == "controller_config") index.annotation = static_cast<std::int64_t>(i);
@@ -362,6 +388,28 @@ LogIndex ReadLog(const ReplayOptions& o, ReplaySummary& s) {
                      "the live run with --log on a process of its bus");
   }
   return index;
+}
+
+// Vision's configuration: files and options given on the command line win; the rest is the live run's, from the
+// log (VISCO_VISION_CONFIG). The calibration vision ran with: the one its configuration names, else the log's first.
+// Fills the summary's config_from_log and config_mismatches. @throws InputError.
+vision::LoadedPipeline ResolveVisionConfig(const ReplayOptions& o, const LogIndex& log, ReplaySummary& s) {
+  std::optional<vision::CameraCalibration> calibration;
+  const std::string calibration_source = vision::VisionConfigCalibrationSource(log.vision_config);
+  for (std::size_t i : log.camera_infos) {
+    camera_info_t m;
+    if (!DecodeAs(log.events[i], m)) continue;
+    if (calibration && m.source != calibration_source) continue;
+    try {
+      calibration = vision::DecodeCameraInfo(m, o.log_path + ": event " + std::to_string(log.events[i].number));
+    } catch (const InputError& e) {
+      AddNote(s, std::string("unusable calibration: ") + e.what());
+      continue;
+    }
+    if (m.source == calibration_source) break;
+  }
+  return vision::ResolvePipelineConfig(o.pipeline, log.vision_config, calibration, o.log_path, s.config_mismatches,
+                                       s.config_from_log);
 }
 
 // Pacing by the gaps between consecutive events, each at most 1 s (a damaged timestamp must not stall the replay);
@@ -769,14 +817,18 @@ void ReplayController(const ReplayOptions& o, LogIndex& log, const ReplayedVisio
 
 ReplaySummary RunReplay(const ReplayOptions& o) {
   const std::regex channel_filter = CheckOptions(o);
-  const vision::LoadedPipeline loaded = vision::LoadPipelineConfig(o.pipeline);
-  if (o.log_path.empty()) return ReplaySource(o, loaded);
+  if (o.log_path.empty()) {
+    std::vector<std::string> mismatches, from_log;
+    const std::string source = o.images_dir.empty() ? o.video_path : o.images_dir;
+    return ReplaySource(o, vision::ResolvePipelineConfig(o.pipeline, "", std::nullopt, source, mismatches, from_log));
+  }
 
   const auto wall_start = std::chrono::steady_clock::now();
   ReplaySummary s;
   s.publishing = o.publish;
   s.checked = o.check;
   LogIndex log = ReadLog(o, s);
+  const vision::LoadedPipeline loaded = ResolveVisionConfig(o, log, s);
   Outputs outputs(o);
   const ReplayedVision vision = ReplayVision(o, channel_filter, loaded, log, outputs, s);
   ReplayController(o, log, vision, outputs, s);
@@ -810,8 +862,10 @@ std::string IncompleteLogReason(const ReplaySummary& s) {
   }
   if (s.undecodable > 0) parts.push_back(std::to_string(s.undecodable) + " message(s) that do not decode");
   std::int64_t unknown = 0;
-  for (const auto& [channel, count] : s.unknown_channels) unknown += channel.rfind("VISCO_", 0) == 0 ? count : 0;
-  if (unknown > 0) parts.push_back(std::to_string(unknown) + " event(s) on unknown VISCO_ channels (damaged names?)");
+  for (const auto& [channel, count] : s.unknown_channels) unknown += LooksLikeDamagedName(channel) ? count : 0;
+  if (unknown > 0) {
+    parts.push_back(std::to_string(unknown) + " event(s) on unknown channels named like visco's (damaged names)");
+  }
   if (s.control_incomplete) parts.push_back("the controller's records are incomplete: " + s.control_note);
   std::string out;
   for (const std::string& p : parts) out += (out.empty() ? "" : "; ") + p;
@@ -865,6 +919,7 @@ std::string ReplaySummary::ToJson() const {
                   {"frames_recorded", control_frames_recorded},
                   {"faults_compared", control_faults_compared},
                   {"note", control_note}};
+  j["config"] = {{"from_log", config_from_log}, {"mismatches", config_mismatches}};
   j["unknown_channels"] = unknown_channels;
   j["notes"] = notes;
   j["wall_s"] = wall_s;

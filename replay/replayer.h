@@ -95,7 +95,7 @@ struct ReplaySummary {
   std::int64_t control_frames_from_vision = 0;  // periods whose visual input came from the replayed vision
   std::int64_t control_frames_recorded = 0;     // ... from the record (their frame was not replayed)
   std::int64_t control_faults_compared = 0;
-  std::string control_note;                              // why the controller was not replayed, if it was not
+  std::string control_note;  // why the controller was not replayed, if it was not
   // The controller's records are incomplete: missing or undecodable period records, or records without the run's
   // configuration (written at the end: a log cut off). Its comparison covers only part of the run.
   bool control_incomplete = false;
@@ -103,7 +103,9 @@ struct ReplaySummary {
   // by visco's or LCM's logger go back by a few milliseconds at most, when two threads of one process publish).
   std::int64_t timestamps_backwards = 0;
   std::map<std::string, std::int64_t> unknown_channels;  // channel -> events
-  std::vector<std::string> notes;                        // undecodable events and other remarks (the first few)
+  std::vector<std::string> config_from_log;    // what of vision's configuration came from the log (VISCO_VISION_CONFIG)
+  std::vector<std::string> config_mismatches;  // files or options given that differ from the log's
+  std::vector<std::string> notes;              // undecodable events and other remarks (the first few)
   double wall_s = 0;
   /// Messages and controller periods compared with the log.
   std::int64_t compared_total() const { return compared + control_compared; }

@@ -10,6 +10,7 @@
 #include <exception>
 #include <span>
 
+#include "visco/camera_info_t.hpp"
 #include "visco/controller_cycle_t.hpp"
 #include "visco/image_t.hpp"
 #include "visco/object_poses_t.hpp"
@@ -66,11 +67,20 @@ inline bool CountsFit(std::span<const std::uint8_t> b, const image_t*) {
   c.Count(1);  // size -> data
   return c.ok();
 }
+inline bool CountsFit(std::span<const std::uint8_t> b, const camera_info_t*) {
+  Cursor c(b);
+  c.Skip(8);   // utime
+  c.String();  // camera
+  c.String();  // source
+  c.Skip(41);  // width, height, px, py, u0, v0, distortion_model
+  c.Count(8);  // num_distortion -> distortion
+  return c.ok();
+}
 inline bool CountsFit(std::span<const std::uint8_t> b, const tag_detections_t*) {
   Cursor c(b);
   c.Skip(24);                                         // utime, frame_utime, frame_seq
   c.String();                                         // camera
-  c.Skip(8);                                          // processing_time_s
+  c.Skip(16);                                         // processing_time_s, pixel_digest
   c.Count(8 + 5 + 4 + 64 + 8 + 4 + 24 + 32 + 8 + 1);  // tag_detection_t, its family string at least 1 byte
   return c.ok();
 }

@@ -10,12 +10,15 @@
 #include <lcm/lcm-cpp.hpp>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <thread>
 
 #include "common/error.h"
 #include "common/event_log.h"
 #include "lcmtypes/channels.h"
+#include "visco/log_annotation_t.hpp"
 #include "vision/camera.h"
+#include "vision/camera_info.h"
 #include "vision/detect_json.h"
 #include "vision/image.h"
 #include "vision/multi_tag_pose.h"
@@ -37,7 +40,28 @@ V4l2Options NoCamera() {
   return o;
 }
 
+// The first calibration on VISCO_CAMERA_INFO within `timeout_s`. @throws InputError if none comes or it is bad.
+CameraCalibration WaitForCalibration(lcm::LCM& bus, double timeout_s) {
+  struct Catch {
+    std::optional<visco::camera_info_t> message;
+    void Handle(const lcm::ReceiveBuffer*, const std::string&, const visco::camera_info_t* m) {
+      if (!message) message = *m;
+    }
+  } first;
+  lcm::Subscription* subscription = bus.subscribe(channels::kCameraInfo, &Catch::Handle, &first);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
+  while (!first.message && std::chrono::steady_clock::now() < deadline) bus.handleTimeout(100);
+  bus.unsubscribe(subscription);
+  if (!first.message) {
+    throw InputError("command line", "--camera/--extrinsics",
+                     "not given, and no calibration came on " + std::string(channels::kCameraInfo) + " within " +
+                         std::to_string(timeout_s) + " s (is the camera process running? give the files instead)");
+  }
+  return DecodeCameraInfo(*first.message, channels::kCameraInfo);
+}
+
 struct TrackArgs {
+  double calibration_timeout_s = 5;
   PipelineConfig pipeline;
   std::string images, video;
   V4l2Options v4l2 = NoCamera();  // device empty: no V4L2 camera
@@ -69,11 +93,11 @@ void RunTrack(const TrackArgs& a) {
   const int inputs =
       (a.images.empty() ? 0 : 1) + (a.video.empty() ? 0 : 1) + (a.lcm_input ? 1 : 0) + (a.v4l2.device.empty() ? 0 : 1);
   if (inputs != 1) throw InputError("command line", "--images/--video/--lcm/--v4l2", "give exactly one frame source");
-  const LoadedPipeline loaded = LoadPipelineConfig(a.pipeline);
-  const CameraModel& camera = loaded.camera;
-  const Eigen::Isometry3d& wMc = loaded.wMc;
-  const ObjectModels& models = loaded.models;
-  const PipelineOptions& po = loaded.options;
+  if (!a.lcm_input) {
+    // Only a stream on the bus has a calibration beside it.
+    if (a.pipeline.camera.empty()) throw InputError("command line", "--camera", "required without --lcm");
+    if (a.pipeline.extrinsics.empty()) throw InputError("command line", "--extrinsics", "required without --lcm");
+  }
   // The event log records the bus from before the first frame (it is opened first).
   std::unique_ptr<EventLogTap> log = OpenEventLog(a.log, a.lcm_url);
   std::unique_ptr<lcm::LCM> bus;
@@ -81,6 +105,22 @@ void RunTrack(const TrackArgs& a) {
     bus = std::make_unique<lcm::LCM>(a.lcm_url);
     if (!bus->good()) throw InputError("command line", "--lcm-url", "cannot open LCM bus '" + a.lcm_url + "'");
   }
+  // Without calibration files, the camera process's calibration from VISCO_CAMERA_INFO (files given still win).
+  std::optional<CameraCalibration> bus_calibration;
+  if (a.lcm_input && (a.pipeline.camera.empty() || a.pipeline.extrinsics.empty())) {
+    bus_calibration = WaitForCalibration(*bus, a.calibration_timeout_s);
+  }
+  std::vector<std::string> mismatches, from_bus;
+  const LoadedPipeline loaded =
+      ResolvePipelineConfig(a.pipeline, "", bus_calibration, channels::kCameraInfo, mismatches, from_bus);
+  for (const std::string& m : mismatches) std::fprintf(stderr, "track: mismatch: %s\n", m.c_str());
+  if (!from_bus.empty()) {
+    std::fprintf(stderr, "track: calibration from %s (%s)\n", channels::kCameraInfo, loaded.calibration.source.c_str());
+  }
+  const CameraModel& camera = loaded.camera;
+  const Eigen::Isometry3d& wMc = loaded.wMc;
+  const ObjectModels& models = loaded.models;
+  const PipelineOptions& po = loaded.options;
   // The overlay's path is checked (and a video opened, when the calibration gives the frame size) before any frame.
   std::unique_ptr<OverlayWriter> overlay;
   if (!a.overlay.empty()) {
@@ -189,11 +229,35 @@ void RunTrack(const TrackArgs& a) {
       }
     });
   }
+  // The configuration beside the output, at start and every second, so that a log of the bus cut anywhere holds
+  // it and `visco replay` needs no other file (docs/replay.md).
+  visco::log_annotation_t config{};
+  config.source = "track";
+  config.kind = kVisionConfigKind;
+  config.text = VisionConfigToJson(loaded);
+  auto publish_config = [&] {
+    if (!a.publish) return;
+    config.utime = NowUtime();
+    bus->publish(kVisionConfigChannel, &config);
+    // The calibration vision runs with, when it came from files: no camera process published it.
+    if (loaded.calibration_from_files) {
+      const visco::camera_info_t info = EncodeCameraInfo(loaded.calibration, config.utime);
+      bus->publish(channels::kCameraInfo, &info);
+    }
+  };
   g_interrupted = false;
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
+  publish_config();
+  auto next_config = std::chrono::steady_clock::now() + std::chrono::seconds(1);
   thread.Start();
-  while (!g_interrupted && !done && !thread.finished()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  while (!g_interrupted && !done && !thread.finished()) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    if (std::chrono::steady_clock::now() >= next_config) {
+      publish_config();
+      next_config += std::chrono::seconds(1);
+    }
+  }
   thread.Stop();
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
@@ -294,7 +358,12 @@ void RegisterCommands(CLI::App& app) {
       "objects with "
       "their pose decision, tags used and RMS error, events), faults as {\"fault\": ...} lines, and a final "
       "{\"summary\": ...} line.");
-  AddPipelineConfigOptions(*track, targs->pipeline);
+  AddPipelineConfigOptions(*track, targs->pipeline, ConfigDefaults::kBus);
+  track
+      ->add_option("--calibration-timeout", targs->calibration_timeout_s,
+                   "with --lcm and no --camera or --extrinsics: seconds to wait for the camera's calibration on "
+                   "VISCO_CAMERA_INFO (camera_info_t, with its pose for the extrinsics)")
+      ->capture_default_str();
   track->add_option("--images", targs->images, "folder of image files, processed in name order");
   track->add_option("--video", targs->video, "video file (OpenCV)");
   track->add_flag("--lcm", targs->lcm_input, "read image_t frames from VISCO_CAMERA_IMAGE until interrupted");

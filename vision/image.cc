@@ -34,6 +34,23 @@ GrayImage ReadGrayImage(const std::string& path) {
   return out;
 }
 
+std::uint64_t PixelDigest(const GrayImageView& image) {
+  std::uint64_t h = 14695981039346656037ull;
+  auto add = [&h](std::uint8_t byte) {
+    h ^= byte;
+    h *= 1099511628211ull;
+  };
+  for (const int n : {image.width, image.height}) {
+    const auto u = static_cast<std::uint32_t>(n);
+    for (int k = 0; k < 4; ++k) add(static_cast<std::uint8_t>(u >> (8 * k)));
+  }
+  for (int v = 0; v < image.height; ++v) {
+    const std::uint8_t* row = image.data + static_cast<std::size_t>(v) * static_cast<std::size_t>(image.stride);
+    for (int u = 0; u < image.width; ++u) add(row[u]);
+  }
+  return h;
+}
+
 void WriteGrayImage(const GrayImageView& image, const std::string& path) {
   const cv::Mat m(image.height, image.width, CV_8UC1, const_cast<std::uint8_t*>(image.data),
                   static_cast<std::size_t>(image.stride));

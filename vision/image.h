@@ -34,6 +34,11 @@ struct GrayImage {
 /// @throws InputError(path, "", ...) if the file is missing or cannot be decoded.
 GrayImage ReadGrayImage(const std::string& path);
 
+/// A 64-bit digest of the pixels: FNV-1a (offset basis 14695981039346656037, prime 1099511628211) over the width and
+/// the height (4 bytes each, little-endian) and then the rows' `width` bytes, row by row (the stride's padding left
+/// out). Real-time safe: no allocation; about 0.3 ms for 640x480.
+std::uint64_t PixelDigest(const GrayImageView& image);
+
 /// Writes an image (format from the extension). @throws JobFailed if it cannot be written.
 void WriteGrayImage(const GrayImageView& image, const std::string& path);
 

@@ -560,6 +560,7 @@ PipelineOutput VisionPipeline::Process(const Frame& frame, std::int64_t arrival_
   d.frame_seq = frame.seq;
   d.camera = frame.camera.empty() ? options_.camera_name : frame.camera;
   d.processing_time_s = static_cast<double>(done - arrival_utime) * 1e-6;
+  d.pixel_digest = static_cast<std::int64_t>(PixelDigest(frame.image.view()));
   for (const auto& t : tags) {
     visco::tag_detection_t td{};
     td.utime = frame.utime;

@@ -23,7 +23,9 @@
 #include "lcmtypes/channels.h"
 #include "planning/scene.h"
 #include "planning/scene_file.h"
+#include "visco/log_annotation_t.hpp"
 #include "visco/sim_truth_t.hpp"
+#include "vision/camera_info.h"
 #include "vision/pipeline.h"
 #include "vision/pipeline_config.h"
 
@@ -176,6 +178,11 @@ LockstepResult RunLockstep(const LockstepOptions& o) {
   vision::PipelineOptions pipeline_options = loaded.options;
   pipeline_options.clock = now_utime;
   vision::VisionPipeline pipeline(loaded.camera, loaded.wMc, loaded.models, pipeline_options);
+  visco::log_annotation_t config{};
+  config.source = "sim";
+  config.kind = vision::kVisionConfigKind;
+  config.text = vision::VisionConfigToJson(loaded);
+  std::int64_t next_config_utime = std::numeric_limits<std::int64_t>::min();
 
   // The bus, and the log of everything on it (subscribed first).
   lcm::LCM bus("memq://");
@@ -284,6 +291,15 @@ LockstepResult RunLockstep(const LockstepOptions& o) {
     }
     if (image_pending && t == pending_publish) {
       image_pending = false;
+      if (utime >= next_config_utime) {
+        // Vision's configuration and calibration, as `visco track` publishes them: at start and every second
+        // (docs/replay.md).
+        config.utime = utime;
+        bus.publish(vision::kVisionConfigChannel, &config);
+        const visco::camera_info_t info = vision::EncodeCameraInfo(loaded.calibration, utime);
+        bus.publish(channels::kCameraInfo, &info);
+        next_config_utime = utime + 1000000;
+      }
       bus.publish(channels::kCameraImage, &image);
       serve();
       ++result.images;

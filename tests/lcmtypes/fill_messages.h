@@ -68,6 +68,7 @@ inline void Fill(tag_detections_t& m) {
   m.frame_seq = 9;
   m.camera = "cam0";
   m.processing_time_s = 0.011;
+  m.pixel_digest = -4417276706812531889;
   m.detections.resize(2);
   Fill(m.detections[0]);
   Fill(m.detections[1]);

@@ -51,6 +51,7 @@ void ExpectSafe() {
 
 TEST(SafeDecode, TheReplaysTypesRoundTripAndDamagedCountsAreRefused) {
   ExpectSafe<image_t>();
+  ExpectSafe<camera_info_t>();
   ExpectSafe<tag_detections_t>();
   ExpectSafe<object_poses_t>();
   ExpectSafe<visual_events_t>();
