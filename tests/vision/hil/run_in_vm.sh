@@ -3,8 +3,8 @@
 # whose output is looped back to its capture:
 #  1. the capture source itself (gtest): rendered frames byte for byte, sequence numbers, timestamps, vivid's error
 #     injection (dropped buffers, the buffer error flag, no frames, a disconnect and the device's return), bad input;
-#  2. `visco capture` as a process publishing over LCM, and `visco track --lcm` detecting the tags of the frames written
-#     to vivid's output;
+#  2. `visco capture` as a process publishing over LCM, and `visco track --lcm` taking the calibration from the bus
+#     (no --camera, no --extrinsics) and detecting the tags of the frames written to vivid's output;
 #  3. `visco track --v4l2` reading the camera in-process;
 #  4. `visco capture` refusing a calibration whose image size is not the stream's (exit 2);
 #  5. capture-to-publish latency and CPU per frame at 640x480 (vivid's webcam input at 25 Hz, its fastest at that
@@ -37,11 +37,11 @@ HIL_FRAMES="$frames" "$test" --gtest_brief=1 >/tmp/gtest.log 2>&1 || failed
 cat /tmp/gtest.log
 grep -E -A4 'Failure$|\[  FAILED  \]' /tmp/gtest.log | head -n 40 >>/tmp/hil_failures
 
-step "visco capture over LCM, visco track --lcm"
+step "visco capture over LCM, visco track --lcm with the calibration from the bus"
 "$test" --write-frames "$frames" >/tmp/writer.log 2>&1 &
 writer=$!
 sleep 1
-"$visco" track --lcm --lcm-url "$url" $calibration $objects --max-frames 8 --no-publish \
+"$visco" track --lcm --lcm-url "$url" $objects --max-frames 8 --calibration-timeout 120 --no-publish \
   --out "$out/track_lcm.jsonl" 2>"$out/track_lcm.err" &
 track=$!
 "$visco" capture --device /dev/video0 --input 1 --width 640 --height 480 --pixel-format GREY \
@@ -68,13 +68,14 @@ frames = [l for l in track if "seq" in l]
 assert len(frames) >= 8, track[-1]
 assert all(l["robot"]["valid"] for l in frames), frames
 assert all(0 in l["tags"] and 1 in l["tags"] for l in frames), [l["tags"] for l in frames]
+err = open(sys.argv[3]).read()
+assert "track: calibration from VISCO_CAMERA_INFO" in err and "mismatch" not in err, err
 print("capture + track --lcm: ok (%d frames published, %d tracked, robot seen in all)" % (summary["frames"], len(frames)))
 PY
 
 step "visco track --v4l2 (the camera in-process)"
-"$visco" track --v4l2 /dev/video0 --input 1 --pixel-format GREY --camera data/vision/synthetic_camera.xml \
-  --extrinsics data/vision/demo_extrinsics.json $objects --max-frames 8 --no-publish --out "$out/track_v4l2.jsonl" \
-  2>"$out/track_v4l2.err" || failed "track --v4l2 exited $?"
+"$visco" track --v4l2 /dev/video0 --input 1 --pixel-format GREY $calibration $objects --max-frames 8 --no-publish \
+  --out "$out/track_v4l2.jsonl" 2>"$out/track_v4l2.err" || failed "track --v4l2 exited $?"
 kill -TERM $writer 2>/dev/null
 wait $writer
 cat /tmp/writer.log
