@@ -239,6 +239,7 @@ void Report(const Options& a, const Setup& su, const std::vector<RunOutcome>& do
                             {"transport", a.can ? "can" : "lcm"},
                             {"netns", a.netns},
                             {"lockstep", a.lockstep},
+                            {"png_level", a.png_level >= 0 ? nlohmann::json(a.png_level) : nlohmann::json(nullptr)},
                             {"interrupted", g_stop.load()}};
   WriteTextOutput(summary.dump(2) + "\n", (dir / "summary.json").string());
   if (a.runs > 1) WriteTextOutput(MonteCarloSvg(su, done_runs), (dir / "montecarlo.svg").string());
@@ -328,6 +329,10 @@ void RegisterDemoCommand(CLI::App& app) {
   cmd->add_flag("--keep-logs", args->keep_logs,
                 "Monte Carlo: keep every run's LCM logs (default: only the failed runs' logs)");
   cmd->add_option("--timeout", args->timeout_s, "give up a run after this many seconds")->capture_default_str();
+  cmd->add_option("--png-level", args->png_level,
+                  "the rendered camera publishes PNG (lossless) at this zlib level, 0..9, instead of raw grey: smaller "
+                  "logs (run.lcmlog, controller.lcmlog) for CPU per frame (docs/camera.md)")
+      ->check(CLI::Range(0, 9));
   cmd->add_option("--slow-machine", args->slow,
                   "the machine is this many times slower than a 2-core PC (e.g. 10 in the HIL VM's emulated CPU): "
                   "the processes' time limits (vision age, hold, start-up, status, heartbeat, watchdog, --timeout) "

@@ -18,6 +18,7 @@
 #include "lcmtypes/channels.h"
 #include "visco/fault_t.hpp"
 #include "visco/image_t.hpp"
+#include "vision/image_png.h"
 #include "vision/camera_info.h"
 #include "vision/commands.h"
 #include "vision/v4l2_camera.h"
@@ -33,6 +34,7 @@ struct CaptureArgs {
   std::string camera, camera_name, extrinsics, name;
   double info_period_s = 1.0;
   bool decode_mjpeg = false;
+  int png_level = -1;  // >= 0: grey frames published as PNG at this zlib level
   std::string lcm_url;
   std::int64_t max_frames = 0;
   double duration_s = 0;
@@ -102,8 +104,14 @@ void RunCapture(const CaptureArgs& a) {
                channels::kCameraImage,
                a.camera.empty() ? " (no calibration: nothing on VISCO_CAMERA_INFO)" : " and VISCO_CAMERA_INFO");
 
-  // Sized once: nothing is allocated per frame in the steady state.
+  // Sized once: nothing is allocated per frame in the steady state (but in libpng, with --png-level).
   const bool passthrough = stream.format == V4l2PixelFormat::kMjpeg && !a.decode_mjpeg;
+  const bool png = a.png_level >= 0;
+  if (png && passthrough) {
+    throw InputError("command line", "--png-level",
+                     "the stream is MJPEG, which is published as it comes (already compressed); add --decode-mjpeg "
+                     "to publish it decoded, as PNG");
+  }
   const std::size_t pixels = static_cast<std::size_t>(stream.width) * static_cast<std::size_t>(stream.height);
   visco::image_t image{};
   image.camera = name;
@@ -112,9 +120,10 @@ void RunCapture(const CaptureArgs& a) {
   image.row_stride = stream.width;
   image.pixel_format =
       passthrough ? std::int32_t{visco::image_t::PIXEL_FORMAT_MJPEG} : std::int32_t{visco::image_t::PIXEL_FORMAT_GRAY8};
-  // An MJPEG frame is at most what the driver's buffers hold; generously, 4 bytes per pixel.
-  image.data.reserve(passthrough ? 4 * pixels : pixels);
-  image.data.resize(passthrough ? 0 : pixels);
+  // An MJPEG frame is at most what the driver's buffers hold; generously, 4 bytes per pixel. A PNG of a grey frame
+  // is at most its pixels plus the format's overhead (stored blocks, filter bytes): as ample.
+  image.data.reserve(passthrough || png ? 4 * pixels : pixels);
+  image.data.resize(passthrough || png ? 0 : pixels);
   std::vector<std::uint8_t> encoded(image.data.capacity() + 4096 + name.size());
   GrayImage gray(stream.width, stream.height);
 
@@ -167,6 +176,7 @@ void RunCapture(const CaptureArgs& a) {
   std::int64_t next_info = start + static_cast<std::int64_t>(a.info_period_s * 1e6);
   const double cpu_start = CpuSeconds();
   std::int64_t published = 0;
+  std::uint64_t image_bytes = 0;  // image_t.data published
   V4l2Frame frame;
   V4l2Fault fault;
   std::string error;
@@ -207,7 +217,15 @@ void RunCapture(const CaptureArgs& a) {
         bad_frame(error);
         continue;
       }
-      std::copy(gray.pixels.begin(), gray.pixels.end(), image.data.begin());
+      if (png) {
+        PackGrayPng(gray.view(), a.png_level, image);
+        if (image.data.size() > 4 * pixels) {
+          bad_frame("PNG of frame " + std::to_string(frame.seq) + " larger than 4 bytes per pixel");
+          continue;
+        }
+      } else {
+        std::copy(gray.pixels.begin(), gray.pixels.end(), image.data.begin());
+      }
     }
     image.size = static_cast<std::int32_t>(image.data.size());
     const int length = image.encode(encoded.data(), 0, static_cast<int>(encoded.size()));
@@ -216,6 +234,7 @@ void RunCapture(const CaptureArgs& a) {
     }
     const std::int64_t done = MonotonicUs();
     ++published;
+    image_bytes += image.data.size();
     if (capture_to_publish_ms.size() < capture_to_publish_ms.capacity()) {
       capture_to_publish_ms.push_back(static_cast<double>(done - frame.monotonic_us) * 1e-3);
       dequeue_to_publish_ms.push_back(static_cast<double>(done - frame.dequeued_monotonic_us) * 1e-3);
@@ -234,6 +253,8 @@ void RunCapture(const CaptureArgs& a) {
       {"height", stream.height},
       {"fps", stream.fps},
       {"frames", published},
+      {"published_as", passthrough ? "MJPEG" : png ? "PNG" : "GREY"},
+      {"image_bytes_per_frame", published > 0 ? static_cast<double>(image_bytes) / static_cast<double>(published) : 0.0},
       {"dropped", camera.dropped()},
       {"skipped", camera.skipped()},
       {"buffer_errors", camera.errors()},
@@ -296,6 +317,10 @@ void RegisterCaptureCommand(CLI::App& app) {
   c->add_option("--name", a->name, "camera name in image_t.camera (default: the calibration's, else 'camera')");
   c->add_option("--info-period", a->info_period_s, "seconds between VISCO_CAMERA_INFO messages")->capture_default_str();
   c->add_flag("--decode-mjpeg", a->decode_mjpeg, "publish MJPEG frames decoded to grey instead of as they come");
+  c->add_option("--png-level", a->png_level,
+                "publish the grey frames as PNG (lossless; image_t PIXEL_FORMAT_PNG) at this zlib level, 0..9 (1: "
+                "fast): smaller logs for CPU per frame (docs/camera.md); default: raw grey")
+      ->check(CLI::Range(0, 9));
   c->add_option("--lcm-url", a->lcm_url, "LCM provider URL (default: LCM's default)");
   c->add_option("--max-frames", a->max_frames, "stop after publishing this many frames (0: no limit)");
   c->add_option("--duration", a->duration_s, "stop after this many seconds (0: no limit)");

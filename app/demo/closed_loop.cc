@@ -98,6 +98,7 @@ RunOutcome ExecuteLockstepRun(const Setup& su, int r, std::uint64_t seed, const 
   args.insert(args.end(), su.cam.begin(), su.cam.end());
   args.insert(args.end(), {"--camera-hz", fmt::format("{}", std::max(2.0, std::round(15 / a.slow))), "--supersample",
                            a.slow > 1 ? "1" : "2", "--latency-ms", "5", "--image-noise", "2", "--blur-px", "0.5"});
+  if (a.png_level >= 0) args.insert(args.end(), {"--png-level", std::to_string(a.png_level)});
   fs::create_directories(rd / "params");
   const std::vector<std::string> argv = WithParameterFile(su.self, "sim", args, rd / "params" / "lockstep.json");
   nlohmann::json commands = {{"lockstep", argv}};
@@ -202,6 +203,7 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
     camera.insert(camera.end(),
                   {"--camera-hz", fmt::format("{}", std::max(2.0, std::round(15 / a.slow))), "--supersample",
                    a.slow > 1 ? "1" : "2", "--latency-ms", "5", "--image-noise", "2", "--blur-px", "0.5"});
+    if (a.png_level >= 0) camera.insert(camera.end(), {"--png-level", std::to_string(a.png_level)});
   }
   children.push_back(spawn("camera",
                            on_host("camera", WithParameterFile(su.self, "sim", camera, rd / "params" / "camera.json")),

@@ -35,6 +35,7 @@ struct Options {
   bool netns = false;
   bool lockstep = false;  // one process on a simulated clock (`visco sim --lockstep`) instead of the five
   double slow = 1;        // --slow-machine: time limits times this, camera rate and speed divided by it
+  int png_level = -1;     // >= 0: the rendered camera publishes PNG at this zlib level
 };
 
 // What every run of one demo shares.

@@ -6,6 +6,7 @@
 
 #include "common/error.h"
 #include "vision/camera.h"
+#include "vision/image_png.h"
 #include "vision/object_model.h"
 #include "vision/tag_renderer.h"
 
@@ -62,6 +63,7 @@ RenderedCamera::RenderedCamera(const RenderedCameraConfig& config) : impl_(std::
   impl_->models = vision::LoadObjectModels(config.objects_path);
   if (!(config.blur_sigma_px >= 0)) throw InputError("command line", "--blur-px", "must be >= 0");
   if (!(config.noise_gray >= 0)) throw InputError("command line", "--image-noise", "must be >= 0");
+  if (config.png_level > vision::kPngLevelMax) throw InputError("command line", "--png-level", "must be 0..9 (zlib)");
   if (config.supersample < 1 || config.supersample > 8) {
     throw InputError("command line", "--supersample", "must be in 1..8");
   }
@@ -109,6 +111,10 @@ void RenderedCamera::Capture(control::Vec2 q, std::int64_t utime, std::int64_t s
   image.width = picture.width;
   image.height = picture.height;
   image.row_stride = picture.width;
+  if (impl_->config.png_level >= 0) {
+    vision::PackGrayPng(picture.view(), impl_->config.png_level, image);
+    return;
+  }
   image.pixel_format = image_t::PIXEL_FORMAT_GRAY8;
   image.data = picture.pixels;
   image.size = static_cast<std::int32_t>(image.data.size());

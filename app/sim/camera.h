@@ -25,6 +25,7 @@ struct RenderedCameraConfig {
   double noise_gray = 0.0;       // 1-sigma additive Gaussian noise, grey levels
   int supersample = 2;           // sub-samples per pixel side (anti-aliasing)
   std::uint64_t seed = 1;        // image noise seed (frame k uses seed + k: deterministic per frame)
+  int png_level = -1;            // >= 0: publish PNG (lossless, zlib level 0..9) instead of raw grey
 };
 
 /// Frame-by-frame conditions the simulation can impose.
@@ -47,7 +48,8 @@ class RenderedCamera {
   RenderedCamera(const RenderedCamera&) = delete;
   RenderedCamera& operator=(const RenderedCamera&) = delete;
 
-  /// Renders the scene with the robot's reference point at `q` (metres) and fills `image` (GRAY8, row_stride =
+  /// Renders the scene with the robot's reference point at `q` (metres) and fills `image` (GRAY8, or PNG with
+  /// png_level >= 0; row_stride =
   /// width). `utime`/`seq` go into the message unchanged.
   void Capture(control::Vec2 q, std::int64_t utime, std::int64_t seq, const CaptureConditions& conditions,
                image_t& image) const;

@@ -218,6 +218,10 @@ void RegisterCommands(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--supersample", o.render.supersample, "rendered camera: sub-samples per pixel side")
       ->capture_default_str();
+  cmd->add_option("--png-level", o.render.png_level,
+                  "rendered camera: publish its frames as PNG (lossless; image_t PIXEL_FORMAT_PNG) at this zlib level, "
+                  "0..9 (what it costs and saves: docs/camera.md); default: raw grey")
+      ->check(CLI::Range(0, 9));
   cmd->add_option("--occlude", cli->occlude,
                   "fault: hide the robot from the camera from START for DURATION seconds (after start-up)")
       ->expected(2);

@@ -2,7 +2,8 @@
 // the baseline of copying the frame once (memcpy), in the same run: the conversion to grey (GREY copied, YUYV's luma,
 // MJPEG decoded), image_t's encoding into the reused buffer, and its publication on LCM (UDP multicast, ttl=0, no
 // subscriber). Run on the host and in the VM (tests/vision/hil/run_in_vm.sh), it also tells how much the emulated CPU
-// (QEMU TCG) slows this work down: docs/camera.md, "Figures".
+// (QEMU TCG) slows this work down: docs/camera.md, "Figures". And PNG's cost (encoding at several zlib levels, its
+// size, decoding), against the same baseline and raw grey's decoding.
 
 #include <benchmark/benchmark.h>
 
@@ -16,6 +17,8 @@
 
 #include "tests/vision/sliding_robot_world.h"
 #include "visco/image_t.hpp"
+#include "vision/image_png.h"
+#include "vision/pipeline.h"
 #include "vision/v4l2_camera.h"
 
 namespace visco::vision {
@@ -117,6 +120,45 @@ void BM_EncodeAndPublishUdpm(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_EncodeAndPublishUdpm)->UseRealTime();
+
+// Lossless compression (`visco capture --png-level`, `visco sim --png-level`): PNG encoding of the frame at zlib
+// levels 0, 1, 3, 6, 9 (the counter `ratio`: raw bytes / PNG bytes), and its decoding as vision does it.
+void BM_PngEncode(benchmark::State& state) {
+  const GrayImageView view{Gray().data(), kWidth, kHeight, kWidth};
+  visco::image_t m{};
+  for (auto _ : state) {
+    PackGrayPng(view, static_cast<int>(state.range(0)), m);
+    benchmark::DoNotOptimize(m.data.data());
+  }
+  state.counters["ratio"] = static_cast<double>(Gray().size()) / static_cast<double>(m.data.size());
+  state.counters["bytes"] = static_cast<double>(m.data.size());
+}
+BENCHMARK(BM_PngEncode)->Arg(0)->Arg(1)->Arg(3)->Arg(6)->Arg(9);
+
+void BM_PngDecode(benchmark::State& state) {
+  visco::image_t m{};
+  PackGrayPng({Gray().data(), kWidth, kHeight, kWidth}, static_cast<int>(state.range(0)), m);
+  Frame frame;
+  std::string error;
+  for (auto _ : state) {
+    if (!DecodeImageMessage(m, frame, error)) throw std::runtime_error(error);
+    benchmark::DoNotOptimize(frame.image.pixels.data());
+  }
+  if (frame.image.pixels != Gray()) throw std::runtime_error("PNG is not lossless");
+}
+BENCHMARK(BM_PngDecode)->Arg(1)->Arg(6);
+
+// The baseline of the decoding: vision's taking a raw grey message.
+void BM_RawDecode(benchmark::State& state) {
+  const visco::image_t m = Message();
+  Frame frame;
+  std::string error;
+  for (auto _ : state) {
+    if (!DecodeImageMessage(m, frame, error)) throw std::runtime_error(error);
+    benchmark::DoNotOptimize(frame.image.pixels.data());
+  }
+}
+BENCHMARK(BM_RawDecode);
 
 }  // namespace
 }  // namespace visco::vision
