@@ -102,7 +102,12 @@ Outcome Check(const std::vector<std::uint8_t>& bytes, const std::string& path) {
     out.write(reinterpret_cast<const char*>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
   }
   ReplayOptions o;
-  o.log_path = path;  // and no other file: the configuration is the log's
+  o.log_path = path;  // and no other vision file: vision's configuration is the log's
+  // The copy is not beside the fixture, whose controller record names its run's files relative to the fixture's
+  // folder: they are given, as a user replaying a copy elsewhere would.
+  o.strategy_path = "tests/control/data/slot_e2e_plan.json";
+  o.scene_path = "tests/control/data/slot_e2e_scene.json";
+  o.rays_path = "tests/replay/data/slot_e2e_rays.json";
   o.fast = true;
   o.publish = false;
   o.check = true;
