@@ -37,7 +37,9 @@ TEST(ImagePng, RenderedFrameRoundTripsPixelForPixelAndIsSmaller) {
     const GrayImage back = Decoded(m);
     EXPECT_TRUE(back.pixels == picture.pixels) << "level " << level;
     EXPECT_EQ(PixelDigest(back.view()), PixelDigest(picture.view()));
-    if (level > 0) EXPECT_LT(m.data.size(), picture.pixels.size()) << "level " << level;
+    if (level > 0) {
+      EXPECT_LT(m.data.size(), picture.pixels.size()) << "level " << level;
+    }
   }
 }
 
