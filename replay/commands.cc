@@ -40,10 +40,9 @@ void RunOnce(const ReplayOptions& o, int loop, int loops) {
     std::fprintf(stderr, ", %lld compared (%lld vision message(s), %lld controller period(s)), %s\n",
                  static_cast<long long>(s.compared_total()), static_cast<long long>(s.compared),
                  static_cast<long long>(s.control_compared),
-                 verdict == CheckVerdict::kIdentical ? "identical"
-                 : verdict == CheckVerdict::kIncomplete
-                     ? "identical as far as compared, but the LOG IS INCOMPLETE"
-                     : (s.differences.empty() ? "nothing compared" : "DIFFERENT"));
+                 verdict == CheckVerdict::kIdentical    ? "identical"
+                 : verdict == CheckVerdict::kIncomplete ? "identical as far as compared, but the LOG IS INCOMPLETE"
+                                                        : (s.differences.empty() ? "nothing compared" : "DIFFERENT"));
   } else {
     std::fprintf(stderr, "\n");
   }

@@ -18,9 +18,9 @@
 #include "lcmtypes/channels.h"
 #include "visco/fault_t.hpp"
 #include "visco/image_t.hpp"
-#include "vision/image_png.h"
 #include "vision/camera_info.h"
 #include "vision/commands.h"
+#include "vision/image_png.h"
 #include "vision/v4l2_camera.h"
 
 namespace visco::vision {
@@ -253,8 +253,11 @@ void RunCapture(const CaptureArgs& a) {
       {"height", stream.height},
       {"fps", stream.fps},
       {"frames", published},
-      {"published_as", passthrough ? "MJPEG" : png ? "PNG" : "GREY"},
-      {"image_bytes_per_frame", published > 0 ? static_cast<double>(image_bytes) / static_cast<double>(published) : 0.0},
+      {"published_as", passthrough ? "MJPEG"
+                       : png       ? "PNG"
+                                   : "GREY"},
+      {"image_bytes_per_frame",
+       published > 0 ? static_cast<double>(image_bytes) / static_cast<double>(published) : 0.0},
       {"dropped", camera.dropped()},
       {"skipped", camera.skipped()},
       {"buffer_errors", camera.errors()},

@@ -2,6 +2,8 @@
 // message is the picture, pixel for pixel (same PixelDigest, which replay compares), for a rendered noisy frame and
 // random bytes, with strides; the stream is PNG and, for a camera picture, smaller than the raw pixels.
 
+#include "vision/image_png.h"
+
 #include <gtest/gtest.h>
 
 #include <random>
@@ -9,7 +11,6 @@
 
 #include "common/error.h"
 #include "tests/vision/sliding_robot_world.h"
-#include "vision/image_png.h"
 #include "vision/pipeline.h"
 
 namespace visco::vision {
