@@ -325,8 +325,8 @@ struct LogIndex {
   std::set<std::int64_t> vision_frames;  // the frames the live vision process published anything for
   std::int64_t last_vision_frame = 0;
   std::int64_t images = 0;
-  std::vector<std::size_t> cycles;  // the controller's period records
-  std::int64_t annotation = -1;     // the run's configuration (-1: none)
+  std::vector<std::size_t> cycles;        // the controller's period records
+  std::int64_t annotation = -1;           // the run's configuration (-1: none)
   std::string vision_config;              // the live vision's configuration (the first one in the log), "" if none
   std::vector<std::size_t> camera_infos;  // the calibrations on VISCO_CAMERA_INFO
   // The controller's faults by utime (the period's), overrun warnings aside; taken once compared.
