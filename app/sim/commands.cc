@@ -42,6 +42,8 @@ struct SimCli {
   std::string write_world;
   bool lockstep = false;
   std::string strategy;
+  double plant_period_ms = 1.0;
+  double plant_axis_timeout_ms = 100.0;
 };
 
 FaultWindow Window(const std::vector<double>& v, const char* option) {
@@ -59,7 +61,7 @@ void RunLockstepSim(SimCli& cli) {
   const std::pair<bool, const char*> refused[] = {
       {s.no_driver, "--no-driver"},        {!s.can_interface.empty(), "--can"},   {!s.lcm_url.empty(), "--lcm-url"},
       {!cli.occlude.empty(), "--occlude"}, {!cli.blackout.empty(), "--blackout"}, {!cli.stale.empty(), "--stale"},
-      {s.drop_rate != 0, "--drop-rate"}};
+      {s.drop_rate != 0, "--drop-rate"},   {!s.plant.address.empty(), "--plant"}};
   for (const auto& [given, option] : refused) {
     if (given) {
       throw InputError("command line", option,
@@ -129,6 +131,8 @@ void RunSim(SimCli& cli) {
   o.blackout = Window(cli.blackout, "--blackout");
   o.stale = Window(cli.stale, "--stale");
   o.stale_s = cli.stale_ms / 1000.0;
+  o.plant.period_s = cli.plant_period_ms / 1000.0;
+  o.plant.axis_timeout_s = cli.plant_axis_timeout_ms / 1000.0;
   const RenderedCameraConfig& r = o.render;
   if (!r.objects_path.empty() && (r.calibration_path.empty() || r.extrinsics_path.empty())) {
     throw InputError("command line", "--objects", "the rendered camera also needs --camera and --extrinsics");
@@ -233,6 +237,26 @@ void RegisterCommands(CLI::App& app) {
                 "the camera alone: the robot and its driver run in another process (`visco-rt driver --world FILE "
                 "--truth-hz HZ`), whose true state on VISCO_SIM_TRUTH the camera renders (node --node)")
       ->excludes("--can");
+  const std::string plant_group = "Plant of simulated drives (app/sim/plant.h, docs/your_own_robot.md)";
+  cmd->add_option("--plant", o.plant.address,
+                  "the robot is moved by simulated drives in other processes instead of a driver here: listen on "
+                  "UDP HOST:PORT for each axis's actual velocity (the drives'), step the robot's physics with it "
+                  "(the scene's C-obstacles, friction, the velocity cone) and answer each drive with its axis's "
+                  "position and velocity (its encoder); the camera renders the robot there")
+      ->excludes("--can")
+      ->excludes("--no-driver")
+      ->group(plant_group);
+  cmd->add_option("--plant-period-ms", cli->plant_period_ms, "the plant's physics step, ms")
+      ->capture_default_str()
+      ->group(plant_group);
+  cmd->add_option("--plant-axis-timeout-ms", cli->plant_axis_timeout_ms,
+                  "an axis whose drive sent nothing for this long is commanded 0 (braked), ms")
+      ->capture_default_str()
+      ->group(plant_group);
+  cmd->add_option("--plant-trace", o.plant.trace_path,
+                  "write the robot's state every 10 ms to FILE: lines \"t x y vx vy contact\" (t: CLOCK_MONOTONIC "
+                  "seconds)")
+      ->group(plant_group);
   cmd->add_option("--write-world", cli->write_world,
                   "write the scene's world file (C-obstacles, bounds, friction, velocity cone; the start with "
                   "--start) for `visco-rt driver --world`, and exit");

@@ -28,6 +28,8 @@ struct SimSession::Impl {
   std::unique_ptr<drivers::SimulatedRobot> robot;
   std::unique_ptr<drivers::DriverTransport> transport;
   std::unique_ptr<drivers::Driver> driver;
+  std::unique_ptr<UdpPlant> plant;  // --plant: the robot moved by drives in other processes
+  std::thread plant_thread;
   std::unique_ptr<lcm::LCM> lcm;
   std::unique_ptr<control::SyntheticCamera> camera;
   std::unique_ptr<RenderedCamera> rendered;
@@ -65,6 +67,13 @@ std::string SimSummary::ToJson() const {
   j["dropped_frames"] = dropped_frames;
   j["camera"] = rendered ? "rendered" : "events";
   if (rendered) j["mean_render_ms"] = mean_render_ms;
+  if (plant) {
+    j["plant"] = {{"steps", plant_stats.steps},
+                  {"datagrams", plant_stats.datagrams},
+                  {"malformed", plant_stats.malformed},
+                  {"axis_losses", plant_stats.axis_losses}};
+    return j.dump();
+  }
   if (!have_driver) {
     j["truth_messages"] = truths;  // the robot was simulated by a driver process
     return j.dump();
@@ -134,7 +143,9 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
   control::SyntheticCameraConfig camera_config{o.focal_px, o.on_line_band_px, o.noise_px};
   impl_->camera = std::make_unique<control::SyntheticCamera>(rays_, camera_config, o.robot.seed ^ 0x5eedcafeULL);
 
-  if (impl_->robot) {
+  if (impl_->robot && !o.plant.address.empty()) {
+    impl_->plant = std::make_unique<UdpPlant>(o.plant, *impl_->robot);
+  } else if (impl_->robot) {
     drivers::DriverTransportConfig transport_config;
     transport_config.node_id = o.node_id;
     transport_config.lcm_url = o.lcm_url;
@@ -150,6 +161,7 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
   }
   impl_->lcm = std::make_unique<lcm::LCM>(o.lcm_url);
   if (!impl_->lcm->good()) throw JobFailed("LCM: cannot initialise provider '" + o.lcm_url + "'");
+  if (impl_->plant) spdlog::info("sim: the plant of simulated drives on UDP {}", o.plant.address);
   spdlog::info("sim: scene {}, {}, cone {:.1f} deg, seed {}, {} CVC ray(s), camera {:.0f} Hz ({})", scene.name,
                impl_->robot ? fmt::format("{} C-obstacle part(s), robot at ({:.3f}, {:.3f})",
                                           impl_->robot->model().world().obstacles.size(), start.x, start.y)
@@ -164,7 +176,9 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
 SimSession::~SimSession() { Stop(); }
 
 void SimSession::Start() {
-  if (impl_->driver) {
+  if (impl_->plant) {
+    impl_->plant_thread = std::thread([this] { impl_->plant->Run(stop_driver_); });
+  } else if (impl_->driver) {
     driver_thread_ = std::thread([this] { impl_->driver->Run(stop_driver_); });
   } else {
     impl_->truth_thread = std::thread([this] {
@@ -181,6 +195,7 @@ void SimSession::ReleaseEStop() {
 void SimSession::KillDriver() {
   stop_driver_.store(true);
   if (driver_thread_.joinable()) driver_thread_.join();
+  if (impl_->plant_thread.joinable()) impl_->plant_thread.join();
 }
 
 void SimSession::Stop() {
@@ -198,6 +213,14 @@ SimSummary SimSession::Summary() const {
   s.dropped_frames = dropped_.load();
   s.rendered = impl_->rendered != nullptr;
   s.mean_render_ms = s.frames > 0 ? static_cast<double>(render_us_.load()) / 1e3 / s.frames : 0.0;
+  if (impl_->plant) {
+    s.have_driver = false;
+    s.plant = true;
+    s.plant_stats = impl_->plant->Stats();
+    s.position = {s.plant_stats.last.position[0], s.plant_stats.last.position[1]};
+    s.contact = s.plant_stats.last.contact;
+    return s;
+  }
   if (!impl_->driver) {
     std::lock_guard<std::mutex> lock(impl_->last_mutex);
     s.position = {impl_->last_truth.position[0], impl_->last_truth.position[1]};

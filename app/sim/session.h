@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "app/sim/camera.h"
+#include "app/sim/plant.h"
 #include "control/synthetic_camera.h"
 #include "control/task.h"
 #include "drivers/driver.h"
@@ -57,6 +58,9 @@ struct SimOptions {
   // The camera alone: no robot and no driver here; the robot is simulated by a driver process (`visco-rt driver
   // --truth-hz`), whose true state (VISCO_SIM_TRUTH of node node_id) the camera renders.
   bool no_driver = false;
+  // The robot's plant for simulated drives (plant.h): set, the robot here is moved by the velocities that drives in
+  // other processes send over UDP, and no driver runs here.
+  PlantOptions plant;
 };
 
 struct SimSummary {
@@ -68,8 +72,10 @@ struct SimSummary {
   double mean_render_ms = 0.0;
   drivers::DriverStats driver;
   std::string driver_state;
-  bool have_driver = true;  // false: --no-driver (then `truths` counts the truth messages received)
+  bool have_driver = true;  // false: --no-driver (then `truths` counts the truth messages received) or --plant
   std::uint64_t truths = 0;
+  bool plant = false;  // --plant: plant_stats says what the drives did
+  PlantStats plant_stats;
   std::string ToJson() const;
 };
 

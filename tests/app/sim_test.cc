@@ -1,16 +1,27 @@
 // The pieces of `visco sim`: the motion-model robot behind the real driver logic (leaving the workspace raises the
-// driver's bounds fault and stops the robot), and the rendered camera seen by the real vision pipeline (AprilTag
+// driver's bounds fault and stops the robot), the plant of simulated drives over UDP (contact decides the axes'
+// positions), and the rendered camera seen by the real vision pipeline (AprilTag
 // detection, poses, robot estimate and visual events against the true pose: ground truth), with occlusion, blur
 // and noise.
 
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
+#include <atomic>
+#include <chrono>
 #include <cmath>
+#include <cstring>
 #include <deque>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "app/sim/camera.h"
+#include "app/sim/plant.h"
 #include "app/sim/world.h"
 #include "common/error.h"
 #include "drivers/can_protocol.h"
@@ -208,6 +219,101 @@ TEST(RenderedCamera, BadFilesAreInputErrors) {
   c = slot.Config();
   c.supersample = 0;
   EXPECT_THROW(RenderedCamera{c}, InputError);
+}
+
+// A drive of the plant, speaking its wire format (app/sim/plant.h) on its own socket.
+class PlantDrive {
+ public:
+  PlantDrive(int port, int axis) : axis_(axis) {
+    fd_ = socket(AF_INET, SOCK_DGRAM, 0);
+    to_.sin_family = AF_INET;
+    to_.sin_port = htons(static_cast<std::uint16_t>(port));
+    inet_pton(AF_INET, "127.0.0.1", &to_.sin_addr);
+  }
+  ~PlantDrive() { close(fd_); }
+  void SendRaw(const void* data, std::size_t size) {
+    sendto(fd_, data, size, 0, reinterpret_cast<const sockaddr*>(&to_), sizeof to_);
+  }
+  // Sends the axis's velocity, returns the plant's answer: position, velocity (false: none within 1 s).
+  bool Exchange(double velocity, double& position, double& actual) {
+    unsigned char out[16] = {'V', 'P', 'L', '1', static_cast<unsigned char>(axis_)};
+    std::memcpy(out + 8, &velocity, 8);
+    SendRaw(out, sizeof out);
+    pollfd p{fd_, POLLIN, 0};
+    if (poll(&p, 1, 1000) != 1) return false;
+    unsigned char in[64];
+    if (recv(fd_, in, sizeof in, 0) != 24 || std::memcmp(in, "VPL1", 4) != 0 || in[4] != axis_) return false;
+    std::memcpy(&position, in + 8, 8);
+    std::memcpy(&actual, in + 16, 8);
+    return true;
+  }
+
+ private:
+  int fd_;
+  int axis_;
+  sockaddr_in to_{};
+};
+
+TEST(UdpPlant, TheDrivesVelocitiesMoveTheRobotAndContactStopsIt) {
+  // The default scene's world: the peg above the left block (its top face is y = 2 for the reference point).
+  drivers::SimulatedRobotConfig config;
+  config.world = MakeMotionWorld(planning::LoadScene("data/scenes/slot.json"));
+  config.start = {2.0, 2.5};
+  config.max_acceleration = 100.0;
+  drivers::SimulatedRobot robot(config);
+  PlantOptions options;
+  options.address = "127.0.0.1:47931";
+  options.axis_timeout_s = 0.1;
+  UdpPlant plant(options, robot);
+  std::atomic<bool> stop{false};
+  std::thread thread([&] { plant.Run(stop); });
+  PlantDrive x(47931, 0), y(47931, 1);
+  double px = 0, vx = 0, py = 0, vy = 0;
+  ASSERT_TRUE(x.Exchange(0.0, px, vx));
+  ASSERT_TRUE(y.Exchange(0.0, py, vy));
+  EXPECT_DOUBLE_EQ(px, 2.0);
+  EXPECT_DOUBLE_EQ(py, 2.5);
+  // Down at 0.5 m/s for 1.6 s: free for 1 s (0.5 m), then against the block's top face.
+  double lowest = INFINITY;
+  for (auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(1600);
+       std::chrono::steady_clock::now() < end;) {
+    ASSERT_TRUE(x.Exchange(0.0, px, vx));
+    ASSERT_TRUE(y.Exchange(-0.5, py, vy));
+    lowest = std::min(lowest, py);
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_NEAR(py, 2.0, 1e-6);     // the drive pushes, the block holds: the encoder says so
+  EXPECT_GE(lowest, 2.0 - 1e-6);  // never into the block
+  EXPECT_NEAR(vy, 0.0, 1e-6);
+  EXPECT_NEAR(px, 2.0, 1e-9);
+  EXPECT_TRUE(plant.Stats().last.contact);
+  // The y drive falls silent: its axis is braked; x slides along the face.
+  for (auto end = std::chrono::steady_clock::now() + std::chrono::milliseconds(500);
+       std::chrono::steady_clock::now() < end;) {
+    ASSERT_TRUE(x.Exchange(0.2, px, vx));
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  EXPECT_GT(px, 2.05);
+  EXPECT_NEAR(vx, 0.2, 0.02);
+  const char junk[5] = {'V', 'P', 'L', '1', 7};
+  x.SendRaw(junk, sizeof junk);
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  stop.store(true);
+  thread.join();
+  const PlantStats s = plant.Stats();
+  EXPECT_EQ(s.axis_losses, 1u);
+  EXPECT_EQ(s.malformed, 1u);
+  EXPECT_GT(s.datagrams, 200u);
+  EXPECT_NEAR(s.last.position[1], 2.0, 1e-6);
+}
+
+TEST(UdpPlant, BadAddressesAreInputErrors) {
+  drivers::SimulatedRobot robot;
+  for (const char* address : {"47000", "127.0.0.1:", "nohost:47000", "127.0.0.1:70000"}) {
+    PlantOptions options;
+    options.address = address;
+    EXPECT_THROW(UdpPlant(options, robot), InputError) << address;
+  }
 }
 
 }  // namespace

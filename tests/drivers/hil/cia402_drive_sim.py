@@ -8,11 +8,20 @@ acceleration/deceleration (its quick stop deceleration after a quick stop or in 
 profile velocity, times a gain in [1 - U, 1 + U] that a seeded random adversary changes now and then (U:
 --speed-uncertainty; docs/semantics.md's uncertainty, one axis at a time).
 
+With --plant HOST:PORT the drives move a physical plant instead of an axis of their own: each tick a drive sends its
+axis's velocity to the plant (visco's simulated world, `visco sim --plant`: contact, friction and the velocity cone
+decide where the robot goes) and takes the plant's position and velocity as its encoder (0x6064, 0x606C), in counts
+of --counts-per-metre (an absolute encoder homed at the world's origin). The wire format, one UDP datagram each way,
+little-endian: drive -> plant "VPL1", axis (u8), 3 zero bytes, velocity (f64, m/s); plant -> drive "VPL1", axis,
+3 zero bytes, position (f64, m), velocity (f64, m/s).
+
 Run standalone (`cia402_drive_sim.py --interface vcan1 --nodes 2 3`) or imported by a test, which drives it through
 the methods of Sim (inject_fault, silence, power_on, ...) and reads what each drive did from Drive.history.
 """
 import argparse
+import signal
 import random
+import socket
 import struct
 import sys
 import threading
@@ -113,6 +122,7 @@ class Drive:
         self.max_speed_seen = 0.0
         self.gain = 1.0
         self.next_gain_change = 0.0
+        self.axis = None              # with a plant: (axis index, counts per metre)
         self.boot()
 
     # --- object dictionary ---
@@ -405,8 +415,15 @@ class Drive:
             u = self.sim.speed_uncertainty
             self.gain = 1.0 + self.sim.rng.uniform(-u, u) if u > 0 else 1.0
             self.next_gain_change = now + self.sim.rng.expovariate(1 / 0.05)
-        actual = self.velocity * self.gain
-        self.position += actual * dt
+        if self.axis is not None:
+            # The plant moves: the drive's velocity is its input, its answer the axis's position and velocity.
+            axis, counts_per_metre = self.axis
+            self.sim.to_plant(axis, self.velocity / counts_per_metre)
+            position, actual = self.sim.plant_state[axis]
+            self.position, actual = position * counts_per_metre, actual * counts_per_metre
+        else:
+            actual = self.velocity * self.gain
+            self.position += actual * dt
         self.max_speed_seen = max(self.max_speed_seen, abs(actual))
         self.put(0x606C, int(round(actual)))
         self.put(0x6064, int(round(self.position)))
@@ -420,7 +437,8 @@ class Sim:
     """Drives on one bus, run by one thread (start()/stop()); the methods below are for the test's thread."""
 
     def __init__(self, interface, nodes, boot_delays=None, aborts=None, max_velocities=None, speed_uncertainty=0.0,
-                 seed=1):
+                 seed=1, plant=None, axes=None):
+        """plant: (host, port) of the physical plant; axes: {node: (axis index, counts per metre)}."""
         self.bus = can.Bus(interface="socketcan", channel=interface, receive_own_messages=False)
         self.lock = threading.Lock()
         self.rng = random.Random(seed)
@@ -428,9 +446,45 @@ class Sim:
         self.sent = 0
         self.running = False
         boot_delays, aborts, max_velocities = boot_delays or {}, aborts or {}, max_velocities or {}
+        self.plant = plant
+        self.plant_state = {}  # axis -> (position m, velocity m/s), the plant's last answer
+        if plant is not None:
+            if speed_uncertainty:
+                raise ValueError("with a plant the uncertainty is the plant's physics: no --speed-uncertainty")
+            self.plant_socket = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            self.plant_socket.setblocking(False)
+            # The encoder at power-on: the plant's position before the drives boot.
+            deadline = time.monotonic() + 30.0
+            while set(self.plant_state) != {a for a, _ in axes.values()}:
+                if time.monotonic() > deadline:
+                    raise RuntimeError("no answer from the plant at %s:%d" % plant)
+                for axis, _ in axes.values():
+                    self.to_plant(axis, 0.0)
+                time.sleep(0.05)
+                self.from_plant()
         with self.lock:
             self.drives = {n: Drive(self, n, boot_delays.get(n, 0.0), aborts.get(n), max_velocities.get(n))
                            for n in nodes}
+            for n, axis in (axes or {}).items():
+                self.drives[n].axis = axis
+                self.drives[n].position = self.plant_state[axis[0]][0] * axis[1]
+                self.drives[n].put(0x6064, int(round(self.drives[n].position)))
+
+    def to_plant(self, axis, velocity):
+        try:
+            self.plant_socket.sendto(struct.pack("<4sB3xd", b"VPL1", axis, velocity), self.plant)
+        except OSError:
+            pass  # the plant is gone: the drive keeps its last position
+
+    def from_plant(self):
+        while True:
+            try:
+                data = self.plant_socket.recv(64)
+            except (BlockingIOError, InterruptedError):
+                return
+            if len(data) == 24 and data[:4] == b"VPL1":
+                _, axis, position, velocity = struct.unpack("<4sB3xdd", data)
+                self.plant_state[axis] = (position, velocity)
 
     def send(self, can_id, data):
         try:
@@ -453,6 +507,8 @@ class Sim:
                     for drive in self.drives.values():
                         drive.on_frame(msg, now)
                 if now - last >= 0.002:
+                    if self.plant is not None:
+                        self.from_plant()
                     for drive in self.drives.values():
                         drive.tick(now, now - last)
                     last = now
@@ -494,8 +550,28 @@ def main():
     parser.add_argument("--speed-uncertainty", type=float, default=0.0)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--duration", type=float, default=0.0, help="seconds (0: until interrupted)")
+    parser.add_argument("--plant", help="HOST:PORT of the plant (`visco sim --plant`) the drives move")
+    parser.add_argument("--axes", type=int, nargs="+", help="with --plant: each node's axis (0 x, 1 y)")
+    parser.add_argument("--counts-per-metre", type=float, nargs="+",
+                        help="with --plant: each node's encoder counts per metre of its axis")
+    parser.add_argument("--max-velocity", type=int, nargs="+", help="each node's max profile velocity 0x607F")
     args = parser.parse_args()
-    sim = Sim(args.interface, args.nodes, speed_uncertainty=args.speed_uncertainty, seed=args.seed).start()
+    plant, axes = None, None
+    if args.plant:
+        host, _, port = args.plant.rpartition(":")
+        if not (args.axes and args.counts_per_metre and len(args.axes) == len(args.counts_per_metre) == len(args.nodes)):
+            parser.error("--plant needs --axes and --counts-per-metre, one per node")
+        plant = (host, int(port))
+        axes = {n: (a, c) for n, a, c in zip(args.nodes, args.axes, args.counts_per_metre)}
+    max_velocities = dict(zip(args.nodes, args.max_velocity)) if args.max_velocity else None
+    sim = Sim(args.interface, args.nodes, speed_uncertainty=args.speed_uncertainty, seed=args.seed, plant=plant,
+              axes=axes, max_velocities=max_velocities).start()
+    print("drives %s on %s: ready" % (" ".join(map(str, args.nodes)), args.interface), flush=True)
+
+    def on_term(*_):
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, on_term)
     try:
         end = time.monotonic() + args.duration
         while args.duration <= 0 or time.monotonic() < end:
