@@ -437,9 +437,19 @@ class Sim:
     """Drives on one bus, run by one thread (start()/stop()); the methods below are for the test's thread."""
 
     def __init__(self, interface, nodes, boot_delays=None, aborts=None, max_velocities=None, speed_uncertainty=0.0,
-                 seed=1, plant=None, axes=None):
-        """plant: (host, port) of the physical plant; axes: {node: (axis index, counts per metre)}."""
+                 seed=1, plant=None, axes=None, tick=0.002):
+        """plant: (host, port) of the physical plant; axes: {node: (axis index, counts per metre)}; tick: seconds
+        between the drives' time steps."""
         self.bus = can.Bus(interface="socketcan", channel=interface, receive_own_messages=False)
+        self.tick_s = tick
+        if plant is not None:
+            try:
+                # The kernel counts about 1 kB per CAN frame against the receive buffer: the default holds 0.6 s of
+                # a busy bus, and a drive stalled longer (Python on an emulated CPU beside the whole loop) lost
+                # heartbeats and faulted.
+                self.bus.socket.setsockopt(socket.SOL_SOCKET, 33, 4 << 20)  # SO_RCVBUFFORCE (root)
+            except (AttributeError, OSError):
+                pass
         self.lock = threading.Lock()
         self.rng = random.Random(seed)
         self.speed_uncertainty = speed_uncertainty
@@ -497,7 +507,7 @@ class Sim:
         last = time.monotonic()
         while self.running:
             try:
-                msg = self.bus.recv(timeout=0.002)
+                msg = self.bus.recv(timeout=self.tick_s)
             except can.CanError:
                 msg = None
                 time.sleep(0.01)
@@ -506,7 +516,7 @@ class Sim:
                 if msg is not None and not msg.is_error_frame and not msg.is_remote_frame:
                     for drive in self.drives.values():
                         drive.on_frame(msg, now)
-                if now - last >= 0.002:
+                if now - last >= self.tick_s:
                     if self.plant is not None:
                         self.from_plant()
                     for drive in self.drives.values():
@@ -555,6 +565,7 @@ def main():
     parser.add_argument("--counts-per-metre", type=float, nargs="+",
                         help="with --plant: each node's encoder counts per metre of its axis")
     parser.add_argument("--max-velocity", type=int, nargs="+", help="each node's max profile velocity 0x607F")
+    parser.add_argument("--tick-ms", type=float, default=2.0, help="the drives' time step, ms")
     args = parser.parse_args()
     plant, axes = None, None
     if args.plant:
@@ -565,7 +576,7 @@ def main():
         axes = {n: (a, c) for n, a, c in zip(args.nodes, args.axes, args.counts_per_metre)}
     max_velocities = dict(zip(args.nodes, args.max_velocity)) if args.max_velocity else None
     sim = Sim(args.interface, args.nodes, speed_uncertainty=args.speed_uncertainty, seed=args.seed, plant=plant,
-              axes=axes, max_velocities=max_velocities).start()
+              axes=axes, max_velocities=max_velocities, tick=args.tick_ms / 1000.0).start()
     print("drives %s on %s: ready" % (" ".join(map(str, args.nodes)), args.interface), flush=True)
 
     def on_term(*_):
