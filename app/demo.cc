@@ -44,6 +44,7 @@
 #include "planning/scene_file.h"
 #include "planning/strategy.h"
 #include "planning/vc_rays.h"
+#include "vision/camera.h"
 
 #ifndef VISCO_SOURCE_DATA_DIR
 #define VISCO_SOURCE_DATA_DIR "data"
@@ -100,6 +101,23 @@ void CheckOptions(const Options& a) {
                      "link set up vcan0) or use the HIL VM (README, \"Hardware-in-the-loop on virtual CAN\")");
   }
   if (a.can && a.jobs > 1) throw InputError("command line", "--jobs", "runs over --can share vcan0: use --jobs 1");
+  if (a.v4l2_output.empty() != a.v4l2_capture.empty()) {
+    throw InputError("command line", a.v4l2_output.empty() ? "--v4l2-capture" : "--v4l2-output",
+                     "give both --v4l2-output and --v4l2-capture (the device the frames are written to and the one "
+                     "that shows them)");
+  }
+  if (!a.v4l2_output.empty()) {
+    if (a.lockstep)
+      throw InputError("command line", "--v4l2-output", "not with --lockstep (the devices run on the wall clock)");
+    if (!a.scene.empty()) {
+      throw InputError("command line", "--v4l2-output",
+                       "needs the rendered camera, which only the embedded default scene has (data/sim/); not with "
+                       "--scene");
+    }
+    if (a.jobs > 1) throw InputError("command line", "--jobs", "runs through one video device: use --jobs 1");
+  }
+  if (!a.start.empty() && a.runs > 1) throw InputError("command line", "--start", "one run only (not with --runs)");
+  if (!a.plan.empty() && a.runs > 1) throw InputError("command line", "--plan", "one run only (not with --runs)");
   if (a.netns) {
     std::string why;
     if (!NetnsHosts::Available(&why)) throw InputError("command line", "--netns", why);
@@ -113,7 +131,8 @@ void CheckOptions(const Options& a) {
 struct Plan {
   planning::Scene scene;
   std::unique_ptr<planning::CSpace> cspace;
-  planning::Strategy strategy;
+  planning::Strategy strategy;  // with --plan: only its step count
+  bool given = false;           // --plan
 };
 Plan MakePlan(const Options& a, const fs::path& dir) {
   // The scene: the embedded default (no file needed) or the user's.
@@ -124,6 +143,11 @@ Plan MakePlan(const Options& a, const fs::path& dir) {
   const planning::Scene& scene = plan.scene;
   if (!scene.start)
     throw InputError(a.scene.empty() ? "<embedded slot.json>" : a.scene, "start", "the demo needs a start region");
+  if (!a.start.empty()) {
+    if (!scene.bounds.Contains(planning::Point(a.start[0], a.start[1]))) {
+      throw InputError("command line", "--start", "must lie within the scene's bounds");
+    }
+  }
   WriteTextOutput(scene_text, (dir / "scene.json").string());
   plan.cspace = std::make_unique<planning::CSpace>(scene);
   const planning::CSpace& cspace = *plan.cspace;
@@ -131,6 +155,25 @@ Plan MakePlan(const Options& a, const fs::path& dir) {
   if (scene.camera) rays = planning::ComputeVcRays(scene, cspace);
   WriteTextOutput(planning::VcRaysToJson(scene, rays), (dir / "rays.json").string());
 
+  if (!a.plan.empty()) {
+    // A strategy made earlier (`visco plan`, or an earlier demo's plan.json): `visco run` checks that it was made
+    // for this scene. Only its step count is read here: no plan.svg, no run.svg.
+    const std::string text = ReadText(a.plan);
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(text);
+    } catch (const std::exception& e) {
+      throw InputError(a.plan, "", std::string("not JSON: ") + e.what());
+    }
+    if (!j.is_object() || !j.value("feasible", false) || !j.contains("steps") || !j["steps"].is_array()) {
+      throw InputError(a.plan, "steps", "not a feasible strategy (`visco plan` output)");
+    }
+    plan.strategy.feasible = true;
+    plan.strategy.steps.resize(j["steps"].size());
+    plan.given = true;
+    WriteTextOutput(text, (dir / "plan.json").string());
+    return plan;
+  }
   Progress("planning (visco plan)");
   planning::PlanOptions po;
   po.threads = 2;
@@ -147,7 +190,8 @@ Plan MakePlan(const Options& a, const fs::path& dir) {
 std::vector<RunOutcome> ExecuteRuns(const Options& a, const Setup& su) {
   const fs::path& dir = su.dir;
   // Starts are drawn before any run, so the outcome of run k does not depend on --jobs.
-  const std::vector<Eigen::Vector2d> starts = SampleStarts(su.scene->start->polygon, a.runs, a.seed);
+  std::vector<Eigen::Vector2d> starts = SampleStarts(su.scene->start->polygon, a.runs, a.seed);
+  if (!a.start.empty()) starts[0] = Eigen::Vector2d(a.start[0], a.start[1]);
   std::vector<RunOutcome> outcomes(static_cast<size_t>(a.runs));
   std::vector<bool> finished(static_cast<size_t>(a.runs), false);
   std::atomic<int> next{0};
@@ -222,25 +266,30 @@ void Report(const Options& a, const Setup& su, const std::vector<RunOutcome>& do
     commands.push_back(o.item["commands_sent"].get<double>());
     events.push_back(o.item["visual_events"].get<double>());
   }
-  nlohmann::json summary = {{"scene", su.scene->name},
-                            {"steps", strategy.steps.size()},
-                            {"plan_s", plan_s},
-                            {"total_s", total_s},
-                            {"runs", runs},
-                            {"successes", successes},
-                            {"success_rate", runs.empty() ? 0.0 : successes / static_cast<double>(runs.size())},
-                            {"motion_s", Quantiles(motion)},
-                            {"commands_sent", Quantiles(commands)},
-                            {"visual_events", Quantiles(events)},
-                            {"jobs", a.jobs},
-                            {"speed", a.speed / a.slow},
-                            {"slow_machine", a.slow},
-                            {"camera", su.rendered ? "rendered" : "events"},
-                            {"transport", a.can ? "can" : "lcm"},
-                            {"netns", a.netns},
-                            {"lockstep", a.lockstep},
-                            {"png_level", a.png_level >= 0 ? nlohmann::json(a.png_level) : nlohmann::json(nullptr)},
-                            {"interrupted", g_stop.load()}};
+  nlohmann::json summary = {
+      {"scene", su.scene->name},
+      {"steps", strategy.steps.size()},
+      {"plan_s", plan_s},
+      {"total_s", total_s},
+      {"runs", runs},
+      {"successes", successes},
+      {"success_rate", runs.empty() ? 0.0 : successes / static_cast<double>(runs.size())},
+      {"motion_s", Quantiles(motion)},
+      {"commands_sent", Quantiles(commands)},
+      {"visual_events", Quantiles(events)},
+      {"jobs", a.jobs},
+      {"speed", a.plan.empty() ? nlohmann::json(a.speed / a.slow) : nlohmann::json(nullptr)},  // --plan: the file's
+      {"slow_machine", a.slow},
+      {"camera", su.rendered ? "rendered" : "events"},
+      {"transport", a.can ? "can" : "lcm"},
+      {"netns", a.netns},
+      {"lockstep", a.lockstep},
+      {"png_level", a.png_level >= 0 ? nlohmann::json(a.png_level) : nlohmann::json(nullptr)},
+      {"plan", a.plan.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.plan)},
+      {"v4l2", a.v4l2_output.empty()
+                   ? nlohmann::json(nullptr)
+                   : nlohmann::json({{"output", a.v4l2_output}, {"capture", a.v4l2_capture}, {"input", a.v4l2_input}})},
+      {"interrupted", g_stop.load()}};
   WriteTextOutput(summary.dump(2) + "\n", (dir / "summary.json").string());
   if (a.runs > 1) WriteTextOutput(MonteCarloSvg(su, done_runs), (dir / "montecarlo.svg").string());
   for (const auto& item : runs) {
@@ -272,7 +321,11 @@ int Run(const Options& a) {
   const Plan plan = MakePlan(a, dir);
   const planning::Scene& scene = plan.scene;
   const double plan_s = std::chrono::duration<double>(Clock::now() - t0).count();
-  std::fprintf(stderr, "visco demo: %zu step(s), planned in %.1f s\n", plan.strategy.steps.size(), plan_s);
+  if (plan.given) {
+    std::fprintf(stderr, "visco demo: %zu step(s) from %s\n", plan.strategy.steps.size(), a.plan.c_str());
+  } else {
+    std::fprintf(stderr, "visco demo: %zu step(s), planned in %.1f s\n", plan.strategy.steps.size(), plan_s);
+  }
 
   Setup su;
   su.options = &a;
@@ -291,11 +344,14 @@ int Run(const Options& a) {
     su.cam = {"--camera",     (data / "sim" / "slot_camera.xml").string(),
               "--extrinsics", (data / "sim" / "slot_extrinsics.json").string(),
               "--objects",    (data / "sim" / "slot_objects.json").string()};
+    const vision::CameraModel camera = vision::LoadCamera(su.cam[1], "");
+    su.image_width = camera.width;
+    su.image_height = camera.height;
   }
   StopOnSignals(g_stop);
 
   const std::vector<RunOutcome> done_runs = ExecuteRuns(a, su);
-  if (a.runs == 1 && !done_runs.empty()) {
+  if (a.runs == 1 && !done_runs.empty() && !plan.given) {
     WriteTextOutput(RunSvg(scene, *su.cspace, *su.strategy, done_runs.front().trace), (dir / "run.svg").string());
   }
   Report(a, su, done_runs, plan_s, std::chrono::duration<double>(Clock::now() - t0).count());
@@ -336,13 +392,34 @@ void RegisterDemoCommand(CLI::App& app) {
   cmd->add_option("--slow-machine", args->slow,
                   "the machine is this many times slower than a 2-core PC (e.g. 10 in the HIL VM's emulated CPU): "
                   "the processes' time limits (vision age, hold, start-up, status, heartbeat, watchdog, --timeout) "
-                  "are multiplied by it, the commanded speed and the camera rate divided by it, no supersampling")
+                  "are multiplied by it; the commanded speed, the camera rate, the controller's rate and telemetry, "
+                  "the driver's robot update and true-state rates divided by it; no supersampling")
       ->capture_default_str();
   cmd->add_flag("--lockstep", args->lockstep,
                 "run the closed loop as one process on a simulated clock (`visco sim --lockstep`: the same driver, "
                 "simulated robot, rendered camera, vision pipeline and controller, one thread, a private in-process "
                 "bus) instead of five processes on the wall clock: the same --seed gives a bit-identical run.lcmlog, "
                 "which `visco replay --check` replays (docs/replay.md)");
+  cmd->add_option("--plan", args->plan,
+                  "execute this strategy (`visco plan` output for the scene, or an earlier demo's plan.json) instead "
+                  "of planning: its speed is the file's (`visco plan --speed`); no plan.svg or run.svg; one run")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--start", args->start,
+                  "start the run with the robot's reference point at X Y instead of a start drawn from the start "
+                  "region (a start outside the first step's preimage is not covered by the strategy); one run")
+      ->expected(2);
+  cmd->add_option("--v4l2-output", args->v4l2_output,
+                  "the camera through the kernel's video interface: the rendered frames are written to this V4L2 "
+                  "output device (`visco sim --v4l2-output`) and `visco capture` reads them back from "
+                  "--v4l2-capture and publishes them, as a real camera's process does (vivid's output looped to its "
+                  "capture: docs/camera.md, \"The closed loop through V4L2\"). --png-level then applies to the "
+                  "capture; --jobs 1");
+  cmd->add_option("--v4l2-capture", args->v4l2_capture,
+                  "with --v4l2-output: the V4L2 capture device that shows what is written to the output (e.g. "
+                  "/dev/video0)");
+  cmd->add_option("--v4l2-input", args->v4l2_input,
+                  "with --v4l2-capture: the capture device's input to select (vivid's HDMI input: 1; default: its "
+                  "current one)");
   cmd->add_flag("--netns", args->netns,
                 "run every process on a host of its own: a network namespace each, joined by veth to a bridge, LCM "
                 "multicast with ttl=1 between them, as on several machines (needs root; summary.json records where "

@@ -20,5 +20,8 @@ inline constexpr char kHeartbeatDriver[] = "VISCO_HEARTBEAT_DRIVER";          //
 inline constexpr char kHeartbeatVision[] = "VISCO_HEARTBEAT_VISION";          // visco::heartbeat_t
 // Simulation only: the simulated robot's true state, for a simulated camera in another process.
 inline constexpr char kSimTruth[] = "VISCO_SIM_TRUTH";  // visco::sim_truth_t
+// Simulation only: each frame a simulated camera wrote to a V4L2 output device (its sequence number, when it was
+// rendered and written, the digest of its pixels), to follow a frame through the real capture path.
+inline constexpr char kSimFrame[] = "VISCO_SIM_FRAME";  // visco::log_annotation_t, kind "sim_frame" (JSON)
 
 }  // namespace visco::channels

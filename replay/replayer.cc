@@ -55,7 +55,7 @@ const std::set<std::string>& KnownChannels() {
                                               channels::kHeartbeatDriver, channels::kHeartbeatVision,
                                               control::kCycleChannel,     control::kAnnotationChannel,
                                               channels::kSimTruth,        vision::kVisionConfigChannel,
-                                              channels::kCameraInfo};
+                                              channels::kCameraInfo,      channels::kSimFrame};
   return known;
 }
 

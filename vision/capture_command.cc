@@ -38,6 +38,7 @@ struct CaptureArgs {
   std::string lcm_url;
   std::int64_t max_frames = 0;
   double duration_s = 0;
+  double max_fps = 0;  // > 0: publish at most this many frames per second (the newest each time)
 };
 
 std::int64_t MonotonicUs() {
@@ -89,6 +90,7 @@ CameraCalibration LoadCalibration(const CaptureArgs& a, const V4l2Stream& stream
 void RunCapture(const CaptureArgs& a) {
   if (!(a.info_period_s > 0)) throw InputError("command line", "--info-period", "must be positive (seconds)");
   if (a.v4l2.timeout_ms <= 0) throw InputError("command line", "--timeout-ms", "must be positive");
+  if (!(a.max_fps >= 0)) throw InputError("command line", "--max-fps", "must be >= 0 (0: every frame)");
   lcm::LCM bus(a.lcm_url);
   if (!bus.good()) throw InputError("command line", "--lcm-url", "cannot open LCM bus '" + a.lcm_url + "'");
   V4l2Camera camera(a.v4l2);
@@ -176,6 +178,9 @@ void RunCapture(const CaptureArgs& a) {
   std::int64_t next_info = start + static_cast<std::int64_t>(a.info_period_s * 1e6);
   const double cpu_start = CpuSeconds();
   std::int64_t published = 0;
+  // --max-fps: the next frame due for publication (the stream's frames before it are held back, counted).
+  const std::int64_t publish_period_us = a.max_fps > 0 ? static_cast<std::int64_t>(1e6 / a.max_fps) : 0;
+  std::int64_t next_publish_us = 0, held_back = 0;
   std::uint64_t image_bytes = 0;  // image_t.data published
   V4l2Frame frame;
   V4l2Fault fault;
@@ -194,6 +199,17 @@ void RunCapture(const CaptureArgs& a) {
       continue;
     }
     if (status != V4l2Camera::Status::kFrame) continue;
+    if (publish_period_us > 0) {
+      if (frame.dequeued_monotonic_us < next_publish_us) {
+        ++held_back;
+        continue;
+      }
+      // On the period's grid (a frame a little late does not shift it); after a gap, a new grid (no burst).
+      const std::int64_t t = frame.dequeued_monotonic_us;
+      next_publish_us = next_publish_us == 0 || next_publish_us + publish_period_us <= t
+                            ? t + publish_period_us
+                            : next_publish_us + publish_period_us;
+    }
     image.utime = frame.utime;
     image.seq = frame.seq;
     auto bad_frame = [&](const std::string& why) {
@@ -253,6 +269,7 @@ void RunCapture(const CaptureArgs& a) {
       {"height", stream.height},
       {"fps", stream.fps},
       {"frames", published},
+      {"held_back", held_back},
       {"published_as", passthrough ? "MJPEG"
                        : png       ? "PNG"
                                    : "GREY"},
@@ -325,6 +342,11 @@ void RegisterCaptureCommand(CLI::App& app) {
                 "fast): smaller logs for CPU per frame (docs/camera.md); default: raw grey")
       ->check(CLI::Range(0, 9));
   c->add_option("--lcm-url", a->lcm_url, "LCM provider URL (default: LCM's default)");
+  c->add_option("--max-fps", a->max_fps,
+                "publish at most this many frames per second, the newest each time, for a device whose rate cannot "
+                "be set (an HDMI input such as vivid's loop runs at its timings' 59.94 Hz); the frames in between are "
+                "counted in the summary's held_back, not published (0: every frame)")
+      ->capture_default_str();
   c->add_option("--max-frames", a->max_frames, "stop after publishing this many frames (0: no limit)");
   c->add_option("--duration", a->duration_s, "stop after this many seconds (0: no limit)");
   c->callback([a] { RunCapture(*a); });

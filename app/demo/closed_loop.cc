@@ -21,6 +21,10 @@ using Clock = std::chrono::steady_clock;
 
 // A time limit of the demo's processes on a machine `a.slow` times slower than the 2-core reference.
 std::string Slowed(const Options& a, double value) { return fmt::format("{}", value * a.slow); }
+// A rate of the demo's processes on such a machine, at least `floor`.
+std::string Rate(const Options& a, double hz, double floor = 1) {
+  return fmt::format("{}", std::max(floor, hz / a.slow));
+}
 
 double DistanceToPolygon(const planning::Polygon& poly, const Eigen::Vector2d& p) {
   if (planning::InsideEvenOdd(poly.vertices, p)) return 0.0;
@@ -141,8 +145,9 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
   fs::create_directories(rd);
   if (a.lockstep) return ExecuteLockstepRun(su, r, seed, start, rd, print);
   // The host each process runs on (with --netns).
-  const std::vector<std::pair<std::string, std::string>> host_of = {
-      {"lcm-logger", "logger"}, {"driver", "robot"}, {"camera", "camera"}, {"track", "vision"}, {"run", "controller"}};
+  const std::vector<std::pair<std::string, std::string>> host_of = {{"lcm-logger", "logger"}, {"driver", "robot"},
+                                                                    {"camera", "camera"},     {"capture", "camera"},
+                                                                    {"track", "vision"},      {"run", "controller"}};
   auto on_host = [&](const std::string& name, const std::vector<std::string>& argv) {
     if (hosts == nullptr) return argv;
     for (const auto& [process, host] : host_of) {
@@ -177,7 +182,10 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
                                      "--watchdog-ms",
                                      Slowed(a, 500),
                                      "--truth-hz",
-                                     "200"};
+                                     Rate(a, 200)};
+  // The real-time loops at the machine's pace too: on an emulated CPU the driver's 1 kHz robot update and the
+  // controller's 500 Hz loop (each command answered by a status) would take the CPU the camera and vision need.
+  if (a.slow > 1) driver.insert(driver.end(), {"--period-us", fmt::format("{:.0f}", 1000 * a.slow)});
   if (a.can) {
     driver.push_back("--can");
     driver.push_back("vcan0");
@@ -197,13 +205,33 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
                                      bus,
                                      "--duration",
                                      fmt::format("{}", a.timeout_s * a.slow + 30)};
+  // On a slow machine fewer frames, rendered without supersampling, so that vision keeps up with them.
+  const double camera_hz = std::max(2.0, std::round(15 / a.slow));
+  const bool v4l2 = !a.v4l2_output.empty();
   if (su.rendered) {
     camera.insert(camera.end(), su.cam.begin(), su.cam.end());
-    // On a slow machine fewer frames, rendered without supersampling, so that vision keeps up with them.
-    camera.insert(camera.end(),
-                  {"--camera-hz", fmt::format("{}", std::max(2.0, std::round(15 / a.slow))), "--supersample",
-                   a.slow > 1 ? "1" : "2", "--latency-ms", "5", "--image-noise", "2", "--blur-px", "0.5"});
-    if (a.png_level >= 0) camera.insert(camera.end(), {"--png-level", std::to_string(a.png_level)});
+    camera.insert(camera.end(), {"--camera-hz", fmt::format("{}", camera_hz), "--supersample", a.slow > 1 ? "1" : "2",
+                                 "--latency-ms", "5", "--image-noise", "2", "--blur-px", "0.5"});
+    if (v4l2) camera.insert(camera.end(), {"--v4l2-output", a.v4l2_output});
+    if (a.png_level >= 0 && !v4l2) camera.insert(camera.end(), {"--png-level", std::to_string(a.png_level)});
+  }
+  if (v4l2) {
+    // The camera process of a real camera: it captures what the rendered camera wrote to the output device and
+    // publishes it with the calibration. The device's loop may run faster than the renderer (vivid's HDMI at
+    // 59.94 Hz): twice the rendering rate keeps every rendered frame without flooding the bus with repeats.
+    std::vector<std::string> capture = {"--device",       a.v4l2_capture,
+                                        "--width",        std::to_string(su.image_width),
+                                        "--height",       std::to_string(su.image_height),
+                                        "--pixel-format", "GREY",
+                                        "--max-fps",      fmt::format("{}", 2 * camera_hz),
+                                        "--timeout-ms",   Slowed(a, 1000),
+                                        "--lcm-url",      bus};
+    if (a.v4l2_input >= 0) capture.insert(capture.end(), {"--input", std::to_string(a.v4l2_input)});
+    capture.insert(capture.end(), su.cam.begin(), su.cam.begin() + 4);  // --camera, --extrinsics
+    if (a.png_level >= 0) capture.insert(capture.end(), {"--png-level", std::to_string(a.png_level)});
+    children.push_back(spawn(
+        "capture", on_host("capture", WithParameterFile(su.self, "capture", capture, rd / "params" / "capture.json")),
+        rd / "capture.jsonl", rd / "capture.log"));
   }
   children.push_back(spawn("camera",
                            on_host("camera", WithParameterFile(su.self, "sim", camera, rd / "params" / "camera.json")),
@@ -236,6 +264,10 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
                                   Slowed(a, 500),
                                   "--heartbeat-timeout-ms",
                                   Slowed(a, 1000),
+                                  "--rate",
+                                  Rate(a, 500, 10),  // visco run's lowest
+                                  "--telemetry-hz",
+                                  Rate(a, 50),
                                   "--no-realtime",
                                   "--log",
                                   (rd / "controller.lcmlog").string()};
@@ -278,6 +310,21 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
   const nlohmann::json driver_json = ReadJson(rd / "driver.json");  // the robot's true final position
   RunOutcome out = Outcome(su, r, seed, start, rd, run_json, driver_json, run_s, commands);
   if (run_json.empty()) out.item["reason"] = "visco run wrote no summary (see run.log in " + rd.string() + ")";
+  if (v4l2) {
+    // What went through the devices: frames written, captured, dropped by the driver, held back.
+    const nlohmann::json camera_json = ReadJson(rd / "camera.json");
+    out.item["v4l2_output"] = camera_json.value("v4l2_output", nlohmann::json());
+    nlohmann::json capture = nlohmann::json();
+    const std::string lines = ReadText(rd / "capture.jsonl");
+    const std::size_t at = lines.rfind("{\"summary\"");
+    if (at != std::string::npos) {
+      try {
+        capture = nlohmann::json::parse(lines.substr(at)).at("summary");
+      } catch (const std::exception&) {
+      }
+    }
+    out.item["capture"] = capture;
+  }
   if (failed_early) out.item["reason"] = "a process ended early (see its log in " + rd.string() + ")";
   if (hosts != nullptr) {
     // Where each process ran: its host's namespace (name, address, inode) and the namespace it was seen in.

@@ -33,9 +33,15 @@ struct Options {
   double timeout_s = 120;
   double speed = 0.6;
   bool netns = false;
-  bool lockstep = false;  // one process on a simulated clock (`visco sim --lockstep`) instead of the five
-  double slow = 1;        // --slow-machine: time limits times this, camera rate and speed divided by it
-  int png_level = -1;     // >= 0: the rendered camera publishes PNG at this zlib level
+  bool lockstep = false;      // one process on a simulated clock (`visco sim --lockstep`) instead of the five
+  double slow = 1;            // --slow-machine: time limits times this, camera rate and speed divided by it
+  int png_level = -1;         // >= 0: the rendered camera publishes PNG at this zlib level
+  std::string plan;           // a strategy made earlier for the scene (plan.json): no planning
+  std::vector<double> start;  // X Y: the run starts there instead of a start drawn from the start region
+  // The camera through the kernel's video interface: the rendered frames written to a V4L2 output device
+  // (`visco sim --v4l2-output`), captured from a capture device that shows them (`visco capture`: vivid's loop).
+  std::string v4l2_output, v4l2_capture;
+  int v4l2_input = -1;  // the capture device's input (vivid's HDMI input: 1)
 };
 
 // What every run of one demo shares.
@@ -49,6 +55,7 @@ struct Setup {
   std::string rt;             // visco-rt beside it (the driver process)
   bool rendered = false;
   std::vector<std::string> cam;             // camera files of the rendered default scene
+  int image_width = 0, image_height = 0;    // the rendered camera's image size (its calibration's)
   const std::atomic<bool>* stop = nullptr;  // Ctrl-C: no new run, the running one stopped
 };
 

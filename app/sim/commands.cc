@@ -58,10 +58,15 @@ FaultWindow Window(const std::vector<double>& v, const char* option) {
 void RunLockstepSim(SimCli& cli) {
   const SimOptions& s = cli.sim;
   // What only a live run has: another process's robot, a real bus, CAN, injected camera faults.
-  const std::pair<bool, const char*> refused[] = {
-      {s.no_driver, "--no-driver"},        {!s.can_interface.empty(), "--can"},   {!s.lcm_url.empty(), "--lcm-url"},
-      {!cli.occlude.empty(), "--occlude"}, {!cli.blackout.empty(), "--blackout"}, {!cli.stale.empty(), "--stale"},
-      {s.drop_rate != 0, "--drop-rate"},   {!s.plant.address.empty(), "--plant"}};
+  const std::pair<bool, const char*> refused[] = {{s.no_driver, "--no-driver"},
+                                                  {!s.can_interface.empty(), "--can"},
+                                                  {!s.lcm_url.empty(), "--lcm-url"},
+                                                  {!cli.occlude.empty(), "--occlude"},
+                                                  {!cli.blackout.empty(), "--blackout"},
+                                                  {!cli.stale.empty(), "--stale"},
+                                                  {s.drop_rate != 0, "--drop-rate"},
+                                                  {!s.plant.address.empty(), "--plant"},
+                                                  {!s.v4l2_output.empty(), "--v4l2-output"}};
   for (const auto& [given, option] : refused) {
     if (given) {
       throw InputError("command line", option,
@@ -226,6 +231,18 @@ void RegisterCommands(CLI::App& app) {
                   "rendered camera: publish its frames as PNG (lossless; image_t PIXEL_FORMAT_PNG) at this zlib level, "
                   "0..9 (what it costs and saves: docs/camera.md); default: raw grey")
       ->check(CLI::Range(0, 9));
+  cmd->add_option("--v4l2-output", o.v4l2_output,
+                  "rendered camera: write its frames to this V4L2 video output device (e.g. /dev/video1, vivid's "
+                  "output looped back to its capture) instead of publishing them: `visco capture` brings them back "
+                  "through the kernel's capture path. Each frame written is recorded on VISCO_SIM_FRAME (its pixel "
+                  "digest, render and write times). Not with --png-level, --drop-rate, --blackout, --stale "
+                  "(docs/camera.md)");
+  cmd->add_option("--v4l2-output-index", o.v4l2_output_index,
+                  "with --v4l2-output: the device's output to select (VIDIOC_S_OUTPUT; default: its current one)");
+  cmd->add_option("--v4l2-output-format", o.v4l2_output_format,
+                  "with --v4l2-output: the pixel format written, GREY or YUYV (the capture must ask for the same)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"GREY", "YUYV"}));
   cmd->add_option("--occlude", cli->occlude,
                   "fault: hide the robot from the camera from START for DURATION seconds (after start-up)")
       ->expected(2);

@@ -17,9 +17,12 @@
 #include "lcmtypes/channels.h"
 #include "planning/scene.h"
 #include "planning/scene_file.h"
+#include "visco/log_annotation_t.hpp"
 #include "visco/robot_estimate_t.hpp"
 #include "visco/sim_truth_t.hpp"
 #include "visco/visual_events_t.hpp"
+#include "vision/image.h"
+#include "vision/v4l2_output.h"
 
 namespace visco::sim {
 
@@ -33,6 +36,7 @@ struct SimSession::Impl {
   std::unique_ptr<lcm::LCM> lcm;
   std::unique_ptr<control::SyntheticCamera> camera;
   std::unique_ptr<RenderedCamera> rendered;
+  std::unique_ptr<vision::V4l2Output> output;  // --v4l2-output: the rendered frames go to this device
   // --no-driver: the robot is simulated by a driver process; its truth arrives on VISCO_SIM_TRUTH.
   std::unique_ptr<lcm::LCM> truth_lcm;
   LatestValue<drivers::RobotTruth> remote_truth;
@@ -67,6 +71,9 @@ std::string SimSummary::ToJson() const {
   j["dropped_frames"] = dropped_frames;
   j["camera"] = rendered ? "rendered" : "events";
   if (rendered) j["mean_render_ms"] = mean_render_ms;
+  if (!v4l2_output.empty()) {
+    j["v4l2_output"] = {{"device", v4l2_output}, {"written", frames}, {"write_failures", write_failures}};
+  }
   if (plant) {
     j["plant"] = {{"steps", plant_stats.steps},
                   {"datagrams", plant_stats.datagrams},
@@ -140,6 +147,31 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
     render.seed = o.robot.seed ^ 0x1a9e5ULL;
     impl_->rendered = std::make_unique<RenderedCamera>(render);
   }
+  if (!o.v4l2_output.empty()) {
+    // The device stamps and numbers the frames and can inject its own faults: none are simulated on this side.
+    if (!impl_->rendered) {
+      throw InputError("command line", "--v4l2-output",
+                       "needs the rendered camera (--objects, --camera, --extrinsics): only images go to a device");
+    }
+    const std::pair<bool, const char*> refused[] = {{o.render.png_level >= 0, "--png-level"},
+                                                    {o.drop_rate != 0, "--drop-rate"},
+                                                    {o.blackout.start_s >= 0, "--blackout"},
+                                                    {o.stale.start_s >= 0, "--stale"}};
+    for (const auto& [given, option] : refused) {
+      if (given) {
+        throw InputError("command line", option,
+                         "not with --v4l2-output (the capture process stamps, numbers and encodes the frames; inject "
+                         "camera faults at the device, e.g. vivid's controls, docs/camera.md)");
+      }
+    }
+    vision::V4l2OutputOptions out;
+    out.device = o.v4l2_output;
+    out.output = o.v4l2_output_index;
+    out.pixel_format = o.v4l2_output_format;
+    out.width = impl_->rendered->width();
+    out.height = impl_->rendered->height();
+    impl_->output = std::make_unique<vision::V4l2Output>(out);
+  }
   control::SyntheticCameraConfig camera_config{o.focal_px, o.on_line_band_px, o.noise_px};
   impl_->camera = std::make_unique<control::SyntheticCamera>(rays_, camera_config, o.robot.seed ^ 0x5eedcafeULL);
 
@@ -169,7 +201,10 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
                                           channels::kSimTruth, o.node_id),
                scene.uncertainty.velocity_cone_rad * 180 / M_PI, o.robot.seed, rays_.rays.size(), o.camera_hz,
                impl_->rendered ? "rendered " + std::to_string(impl_->rendered->width()) + "x" +
-                                     std::to_string(impl_->rendered->height()) + " images on " + channels::kCameraImage
+                                     std::to_string(impl_->rendered->height()) + " images " +
+                                     (impl_->output ? "to " + o.v4l2_output + " ('" + impl_->output->card() + "', " +
+                                                          impl_->output->fourcc() + ")"
+                                                    : std::string("on ") + channels::kCameraImage)
                                : std::string("synthetic visual events"));
 }
 
@@ -213,6 +248,8 @@ SimSummary SimSession::Summary() const {
   s.dropped_frames = dropped_.load();
   s.rendered = impl_->rendered != nullptr;
   s.mean_render_ms = s.frames > 0 ? static_cast<double>(render_us_.load()) / 1e3 / s.frames : 0.0;
+  s.v4l2_output = options_.v4l2_output;
+  s.write_failures = write_failures_.load();
   if (impl_->plant) {
     s.have_driver = false;
     s.plant = true;
@@ -235,6 +272,29 @@ SimSummary SimSession::Summary() const {
   s.driver = d.stats;
   s.driver_state = drivers::ToString(d.state);
   return s;
+}
+
+void SimSession::WriteToDevice(const image_t& image, std::int64_t render_utime) {
+  const vision::GrayImageView picture{image.data.data(), image.width, image.height, image.row_stride};
+  std::string error;
+  // A free buffer comes back within a frame of the device's; a second without one is a stuck device.
+  if (!impl_->output->Write(picture, 1000, error)) {
+    if (write_failures_.fetch_add(1) % 100 == 0) spdlog::warn("sim camera: frame {} not written: {}", image.seq, error);
+    return;
+  }
+  frames_.fetch_add(1);
+  // The frame's record, to follow it through capture and vision (the capture process numbers frames its own way;
+  // the pixel digest, which vision records per frame, identifies it).
+  nlohmann::json record = {{"seq", image.seq},
+                           {"render_utime", render_utime},
+                           {"written_utime", control::WallUtime()},
+                           {"pixel_digest", static_cast<std::int64_t>(vision::PixelDigest(picture))}};
+  log_annotation_t m;
+  m.utime = control::WallUtime();
+  m.source = "sim";
+  m.kind = "sim_frame";
+  m.text = record.dump();
+  impl_->lcm->publish(channels::kSimFrame, &m);
 }
 
 void SimSession::CameraLoop() {
@@ -283,6 +343,10 @@ void SimSession::CameraLoop() {
       render_us_.fetch_add(static_cast<std::uint64_t>(
           std::chrono::duration_cast<std::chrono::microseconds>(Clock::now() - capture_time).count()));
       std::this_thread::sleep_until(capture_time + latency);
+      if (impl_->output) {
+        WriteToDevice(image, capture_utime);
+        continue;
+      }
       impl_->lcm->publish(channels::kCameraImage, &image);
       frames_.fetch_add(1);
       continue;

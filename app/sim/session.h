@@ -55,6 +55,11 @@ struct SimOptions {
   FaultWindow stale;     // frames carry a capture time `stale_s` in the past
   double stale_s = 0.5;
   drivers::DriverConfig driver;
+  // The rendered camera's frames go to this V4L2 video output device (e.g. vivid's, looped back to its capture)
+  // instead of onto VISCO_CAMERA_IMAGE: a capture process (`visco capture`) brings them back through V4L2.
+  std::string v4l2_output;
+  int v4l2_output_index = -1;               // VIDIOC_S_OUTPUT; -1: the device's current output
+  std::string v4l2_output_format = "GREY";  // GREY or YUYV
   // The camera alone: no robot and no driver here; the robot is simulated by a driver process (`visco-rt driver
   // --truth-hz`), whose true state (VISCO_SIM_TRUTH of node node_id) the camera renders.
   bool no_driver = false;
@@ -70,6 +75,8 @@ struct SimSummary {
   std::uint64_t dropped_frames = 0;
   bool rendered = false;
   double mean_render_ms = 0.0;
+  std::string v4l2_output;  // the device the frames went to ("" = onto LCM)
+  std::uint64_t write_failures = 0;
   drivers::DriverStats driver;
   std::string driver_state;
   bool have_driver = true;  // false: --no-driver (then `truths` counts the truth messages received) or --plant
@@ -107,6 +114,7 @@ class SimSession {
  private:
   struct Impl;
   void CameraLoop();
+  void WriteToDevice(const image_t& image, std::int64_t render_utime);
   std::unique_ptr<Impl> impl_;
   control::Task rays_;  // the CVC rays with robot vertex offsets (for the synthetic camera)
   SimOptions options_;
@@ -116,6 +124,7 @@ class SimSession {
   std::atomic<std::uint64_t> frames_{0};
   std::atomic<std::uint64_t> dropped_{0};
   std::atomic<std::uint64_t> render_us_{0};
+  std::atomic<std::uint64_t> write_failures_{0};
   std::thread driver_thread_;
   std::thread camera_thread_;
 };

@@ -86,6 +86,21 @@ out=$("$visco" demo --runs 0 --out "$tmp/bad" 2>&1); status=$?
 out=$("$visco" demo --slow-machine 0.5 --out "$tmp/bad" 2>&1); status=$?
 [[ $status -eq 2 ]] || fail "--slow-machine 0.5 exited $status, expected 2: $out"
 [[ $out == *"--slow-machine"* ]] || fail "the --slow-machine error does not name the option: $out"
+out=$("$visco" demo --v4l2-output /dev/video1 --out "$tmp/bad" 2>&1); status=$?
+[[ $status -eq 2 && $out == *"--v4l2-capture"* ]] || fail "--v4l2-output alone exited $status, expected 2: $out"
+out=$("$visco" demo --v4l2-output /dev/video1 --v4l2-capture /dev/video0 --lockstep --out "$tmp/bad" 2>&1); status=$?
+[[ $status -eq 2 ]] || fail "--v4l2-output with --lockstep exited $status, expected 2: $out"
+# The rendered camera's V4L2 output: a path that is no device, a device that is no V4L2 output.
+data="$(dirname "$0")/../../data"
+cam=(--objects "$data/sim/slot_objects.json" --camera "$data/sim/slot_camera.xml" --extrinsics
+     "$data/sim/slot_extrinsics.json")
+out=$("$visco" sim "$data/scenes/slot.json" --no-driver "${cam[@]}" --v4l2-output "$tmp/none" 2>&1); status=$?
+[[ $status -eq 2 && $out == *"$tmp/none"*"no such device"* ]] || fail "a missing output device exited $status: $out"
+out=$("$visco" sim "$data/scenes/slot.json" --no-driver "${cam[@]}" --v4l2-output /dev/null 2>&1); status=$?
+[[ $status -eq 2 && $out == *"/dev/null"*"not a V4L2 device"* ]] || fail "/dev/null as output exited $status: $out"
+out=$("$visco" sim "$data/scenes/slot.json" --no-driver "${cam[@]}" --v4l2-output /dev/null --blackout 1 1 2>&1)
+status=$?
+[[ $status -eq 2 && $out == *"--blackout"* ]] || fail "--blackout with --v4l2-output exited $status: $out"
 
 echo "$(( failures == 0 ? 1 : 0 )) passed, $(( failures == 0 ? 0 : 1 )) failed"
 exit $(( failures == 0 ? 0 : 1 ))
