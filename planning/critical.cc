@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <deque>
+#include <initializer_list>
 #include <set>
 #include <tuple>
 #include <utility>
@@ -309,6 +311,32 @@ bool Crossing(const Seg& s, const Seg& t, Vector2d* out) {
   return true;
 }
 
+// A compact candidate as a CriticalOrientation (its refs only `with_refs`), into `out` (whose vectors keep their
+// capacity).
+void Materialize(const CandidateEntry& e, const std::vector<std::string>& strings, const std::vector<Vector2d>& points,
+                 CriticalOrientation& out, bool with_refs) {
+  out.theta = e.theta;
+  out.kind = e.kind;
+  out.sliding = e.sliding;
+  out.refs.clear();
+  if (with_refs) {
+    for (auto r : e.refs)
+      if (r != CandidateEntry::kNoIndex) out.refs.push_back(strings[r]);
+  }
+  out.sources.clear();
+  out.source_signs.clear();
+  for (int k = 0; k < 2; ++k) {
+    if (e.sources[k] == CandidateEntry::kNoIndex) continue;
+    out.sources.push_back(points[e.sources[k]]);
+    out.source_signs.push_back(e.source_signs[k]);
+  }
+  out.feature.clear();
+  for (auto f : e.feature)
+    if (f != CandidateEntry::kNoIndex) out.feature.push_back(points[f]);
+  out.point.clear();
+  if (e.has_point) out.point.emplace_back(e.point[0], e.point[1]);
+}
+
 class CandidateGenerator {
  public:
   CandidateGenerator(const BackprojectionProblem& pr, const NamedPolygon* start, CandidateSearch search,
@@ -326,53 +354,185 @@ class CandidateGenerator {
     }
   }
 
-  std::vector<CriticalOrientation> Run(CriticalCounts* counts, bool r_only = false) {
+  // The candidates as a compact list (reference = false) or, as before CandidateList, as CriticalOrientations in
+  // `reference_out` (the tests compare the two).
+  CandidateList Run(CriticalCounts* counts, bool r_only = false,
+                    std::vector<CriticalOrientation>* reference_out = nullptr) {
     r_only_ = r_only;
+    reference_ = reference_out != nullptr;
+    MakeTables();
     if (!r_only) {
       SlidingEvents();
       RayEvents();
     }
     VisibilityEvents();
     FreeVertexEvents();
-    for (auto& c : out_) c.theta = WrapAngle(c.theta);
+    if (reference_) {
+      SortReference();
+      if (counts) Count(counts, reference_out_.size(), [&](size_t i) { return reference_out_[i].kind; });
+      *reference_out = std::move(reference_out_);
+      return {};
+    }
+    auto entries = std::move(entries_);
+    SortAndDeduplicate(entries, strings_, coords_);
+    if (counts) Count(counts, entries.size(), [&](size_t i) { return entries[i].kind; });
+    return CandidateList(std::move(entries), std::move(strings_), std::move(coords_));
+  }
+
+ private:
+  void Add(double theta, CriticalKind kind, std::initializer_list<std::uint32_t> refs,
+           std::initializer_list<std::uint32_t> sources = {}, std::initializer_list<std::int8_t> signs = {},
+           const std::vector<std::uint32_t>& feature = {}, const Vector2d* point = nullptr) {
+    if (!std::isfinite(theta)) return;
+    if (r_only_ && kind != CriticalKind::kR) return;
+    CheckStop();
+    CandidateEntry e;
+    e.theta = WrapAngle(theta);
+    e.kind = kind;
+    Fill(e.refs, refs);
+    Fill(e.sources, sources);
+    for (size_t k = 0; k < signs.size() && k < 2; ++k) e.source_signs[k] = *(signs.begin() + k);
+    Fill(e.feature, feature);
+    if (point != nullptr) {
+      e.point[0] = point->x();
+      e.point[1] = point->y();
+      e.has_point = true;
+    }
+    Push(e);
+  }
+
+  void AddSliding(double theta, std::uint32_t ref, std::initializer_list<std::uint32_t> feature, SlidingCause cause) {
+    if (!std::isfinite(theta) || r_only_) return;
+    CheckStop();
+    CandidateEntry e;
+    e.theta = WrapAngle(theta);
+    e.kind = CriticalKind::kSliding;
+    e.refs[0] = ref;
+    Fill(e.feature, feature);
+    e.sliding = cause;
+    Push(e);
+  }
+
+  template <size_t N>
+  static void Fill(std::uint32_t (&to)[N], std::initializer_list<std::uint32_t> ids) {
+    size_t k = 0;
+    for (auto id : ids) to[k++] = id;
+  }
+  template <size_t N>
+  static void Fill(std::uint32_t (&to)[N], const std::vector<std::uint32_t>& ids) {
+    for (size_t k = 0; k < ids.size() && k < N; ++k) to[k] = ids[k];
+  }
+
+  // The tables candidates point into: every point's ref, then every segment's, then every CB vertex's; every point's
+  // position (positions the events add, a sliding feature's or a free vertex's, are appended).
+  void MakeTables() {
+    for (const auto& p : points_) {
+      strings_.push_back(p.ref);
+      coords_.push_back(p.p);
+    }
+    for (const auto& s : segs_) strings_.push_back(s.ref);
+    for (const auto& r : ring_vertex_refs_) strings_.push_back(r);
+  }
+  std::uint32_t PointId(size_t i) const { return static_cast<std::uint32_t>(i); }
+  std::uint32_t SegRef(size_t k) const { return static_cast<std::uint32_t>(points_.size() + k); }
+  std::uint32_t RingVertexRef(size_t i) const { return static_cast<std::uint32_t>(points_.size() + segs_.size() + i); }
+  std::uint32_t NewPoint(const Vector2d& p) {
+    coords_.push_back(p);
+    return static_cast<std::uint32_t>(coords_.size() - 1);
+  }
+
+  // Stored in a deque while they are generated and sorted (small blocks: neither a doubling of one huge vector nor
+  // a copy of it), as CriticalOrientations in the reference.
+  void Push(const CandidateEntry& e) {
+    ++generated_;
+    if (reference_) {
+      reference_out_.emplace_back();
+      Materialize(e, strings_, coords_, reference_out_.back(), true);
+      return;
+    }
+    entries_.push_back(e);
+  }
+
+  // The order and the duplicates of the reference below, on the compact entries: θ, kind, refs (as strings), then
+  // the sources' positions ((x, y) order).
+  static void SortAndDeduplicate(std::deque<CandidateEntry>& v, const std::vector<std::string>& str,
+                                 const std::vector<Vector2d>& pts) {
+    auto refs_less = [&](const CandidateEntry& x, const CandidateEntry& y) {
+      for (int k = 0; k < 3; ++k) {
+        const bool xn = x.refs[k] == CandidateEntry::kNoIndex, yn = y.refs[k] == CandidateEntry::kNoIndex;
+        if (xn || yn) return xn && !yn;
+        const int c = str[x.refs[k]].compare(str[y.refs[k]]);
+        if (c != 0) return c < 0;
+      }
+      return false;
+    };
+    auto refs_equal = [&](const CandidateEntry& x, const CandidateEntry& y) {
+      for (int k = 0; k < 3; ++k) {
+        const bool xn = x.refs[k] == CandidateEntry::kNoIndex, yn = y.refs[k] == CandidateEntry::kNoIndex;
+        if (xn != yn) return false;
+        if (xn) return true;
+        if (x.refs[k] != y.refs[k] && str[x.refs[k]] != str[y.refs[k]]) return false;
+      }
+      return true;
+    };
+    auto sources_less = [&](const CandidateEntry& x, const CandidateEntry& y) {
+      for (int k = 0; k < 2; ++k) {
+        const bool xn = x.sources[k] == CandidateEntry::kNoIndex, yn = y.sources[k] == CandidateEntry::kNoIndex;
+        if (xn || yn) return xn && !yn;
+        const Vector2d &a = pts[x.sources[k]], &b = pts[y.sources[k]];
+        if (a.x() < b.x() || (a.x() == b.x() && a.y() < b.y())) return true;
+        if (b.x() < a.x() || (a.x() == b.x() && b.y() < a.y())) return false;
+      }
+      return false;
+    };
+    auto sources_equal = [&](const CandidateEntry& x, const CandidateEntry& y) {
+      for (int k = 0; k < 2; ++k) {
+        const bool xn = x.sources[k] == CandidateEntry::kNoIndex, yn = y.sources[k] == CandidateEntry::kNoIndex;
+        if (xn != yn) return false;
+        if (!xn && pts[x.sources[k]] != pts[y.sources[k]]) return false;
+      }
+      return true;
+    };
+    std::sort(v.begin(), v.end(), [&](const CandidateEntry& x, const CandidateEntry& y) {
+      if (x.theta != y.theta) return x.theta < y.theta;
+      if (x.kind != y.kind) return x.kind < y.kind;
+      if (refs_less(x, y)) return true;
+      if (refs_less(y, x)) return false;
+      return sources_less(x, y);
+    });
+    v.erase(std::unique(v.begin(), v.end(),
+                        [&](const CandidateEntry& x, const CandidateEntry& y) {
+                          return x.theta == y.theta && x.kind == y.kind && refs_equal(x, y) && sources_equal(x, y);
+                        }),
+            v.end());
+    v.shrink_to_fit();
+  }
+
+  // The listing before CandidateList (the reference): sorted and deduplicated as CriticalOrientations.
+  void SortReference() {
+    auto& out = reference_out_;
     // Sources break ties (an edge's two ends are both candidates at one orientation), so both searches give one order.
-    std::sort(out_.begin(), out_.end(), [](const CriticalOrientation& x, const CriticalOrientation& y) {
+    std::sort(out.begin(), out.end(), [](const CriticalOrientation& x, const CriticalOrientation& y) {
       const auto kx = std::tie(x.theta, x.kind, x.refs), ky = std::tie(y.theta, y.kind, y.refs);
       if (kx != ky) return kx < ky;
       return std::lexicographical_compare(
           x.sources.begin(), x.sources.end(), y.sources.begin(), y.sources.end(),
           [](const Vector2d& a, const Vector2d& b) { return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y()); });
     });
-    out_.erase(std::unique(out_.begin(), out_.end(),
-                           [](const CriticalOrientation& x, const CriticalOrientation& y) {
-                             return x.theta == y.theta && x.kind == y.kind && x.refs == y.refs &&
-                                    x.sources == y.sources;
-                           }),
-               out_.end());
-    if (counts) {
-      *counts = CriticalCounts{};
-      for (const auto& c : out_) ++counts->by_kind[static_cast<int>(c.kind)];
-      counts->points = static_cast<std::int64_t>(points_.size());
-      counts->segments = static_cast<std::int64_t>(segs_.size());
-      counts->visible_pairs = visible_pairs_;
-    }
-    return std::move(out_);
+    out.erase(std::unique(out.begin(), out.end(),
+                          [](const CriticalOrientation& x, const CriticalOrientation& y) {
+                            return x.theta == y.theta && x.kind == y.kind && x.refs == y.refs && x.sources == y.sources;
+                          }),
+              out.end());
   }
 
- private:
-  void Add(double theta, CriticalKind kind, std::vector<std::string> refs, std::vector<Vector2d> sources = {},
-           std::vector<std::int8_t> signs = {}, std::vector<Vector2d> feature = {}, std::vector<Vector2d> point = {}) {
-    if (!std::isfinite(theta)) return;
-    if (r_only_ && kind != CriticalKind::kR) return;
-    CheckStop();
-    out_.push_back({theta, kind, std::move(refs), std::move(sources), std::move(signs), std::move(feature),
-                    std::move(point), SlidingCause::kNone});
-  }
-
-  void AddSliding(double theta, const std::string& ref, std::vector<Vector2d> feature, SlidingCause cause) {
-    if (!std::isfinite(theta) || r_only_) return;
-    CheckStop();
-    out_.push_back({theta, CriticalKind::kSliding, {ref}, {}, {}, std::move(feature), {}, cause});
+  template <typename KindOf>
+  void Count(CriticalCounts* counts, size_t n, KindOf kind_of) const {
+    *counts = CriticalCounts{};
+    for (size_t i = 0; i < n; ++i) ++counts->by_kind[static_cast<int>(kind_of(i))];
+    counts->points = static_cast<std::int64_t>(points_.size());
+    counts->segments = static_cast<std::int64_t>(segs_.size());
+    counts->visible_pairs = visible_pairs_;
   }
 
   void Collect(const NamedPolygon* start) {
@@ -486,8 +646,12 @@ class CandidateGenerator {
 
   // Sticking/sliding switches and the vertex rule's bisectors (docs/semantics.md "The motion model").
   void SlidingEvents() {
-    for (const auto& s : segs_) {
+    for (size_t k = 0; k < segs_.size(); ++k) {
+      const Seg& s = segs_[k];
       if (s.kind != SegKind::kObstacle) continue;
+      const std::uint32_t ref = SegRef(k);
+      std::uint32_t ends[2] = {CandidateEntry::kNoIndex, CandidateEntry::kNoIndex};
+      if (!r_only_) ends[0] = NewPoint(s.a), ends[1] = NewPoint(s.b);
       const Vector2d d = s.b - s.a;
       const double dir = std::atan2(d.y(), d.x());
       const Vector2d mid = 0.5 * (s.a + s.b);
@@ -508,13 +672,13 @@ class CandidateGenerator {
             SlidingCause cause = SlidingCause::kSticking;
             if (away) cause = SlidingCause::kAway;
             if (into && se != sf && phi_ > 1e-9) cause = SlidingCause::kStickingHeld;
-            AddSliding(normal + sf * phi_ + se * eps_, s.ref, {s.a, s.b}, cause);
+            AddSliding(normal + sf * phi_ + se * eps_, ref, {ends[0], ends[1]}, cause);
           }
         // The cone reaches the edge's direction (pushing into it or not): θ ± ε_v = the edge's direction.
         for (double se : {-1.0, 1.0})
-          AddSliding(normal + M_PI / 2 + se * eps_, s.ref, {s.a, s.b}, SlidingCause::kContact);
+          AddSliding(normal + M_PI / 2 + se * eps_, ref, {ends[0], ends[1]}, SlidingCause::kContact);
         // The commanded direction along the edge (the sliding direction of its central velocity flips).
-        AddSliding(normal + M_PI / 2, s.ref, {s.a, s.b}, SlidingCause::kAlong);
+        AddSliding(normal + M_PI / 2, ref, {ends[0], ends[1]}, SlidingCause::kAlong);
       }
     }
     for (size_t i = 0; i < ring_vertices_.size(); ++i) {
@@ -525,12 +689,13 @@ class CandidateGenerator {
       if (bis.norm() < 1e-12) continue;
       const double b = std::atan2(bis.y(), bis.x());
       const double h = 1e-7 * std::min((prev - v).norm(), (next - v).norm());
+      const std::uint32_t vertex = NewPoint(v);
       for (double base : {b, b + M_PI}) {
         // Out of CB along the bisector (the other way into it): velocities beside it push into neither edge.
         const Vector2d w(std::cos(base), std::sin(base));
         const bool away = !cb_.StrictlyInside(v + h * w) && cb_.StrictlyInside(v - h * w);
         for (double se : {-1.0, 1.0})
-          AddSliding(base + se * eps_, ring_vertex_refs_[i], {v},
+          AddSliding(base + se * eps_, RingVertexRef(i), {vertex},
                      away ? SlidingCause::kVertexAway : SlidingCause::kVertexRule);
       }
     }
@@ -538,14 +703,15 @@ class CandidateGenerator {
 
   // A free edge parallel to a CVC ray, and the ray's reliability boundary.
   void RayEvents() {
-    for (const auto& s : segs_) {
+    for (size_t k = 0; k < segs_.size(); ++k) {
+      const Seg& s = segs_[k];
       if (s.kind != SegKind::kRay) continue;
       const Vector2d d = s.b - s.a;
       const double rho = std::atan2(d.y(), d.x());
       for (double base : {rho, rho + M_PI})
         for (double se : {-1.0, 1.0}) {
-          Add(base + se * eps_, CriticalKind::kVc, {s.ref});
-          Add(base + M_PI / 2 + se * eps_, CriticalKind::kVc, {s.ref});
+          Add(base + se * eps_, CriticalKind::kVc, {SegRef(k)});
+          Add(base + M_PI / 2 + se * eps_, CriticalKind::kVc, {SegRef(k)});
         }
     }
   }
@@ -590,18 +756,21 @@ class CandidateGenerator {
         const bool along = along_static.count({i, j}) != 0;
         // Along a static segment, the segment itself is where the event acts (a part of the region can appear
         // between it and the free edges turning across its line).
-        std::vector<Vector2d> feature;
-        if (along) feature = {points_[i].p, points_[j].p};
+        std::vector<std::uint32_t> feature;
+        if (along) feature = {PointId(i), PointId(j)};
+        const auto pi = PointId(i), pj = PointId(j);
         for (double se : {-1.0, 1.0}) {
           const std::int8_t sign = se > 0 ? -1 : 1;
           // Along a segment the feature decides; elsewhere the point the free edge passes through.
-          Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p}, {sign}, feature,
-              along ? std::vector<Vector2d>{} : std::vector<Vector2d>{points_[i].p});
-          Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p}, {sign}, feature,
-              along ? std::vector<Vector2d>{} : std::vector<Vector2d>{points_[j].p});
-          if (along) {  // the other end's free edge of the same sign, parallel to the segment beyond that end
-            Add(beta + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[i].p}, {sign}, feature);
-            Add(beta + M_PI + se * eps_, kind, {points_[i].ref, points_[j].ref}, {points_[j].p}, {sign}, feature);
+          if (along) {
+            Add(beta + se * eps_, kind, {pi, pj}, {pj}, {sign}, feature);
+            Add(beta + M_PI + se * eps_, kind, {pi, pj}, {pi}, {sign}, feature);
+            // The other end's free edge of the same sign, parallel to the segment beyond that end.
+            Add(beta + se * eps_, kind, {pi, pj}, {pi}, {sign}, feature);
+            Add(beta + M_PI + se * eps_, kind, {pi, pj}, {pj}, {sign}, feature);
+          } else {
+            Add(beta + se * eps_, kind, {pi, pj}, {pj}, {sign}, feature, &points_[i].p);
+            Add(beta + M_PI + se * eps_, kind, {pi, pj}, {pi}, {sign}, feature, &points_[j].p);
           }
         }
       }
@@ -630,22 +799,23 @@ class CandidateGenerator {
         const double h = len / (2 * std::tan(two_eps));
         for (double side : {-1.0, 1.0}) {
           const Vector2d c = m + side * h * nrm;
-          auto meet = [&](const Seg& s) {
-            if (r_only_ && s.kind != SegKind::kStart) return;
-            CircleMeetsSegment(i, j, c, r, s);
-            if (indexed_) CircleMeetsSegment(j, i, c, r, s);  // (b, a): the same circle, not walked on its own
+          auto meet = [&](size_t k) {
+            if (r_only_ && segs_[k].kind != SegKind::kStart) return;
+            CircleMeetsSegment(i, j, c, r, k);
+            if (indexed_) CircleMeetsSegment(j, i, c, r, k);  // (b, a): the same circle, not walked on its own
           };
           if (indexed_) {
-            for (int k : seg_grid_.NearCircle(c, r)) meet(segs_[k]);
+            for (int k : seg_grid_.NearCircle(c, r)) meet(static_cast<size_t>(k));
           } else {
-            for (const auto& s : segs_) meet(s);
+            for (size_t k = 0; k < segs_.size(); ++k) meet(k);
           }
         }
       }
     }
   }
 
-  void CircleMeetsSegment(size_t i, size_t j, const Vector2d& c, double r, const Seg& s) {
+  void CircleMeetsSegment(size_t i, size_t j, const Vector2d& c, double r, size_t k) {
+    const Seg& s = segs_[k];
     const Vector2d d = s.b - s.a, w = s.a - c;
     const double A = d.squaredNorm(), B = 2 * w.dot(d), C = w.squaredNorm() - r * r;
     const double disc = B * B - 4 * A * C;
@@ -665,13 +835,13 @@ class CandidateGenerator {
       if (s.kind == SegKind::kStart) kind = CriticalKind::kR;
       // A ray that cannot be relied on at θ is never active: its crossings change nothing.
       if (s.kind == SegKind::kRay && !IsReliableRay(s.a, s.b, theta, pr_.velocity_cone)) continue;
-      Add(theta, kind, {points_[i].ref, points_[j].ref, s.ref}, {a, b}, {1, -1}, {}, {f});
+      Add(theta, kind, {PointId(i), PointId(j), SegRef(k)}, {PointId(i), PointId(j)}, {1, -1}, {}, &f);
     }
   }
 
   // The stop flag, read every 4096 candidates: the candidates of a large scene with a camera can take gigabytes.
   void CheckStop() {
-    if (stop_ != nullptr && (out_.size() & 4095) == 0 && stop_->load(std::memory_order_relaxed)) {
+    if (stop_ != nullptr && (generated_ & 4095) == 0 && stop_->load(std::memory_order_relaxed)) {
       throw NondirectionalStopped();
     }
   }
@@ -688,10 +858,40 @@ class CandidateGenerator {
   SegmentGrid seg_grid_;  // every segment (the circles of free vertices meet them)
   bool indexed_ = false;
   std::int64_t visible_pairs_ = 0;
-  std::vector<CriticalOrientation> out_;
+  bool reference_ = false;
+  std::int64_t generated_ = 0;
+  std::vector<std::string> strings_;  // the tables (MakeTables)
+  std::vector<Vector2d> coords_;
+  std::deque<CandidateEntry> entries_;
+  std::vector<CriticalOrientation> reference_out_;
 };
 
 }  // namespace
+
+void CandidateList::Get(std::size_t i, CriticalOrientation& out, bool with_refs) const {
+  Materialize(entries_[i], strings_, points_, out, with_refs);
+}
+
+CriticalOrientation CandidateList::Get(std::size_t i) const {
+  CriticalOrientation o;
+  Get(i, o, true);
+  return o;
+}
+
+std::vector<std::string> CandidateList::Refs(std::size_t i) const {
+  std::vector<std::string> refs;
+  for (auto r : entries_[i].refs)
+    if (r != CandidateEntry::kNoIndex) refs.push_back(strings_[r]);
+  return refs;
+}
+
+std::vector<CriticalOrientation> CandidateList::TakeKind(CriticalKind kind) {
+  std::vector<CriticalOrientation> taken;
+  for (std::size_t i = 0; i < entries_.size(); ++i)
+    if (entries_[i].kind == kind) taken.push_back(Get(i));
+  std::erase_if(entries_, [&](const CandidateEntry& e) { return e.kind == kind; });
+  return taken;
+}
 
 const char* CriticalKindName(CriticalKind kind) {
   switch (kind) {
@@ -754,15 +954,35 @@ double WrapAngle(double theta) {
   return t;
 }
 
+CandidateList CriticalCandidateList(const BackprojectionProblem& problem, const NamedPolygon* start,
+                                    CriticalCounts* counts, CandidateSearch search, const std::atomic<bool>* stop) {
+  return CandidateGenerator(problem, start, search, stop).Run(counts);
+}
+
+namespace {
+std::vector<CriticalOrientation> AllOf(const CandidateList& list) {
+  std::vector<CriticalOrientation> out(list.size());
+  for (std::size_t i = 0; i < list.size(); ++i) list.Get(i, out[i], true);
+  return out;
+}
+}  // namespace
+
 std::vector<CriticalOrientation> CriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon* start,
                                                     CriticalCounts* counts, CandidateSearch search,
                                                     const std::atomic<bool>* stop) {
-  return CandidateGenerator(problem, start, search, stop).Run(counts);
+  return AllOf(CriticalCandidateList(problem, start, counts, search, stop));
+}
+
+std::vector<CriticalOrientation> CriticalCandidatesReference(const BackprojectionProblem& problem,
+                                                             const NamedPolygon* start, CriticalCounts* counts) {
+  std::vector<CriticalOrientation> out;
+  CandidateGenerator(problem, start, CandidateSearch::kIndexed).Run(counts, false, &out);
+  return out;
 }
 
 std::vector<CriticalOrientation> RCriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon& start,
                                                      CandidateSearch search) {
-  return CandidateGenerator(problem, &start, search).Run(nullptr, true);
+  return AllOf(CandidateGenerator(problem, &start, search).Run(nullptr, true));
 }
 
 }  // namespace visco::planning

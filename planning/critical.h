@@ -23,9 +23,12 @@
 
 #include <Eigen/Core>
 #include <atomic>
+#include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "planning/backprojection.h"
@@ -104,14 +107,69 @@ struct CriticalCounts {
 /// scanning all of them (the obvious reference the tests compare with; O(n³)). Both give the same candidates.
 enum class CandidateSearch : std::uint8_t { kIndexed, kScan };
 
+/// One candidate of a CandidateList: its θ, kind, cause and point, and its refs, sources and features as indices into
+/// the list's tables of strings and points (kNoIndex where absent). 64 bytes and no allocation of its own: a
+/// large scene with a camera has tens of millions of candidates (n = 106, seed 2 of BM_MultiStep: 27 million, 24
+/// million of them free-edge), which as CriticalOrientations took 21 GB.
+struct CandidateEntry {
+  static constexpr std::uint32_t kNoIndex = 0xffffffffu;
+  double theta = 0.0;
+  std::uint32_t refs[3] = {kNoIndex, kNoIndex, kNoIndex};
+  std::uint32_t sources[2] = {kNoIndex, kNoIndex};
+  std::uint32_t feature[2] = {kNoIndex, kNoIndex};
+  double point[2] = {0.0, 0.0};  ///< CriticalOrientation::point, where has_point
+  CriticalKind kind = CriticalKind::kVgraph;
+  SlidingCause sliding = SlidingCause::kNone;
+  std::int8_t source_signs[2] = {0, 0};
+  bool has_point = false;
+};
+
+/// The candidates of CriticalCandidates, stored compactly (CandidateEntry) and read one at a time.
+class CandidateList {
+ public:
+  CandidateList() = default;
+  CandidateList(std::deque<CandidateEntry> entries, std::vector<std::string> strings,
+                std::vector<Eigen::Vector2d> points)
+      : entries_(std::move(entries)), strings_(std::move(strings)), points_(std::move(points)) {}
+  std::size_t size() const { return entries_.size(); }
+  bool empty() const { return entries_.empty(); }
+  double theta(std::size_t i) const { return entries_[i].theta; }
+  CriticalKind kind(std::size_t i) const { return entries_[i].kind; }
+  SlidingCause sliding(std::size_t i) const { return entries_[i].sliding; }
+  /// Candidate i as a CriticalOrientation, written into `out` (its vectors keep their capacity: no allocation once
+  /// warm); without `with_refs` its refs are left empty.
+  void Get(std::size_t i, CriticalOrientation& out, bool with_refs = true) const;
+  CriticalOrientation Get(std::size_t i) const;
+  std::vector<std::string> Refs(std::size_t i) const;
+  /// Removes the candidates of one kind (keeping the order of the others) and returns them.
+  std::vector<CriticalOrientation> TakeKind(CriticalKind kind);
+
+ private:
+  std::deque<CandidateEntry> entries_;  // no huge block: a large scene has tens of millions
+  std::vector<std::string> strings_;
+  std::vector<Eigen::Vector2d> points_;
+};
+
 /// Every candidate critical orientation of the problem's B_θ(G) and B_vcθ(G) over all θ (problem.theta is ignored),
-/// sorted by θ in [−π, π), exact duplicates (same θ, kind and refs) removed. `start` (may be null) adds the
+/// sorted by θ in [−π, π), exact duplicates (same θ, kind, refs and sources) removed. `start` (may be null) adds the
 /// R-critical orientations of that region. A superset: the nondirectional backprojection (nondirectional.h) keeps
 /// those where the structure really changes. Not real-time safe.
+CandidateList CriticalCandidateList(const BackprojectionProblem& problem, const NamedPolygon* start,
+                                    CriticalCounts* counts = nullptr,
+                                    CandidateSearch search = CandidateSearch::kIndexed,
+                                    const std::atomic<bool>* stop = nullptr);
+
+/// The same candidates as CriticalOrientations (for the command line and the tests; large scenes take gigabytes).
 std::vector<CriticalOrientation> CriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon* start,
                                                     CriticalCounts* counts = nullptr,
                                                     CandidateSearch search = CandidateSearch::kIndexed,
                                                     const std::atomic<bool>* stop = nullptr);
+
+/// The listing before CandidateList, kept as the reference the tests compare with: every candidate built as a
+/// CriticalOrientation, then sorted and deduplicated.
+std::vector<CriticalOrientation> CriticalCandidatesReference(const BackprojectionProblem& problem,
+                                                             const NamedPolygon* start,
+                                                             CriticalCounts* counts = nullptr);
 
 /// Thrown by CriticalCandidates and ComputeNondirectional (nondirectional.h) when their stop flag is set (the
 /// planner's memory limit sets it from another thread).

@@ -65,7 +65,7 @@ int KineticWalk::NearestCandidate(double theta, double tolerance) const {
   int best = -1;
   double best_d = tolerance;
   for (size_t i = 0; i < structural_.size(); ++i) {
-    const double d = std::abs(WrapAngle(structural_[i].theta - theta));
+    const double d = std::abs(WrapAngle(structural_.theta(i) - theta));
     if (d <= best_d) {
       best_d = d;
       best = static_cast<int>(i);
@@ -77,7 +77,7 @@ int KineticWalk::NearestCandidate(double theta, double tolerance) const {
 size_t KineticWalk::EventIntervalAt(double theta) const {
   theta = WrapAngle(theta);
   const auto first_not_before = std::partition_point(
-      events_.begin(), events_.end(), [&](const Event& e) { return structural_[e.begin].theta < theta; });
+      events_.begin(), events_.end(), [&](const Event& e) { return structural_.theta(e.begin) < theta; });
   // Before the first event: the wrapping interval after the last.
   const size_t after = static_cast<size_t>(first_not_before - events_.begin());
   return (after == 0 ? events_.size() : after) - 1;
@@ -89,7 +89,7 @@ void KineticWalk::AddFound(const Switch& s, std::vector<double>& changes, std::v
     AddSelection(s, changes, change_candidate);
     return;
   }
-  changes.push_back(c >= 0 ? structural_[c].theta : s.theta);
+  changes.push_back(c >= 0 ? structural_.theta(static_cast<size_t>(c)) : s.theta);
   change_candidate.push_back(c >= 0 ? c : (structural_.empty() ? -1 : 0));
   if (c >= 0) ++found_by_probes_;
   if (c < 0) {
@@ -98,8 +98,8 @@ void KineticWalk::AddFound(const Switch& s, std::vector<double>& changes, std::v
   }
 }
 
-void KineticWalk::Verify(std::vector<double>& changes, std::vector<int>& change_candidate,
-                         const std::vector<Slice>& intervals, const std::vector<size_t>& source) {
+void KineticWalk::Verify(std::vector<double>& changes, std::vector<int>& change_candidate, const SweptSlices& intervals,
+                         const std::vector<std::uint32_t>& source) {
   for (int round = 0; round < 4; ++round) {
     std::vector<std::pair<double, int>> order;
     for (size_t i = 0; i < changes.size(); ++i) order.push_back({changes[i], change_candidate[i]});
@@ -133,7 +133,7 @@ void KineticWalk::Verify(std::vector<double>& changes, std::vector<int>& change_
         const auto [event_lo, event_hi] = EventInterval(k);
         const double from = Unwrap(event_lo, theta - 2 * M_PI), to = from + (event_hi - event_lo);
         if (Unwrap(p.lo, from) < to || Unwrap(p.hi, from) < to) continue;
-        const Slice& walk = intervals[source[k]];
+        const Slice& walk = intervals.at(source[k]);
         if (walk.structure == p.s[a].structure) continue;
         const double swept = Unwrap(walk.theta, p.lo);
         AddFound(swept < theta ? Bisect(swept, theta, walk.structure) : Bisect(theta, swept, p.s[a].structure), changes,

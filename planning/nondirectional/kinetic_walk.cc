@@ -33,26 +33,19 @@ NondirectionalBackprojection KineticWalk::Run() {
     for (const auto& ray : pr_.rays)
       ray_segments_.insert(ray_segments_.end(), ray.segments.begin(), ray.segments.end());
   }
-  auto candidates = CriticalCandidates(pr_, start_, &nd.stats.counts, CandidateSearch::kIndexed, options_.stop);
-  nd.stats.candidates = static_cast<std::int64_t>(candidates.size());
-  std::vector<CriticalOrientation> r_candidates;
-  for (auto& c : candidates) {
-    if (c.kind == CriticalKind::kR) {
-      r_candidates.push_back(std::move(c));
-    } else {
-      structural_.push_back(std::move(c));
-    }
-  }
+  structural_ = CriticalCandidateList(pr_, start_, &nd.stats.counts, CandidateSearch::kIndexed, options_.stop);
+  nd.stats.candidates = static_cast<std::int64_t>(structural_.size());
+  std::vector<CriticalOrientation> r_candidates = structural_.TakeKind(CriticalKind::kR);
   // Events: groups of structural candidates at (nearly) one θ.
   for (size_t i = 0; i < structural_.size();) {
     size_t j = i + 1;
-    while (j < structural_.size() && structural_[j].theta - structural_[j - 1].theta <= kSameTheta) ++j;
-    events_.push_back({i, j});
+    while (j < structural_.size() && structural_.theta(j) - structural_.theta(j - 1) <= kSameTheta) ++j;
+    events_.push_back({static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j)});
     i = j;
   }
   // Interval k's structure is that of intervals[source[k]] (the last swept interval up to k).
-  std::vector<size_t> source;
-  std::vector<Slice> intervals = IntervalSlices(source);
+  std::vector<std::uint32_t> source;
+  const SweptSlices intervals = IntervalSlices(source);
   // Orientations where the interval structure changes.
   std::vector<double> changes;
   std::vector<int> change_candidate;
@@ -60,8 +53,8 @@ NondirectionalBackprojection KineticWalk::Run() {
   for (size_t k = 0; k < m && m > 1; ++k) {
     const size_t b = source[(k + m - 1) % m], a = source[k];
     if (a == b) continue;  // no sweep in between: the same structure
-    const Slice& before = intervals[b];
-    const Slice& after = intervals[a];
+    const Slice& before = intervals.at(b);
+    const Slice& after = intervals.at(a);
     if (before.structure == after.structure) continue;
     if (const auto rays = RaySwitchInGap(k, before, after)) {
       AddSelection(*rays, changes, change_candidate);
@@ -77,7 +70,7 @@ NondirectionalBackprojection KineticWalk::Run() {
       ++rule_missed_;
       bool sliding = false;
       for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
-        sliding = sliding || structural_[i].kind == CriticalKind::kSliding;
+        sliding = sliding || structural_.kind(i) == CriticalKind::kSliding;
       }
       if (sliding) ++rule_missed_sliding_;
     }
@@ -119,9 +112,9 @@ NondirectionalBackprojection KineticWalk::Run() {
     CriticalOrientation o;
     o.theta = theta;
     if (c >= 0) {
-      o.kind = structural_[c].kind;
-      o.refs = structural_[c].refs;
-      o.sliding = structural_[c].sliding;
+      o.kind = structural_.kind(static_cast<size_t>(c));
+      o.refs = structural_.Refs(static_cast<size_t>(c));
+      o.sliding = structural_.sliding(static_cast<size_t>(c));
     } else {
       o.kind = CriticalKind::kSelection;
       o.refs = selection_refs_[theta];
@@ -180,10 +173,13 @@ Slice KineticWalk::Evaluate(double theta, SweepPurpose purpose) {
 std::optional<Slice> KineticWalk::Updated(size_t k, const Slice& last, const std::vector<EventPoint>& ends) const {
   CarriedAt carried(last, EventTheta(k), pr_.velocity_cone);
   const CriticalOrientation* only = nullptr;
+  CriticalOrientation c, one;
   for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
-    if (!CanChange(structural_[i], ends, last, carried)) continue;
+    structural_.Get(i, c, false);
+    if (!CanChange(c, ends, last, carried)) continue;
     if (only != nullptr) return std::nullopt;  // several events at once
-    only = &structural_[i];
+    std::swap(one, c);
+    only = &one;
   }
   if (only == nullptr || (only->kind != CriticalKind::kVertex && only->kind != CriticalKind::kVgraph)) {
     return std::nullopt;
@@ -231,7 +227,11 @@ bool KineticWalk::ExplainedAt(size_t k, const Slice& before, const Slice& after)
         OneRingChanged(vc ? before.vc.region : before.vc.classic, vc ? after.vc.region : after.vc.classic, sb, sa);
     if (!edit) return false;
     bool made = false;
-    for (size_t i = events_[k].begin; i < events_[k].end && !made; ++i) made = MakesEdit(structural_[i], *edit, tol);
+    CriticalOrientation c;
+    for (size_t i = events_[k].begin; i < events_[k].end && !made; ++i) {
+      structural_.Get(i, c, false);
+      made = MakesEdit(c, *edit, tol);
+    }
     if (!made) return false;
   }
   return true;
@@ -246,17 +246,22 @@ double KineticWalk::IntervalTheta(size_t k) const {
   return WrapAngle(0.5 * (lo + hi));
 }
 
-std::vector<Slice> KineticWalk::IntervalSlices(std::vector<size_t>& source) {
+KineticWalk::SweptSlices KineticWalk::IntervalSlices(std::vector<std::uint32_t>& source) {
   const size_t m = events_.size();
   source.resize(m);
-  for (size_t k = 0; k < m; ++k) source[k] = k;
-  if (m <= 1) return m == 0 ? std::vector<Slice>{} : std::vector<Slice>{Evaluate(IntervalTheta(0), kSweepWalk)};
-  std::vector<Slice> out(m);
+  for (size_t k = 0; k < m; ++k) source[k] = static_cast<std::uint32_t>(k);
+  SweptSlices all;
+  if (m <= 1) {
+    if (m == 1) all.emplace(0, Evaluate(IntervalTheta(0), kSweepWalk));
+    return all;
+  }
   if (options_.method == SliceMethod::kBaseline) {
     checked_ = static_cast<std::int64_t>(m);
+    std::vector<Slice> out(m);
     ParallelFor(m, options_.threads, options_.progress, 0.0, 0.7,
                 [&](size_t k) { out[k] = Evaluate(IntervalTheta(k), kSweepWalk); });
-    return out;
+    for (size_t k = 0; k < m; ++k) all.emplace(k, std::move(out[k]));
+    return all;
   }
   // Chunks of events walked independently (one per thread), each starting from a swept interval. An event is
   // swept again when it is relevant, and every `resweep_period` events anyway; when the structure differs from the
@@ -266,8 +271,10 @@ std::vector<Slice> KineticWalk::IntervalSlices(std::vector<size_t>& source) {
   const size_t chunks = std::clamp<size_t>(static_cast<size_t>(std::max(1, options_.threads)), 1, m);
   std::vector<std::int64_t> checked(chunks, 0), explained(chunks, 0);
   std::vector<char> swept(m, 0);
+  std::vector<SweptSlices> chunk_slices(chunks);
   ParallelFor(chunks, options_.threads, options_.progress, 0.0, 0.7, [&](size_t c) {
     const size_t begin = m * c / chunks, end = m * (c + 1) / chunks;
+    SweptSlices& out = chunk_slices[c];  // a chunk reads and sweeps only its own events
     auto sweep = [&](size_t k, SweepPurpose purpose) {
       out[k] = Evaluate(IntervalTheta(k), purpose);
       swept[k] = 1;
@@ -361,12 +368,13 @@ std::vector<Slice> KineticWalk::IntervalSlices(std::vector<size_t>& source) {
     size_t from = begin;
     for (size_t k = begin + 1; k < end; ++k) {
       if (swept[k]) from = k;
-      source[k] = from;
+      source[k] = static_cast<std::uint32_t>(from);
     }
   });
   for (auto c : checked) checked_ += c;
   for (auto c : explained) explained_ += c;
-  return out;
+  for (auto& slices : chunk_slices) all.merge(slices);
+  return all;
 }
 
 }  // namespace visco::planning::internal

@@ -13,6 +13,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <unordered_map>
 #include <utility>
 #include <vector>
 
@@ -34,10 +35,10 @@ class KineticWalk {
 
  private:
   struct Event {
-    size_t begin, end;  // candidates [begin, end)
+    std::uint32_t begin, end;  // candidates [begin, end)
   };
 
-  double EventTheta(size_t k) const { return structural_[events_[k].begin].theta; }
+  double EventTheta(size_t k) const { return structural_.theta(events_[k].begin); }
 
   Slice Evaluate(double theta, SweepPurpose purpose);
 
@@ -94,9 +95,13 @@ class KineticWalk {
   // The representative θ of the interval after event k.
   double IntervalTheta(size_t k) const;
 
+  // The swept intervals' slices, by event index (a large scene has millions of events and sweeps a few hundred).
+  using SweptSlices = std::unordered_map<size_t, Slice>;
+
   // One slice per interval between consecutive events: every one swept (baseline) or only after relevant events
-  // (kinetic; the others inherit the previous interval's slice).
-  std::vector<Slice> IntervalSlices(std::vector<size_t>& source);
+  // (kinetic; the others inherit the previous interval's slice: source[k] is the swept interval whose slice interval
+  // k has).
+  SweptSlices IntervalSlices(std::vector<std::uint32_t>& source);
 
   // The candidate of event k to report: the first whose sources are vertices on either side.
   int PickCandidate(size_t k, const Slice& before, const Slice& after) const;
@@ -133,14 +138,14 @@ class KineticWalk {
   void AddFound(const Switch& s, std::vector<double>& changes, std::vector<int>& change_candidate);
 
   // Checks every interval between consecutive changes at three orientations and locates any change found there.
-  void Verify(std::vector<double>& changes, std::vector<int>& change_candidate, const std::vector<Slice>& intervals,
-              const std::vector<size_t>& source);
+  void Verify(std::vector<double>& changes, std::vector<int>& change_candidate, const SweptSlices& intervals,
+              const std::vector<std::uint32_t>& source);
 
   const BackprojectionProblem& pr_;
   const NamedPolygon* start_;
   NondirectionalOptions options_;
   double size_ = 1.0;
-  std::vector<CriticalOrientation> structural_;
+  CandidateList structural_;  // the candidates but the R-critical ones, compact (critical.h)
   std::vector<Event> events_;
   std::array<std::atomic<std::int64_t>, kSweepPurposes> sweeps_{};
   std::array<std::atomic<std::int64_t>, kSweepPurposes> sweep_ns_{};

@@ -65,8 +65,10 @@ bool KineticWalk::CanChange(const CriticalOrientation& c, const std::vector<Even
 
 bool KineticWalk::EventRelevant(size_t k, const std::vector<EventPoint>& ends, const Slice& current) const {
   CarriedAt carried(current, EventTheta(k), pr_.velocity_cone);
+  CriticalOrientation c;
   for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
-    if (CanChange(structural_[i], ends, current, carried)) return true;
+    structural_.Get(i, c, false);
+    if (CanChange(c, ends, current, carried)) return true;
   }
   return false;
 }
@@ -77,15 +79,17 @@ int KineticWalk::PickCandidate(size_t k, const Slice& before, const Slice& after
   // Prefer the specific kinds (a free edge parallel to a ray is also parallel to the segment of its two ends).
   static const CriticalKind priority[] = {CriticalKind::kVc, CriticalKind::kFreeEdge, CriticalKind::kVertex,
                                           CriticalKind::kSliding, CriticalKind::kVgraph};
+  CriticalOrientation c;
   for (CriticalKind kind : priority) {
     for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
-      const auto& c = structural_[i];
-      if (c.kind == kind && (CanChange(c, vb, before, cb) || CanChange(c, va, after, ca))) return static_cast<int>(i);
+      if (structural_.kind(i) != kind) continue;
+      structural_.Get(i, c, false);
+      if (CanChange(c, vb, before, cb) || CanChange(c, va, after, ca)) return static_cast<int>(i);
     }
   }
   // No candidate the rules take (a change they missed): the first that can change anything at all.
   for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
-    if (!SlidingCauseChangesNothing(structural_[i].sliding)) return static_cast<int>(i);
+    if (!SlidingCauseChangesNothing(structural_.sliding(i))) return static_cast<int>(i);
   }
   return static_cast<int>(events_[k].begin);
 }

@@ -2,7 +2,10 @@
 // obvious scan over every segment, on seeded random whole scenes nobody designed (cameras anywhere and on the bounds,
 // rays to the bounds, non-convex and overlapping obstacles, ε_v 2-20°, start regions anywhere), the benchmark's
 // pentagon grids and every example scene: the same candidates (θ bit for bit, kind, refs, sources) and the same
-// counts. The grid only skips segments that cannot meet the query, so any difference is a bug in it.
+// counts. The grid only skips segments that cannot meet the query, so any difference is a bug in it. And the compact
+// list (CandidateList, what the nondirectional backprojection reads) against the listing before it, which kept every
+// candidate as a CriticalOrientation (CriticalCandidatesReference): the same candidates in the same order, every
+// field, on the same scenes.
 
 #include "planning/critical.h"
 
@@ -55,6 +58,55 @@ void ExpectSameCandidates(const std::string& name, const BackprojectionProblem& 
   }
 }
 
+// The compact list against the reference listing: every field of every candidate, in order, and the counts.
+void ExpectSameAsReference(const std::string& name, const BackprojectionProblem& pr, const NamedPolygon* start) {
+  CriticalCounts list_counts, reference_counts;
+  const CandidateList list = CriticalCandidateList(pr, start, &list_counts);
+  const auto reference = CriticalCandidatesReference(pr, start, &reference_counts);
+  ASSERT_EQ(list.size(), reference.size()) << name;
+  CriticalOrientation c;
+  for (size_t k = 0; k < reference.size(); ++k) {
+    const CriticalOrientation& r = reference[k];
+    list.Get(k, c);
+    ASSERT_EQ(c.theta, r.theta) << name << " candidate " << k;
+    ASSERT_EQ(list.theta(k), r.theta) << name << " candidate " << k;
+    ASSERT_EQ(c.kind, r.kind) << name << " candidate " << k;
+    ASSERT_EQ(list.kind(k), r.kind) << name << " candidate " << k;
+    ASSERT_EQ(c.refs, r.refs) << name << " candidate " << k;
+    ASSERT_EQ(list.Refs(k), r.refs) << name << " candidate " << k;
+    ASSERT_EQ(c.sources, r.sources) << name << " candidate " << k;
+    ASSERT_EQ(c.source_signs, r.source_signs) << name << " candidate " << k;
+    ASSERT_EQ(c.feature, r.feature) << name << " candidate " << k;
+    ASSERT_EQ(c.point, r.point) << name << " candidate " << k;
+    ASSERT_EQ(c.sliding, r.sliding) << name << " candidate " << k;
+    ASSERT_EQ(list.sliding(k), r.sliding) << name << " candidate " << k;
+    list.Get(k, c, /*with_refs=*/false);
+    ASSERT_TRUE(c.refs.empty()) << name;
+    ASSERT_EQ(c.sources, r.sources) << name << " candidate " << k;
+  }
+  for (int kind = 0; kind < 7; ++kind) EXPECT_EQ(list_counts.by_kind[kind], reference_counts.by_kind[kind]) << name;
+  EXPECT_EQ(list_counts.visible_pairs, reference_counts.visible_pairs) << name;
+  EXPECT_EQ(list_counts.points, reference_counts.points) << name;
+  EXPECT_EQ(list_counts.segments, reference_counts.segments) << name;
+  // TakeKind: the R-critical ones out, the rest in order.
+  CandidateList rest = CriticalCandidateList(pr, start);
+  const auto taken = rest.TakeKind(CriticalKind::kR);
+  size_t t = 0, o = 0;
+  for (const auto& r : reference) {
+    if (r.kind == CriticalKind::kR) {
+      ASSERT_LT(t, taken.size()) << name;
+      EXPECT_EQ(taken[t].theta, r.theta) << name;
+      EXPECT_EQ(taken[t++].refs, r.refs) << name;
+    } else {
+      ASSERT_LT(o, rest.size()) << name;
+      EXPECT_EQ(rest.theta(o), r.theta) << name;
+      EXPECT_EQ(rest.Refs(o++), r.refs) << name;
+    }
+  }
+  EXPECT_EQ(t, taken.size()) << name;
+  EXPECT_EQ(o, rest.size()) << name;
+}
+
 #if defined(__SANITIZE_ADDRESS__)
 constexpr std::uint64_t kSeeds = 12;  // the scan is O(n³): slow under a sanitizer
 #else
@@ -76,6 +128,7 @@ TEST(CriticalCandidates, IndexedSearchEqualsTheScanOnRandomWholeScenes) {
     NamedPolygon r;
     if (start) r.vertices = scene.start->polygon.vertices;
     ExpectSameCandidates("seed " + std::to_string(seed), pr, start ? &r : nullptr);
+    ExpectSameAsReference("seed " + std::to_string(seed), pr, start ? &r : nullptr);
     candidates += static_cast<std::int64_t>(CriticalCandidates(pr, start ? &r : nullptr).size());
     ++compared;
     with_start += start;
@@ -87,7 +140,10 @@ TEST(CriticalCandidates, IndexedSearchEqualsTheScanOnRandomWholeScenes) {
 }
 
 TEST(CriticalCandidates, IndexedSearchEqualsTheScanOnPentagonGrids) {
-  for (int m : {1, 4, 9, 16}) ExpectSameCandidates("pentagons " + std::to_string(m), bench::PentagonGrid(m), nullptr);
+  for (int m : {1, 4, 9, 16}) {
+    ExpectSameCandidates("pentagons " + std::to_string(m), bench::PentagonGrid(m), nullptr);
+    ExpectSameAsReference("pentagons " + std::to_string(m), bench::PentagonGrid(m), nullptr);
+  }
 }
 
 TEST(CriticalCandidates, IndexedSearchEqualsTheScanOnTheExampleScenes) {
@@ -99,6 +155,7 @@ TEST(CriticalCandidates, IndexedSearchEqualsTheScanOnTheExampleScenes) {
     NamedPolygon r;
     if (s.start) r.vertices = s.start->polygon.vertices;
     ExpectSameCandidates(file, pr, s.start ? &r : nullptr);
+    ExpectSameAsReference(file, pr, s.start ? &r : nullptr);
   }
 }
 
