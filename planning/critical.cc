@@ -311,6 +311,34 @@ bool Crossing(const Seg& s, const Seg& t, Vector2d* out) {
   return true;
 }
 
+static_assert(sizeof(CandidateEntry) == 40, "a candidate's size is what bounds the listing's memory");
+
+// How many refs and sources a compact candidate has, and their indices (CandidateEntry::Form).
+size_t RefCount(const CandidateEntry& e) {
+  switch (e.form) {
+    case CandidateEntry::kRefs:
+      return static_cast<size_t>(std::count_if(std::begin(e.ids), std::end(e.ids),
+                                               [](std::uint32_t id) { return id != CandidateEntry::kNoIndex; }));
+    case CandidateEntry::kSlidingFeature:
+      return 1;
+    case CandidateEntry::kThroughPoint:
+      return 2;
+    case CandidateEntry::kFreeVertex:
+      return 3;
+  }
+  return 0;
+}
+size_t SourceCount(const CandidateEntry& e) {
+  return e.form == CandidateEntry::kThroughPoint ? 1 : e.form == CandidateEntry::kFreeVertex ? 2 : 0;
+}
+std::uint32_t SourceId(const CandidateEntry& e, size_t k) {
+  return e.form == CandidateEntry::kThroughPoint ? e.ids[e.flags & 1] : e.ids[k];
+}
+std::int8_t SourceSign(const CandidateEntry& e, size_t k) {
+  if (e.form == CandidateEntry::kThroughPoint) return (e.flags & 2) != 0 ? -1 : 1;
+  return k == 0 ? 1 : -1;
+}
+
 // A compact candidate as a CriticalOrientation (its refs only `with_refs`), into `out` (whose vectors keep their
 // capacity).
 void Materialize(const CandidateEntry& e, const std::vector<std::string>& strings, const std::vector<Vector2d>& points,
@@ -320,21 +348,34 @@ void Materialize(const CandidateEntry& e, const std::vector<std::string>& string
   out.sliding = e.sliding;
   out.refs.clear();
   if (with_refs) {
-    for (auto r : e.refs)
-      if (r != CandidateEntry::kNoIndex) out.refs.push_back(strings[r]);
+    for (size_t k = 0; k < RefCount(e); ++k) out.refs.push_back(strings[e.ids[k]]);
   }
   out.sources.clear();
   out.source_signs.clear();
-  for (int k = 0; k < 2; ++k) {
-    if (e.sources[k] == CandidateEntry::kNoIndex) continue;
-    out.sources.push_back(points[e.sources[k]]);
-    out.source_signs.push_back(e.source_signs[k]);
+  for (size_t k = 0; k < SourceCount(e); ++k) {
+    out.sources.push_back(points[SourceId(e, k)]);
+    out.source_signs.push_back(SourceSign(e, k));
   }
   out.feature.clear();
-  for (auto f : e.feature)
-    if (f != CandidateEntry::kNoIndex) out.feature.push_back(points[f]);
   out.point.clear();
-  if (e.has_point) out.point.emplace_back(e.point[0], e.point[1]);
+  switch (e.form) {
+    case CandidateEntry::kRefs:
+      break;
+    case CandidateEntry::kSlidingFeature:
+      for (size_t k = 1; k < 3; ++k)
+        if (e.ids[k] != CandidateEntry::kNoIndex) out.feature.push_back(points[e.ids[k]]);
+      break;
+    case CandidateEntry::kThroughPoint:
+      if ((e.flags & 4) != 0) {
+        out.feature = {points[e.ids[0]], points[e.ids[1]]};
+      } else {
+        out.point.push_back(points[e.ids[1 - (e.flags & 1)]]);
+      }
+      break;
+    case CandidateEntry::kFreeVertex:
+      out.point.emplace_back(e.point[0], e.point[1]);
+      break;
+  }
 }
 
 class CandidateGenerator {
@@ -389,14 +430,15 @@ class CandidateGenerator {
     CandidateEntry e;
     e.theta = WrapAngle(theta);
     e.kind = kind;
-    Fill(e.refs, refs);
-    Fill(e.sources, sources);
-    for (size_t k = 0; k < signs.size() && k < 2; ++k) e.source_signs[k] = *(signs.begin() + k);
-    Fill(e.feature, feature);
-    if (point != nullptr) {
+    Fill(e.ids, refs);
+    if (refs.size() == 3) {  // a free vertex: sources the first two refs' points (+1, −1), its point
+      e.form = CandidateEntry::kFreeVertex;
       e.point[0] = point->x();
       e.point[1] = point->y();
-      e.has_point = true;
+    } else if (sources.size() == 1) {  // a free edge through a point: the source and the point are the two refs'
+      e.form = CandidateEntry::kThroughPoint;
+      e.flags = static_cast<std::uint8_t>((*sources.begin() == *(refs.begin() + 1) ? 1 : 0) |
+                                          (*signs.begin() < 0 ? 2 : 0) | (feature.empty() ? 0 : 4));
     }
     Push(e);
   }
@@ -407,8 +449,10 @@ class CandidateGenerator {
     CandidateEntry e;
     e.theta = WrapAngle(theta);
     e.kind = CriticalKind::kSliding;
-    e.refs[0] = ref;
-    Fill(e.feature, feature);
+    e.form = CandidateEntry::kSlidingFeature;
+    e.ids[0] = ref;
+    size_t k = 1;
+    for (auto id : feature) e.ids[k++] = id;
     e.sliding = cause;
     Push(e);
   }
@@ -417,10 +461,6 @@ class CandidateGenerator {
   static void Fill(std::uint32_t (&to)[N], std::initializer_list<std::uint32_t> ids) {
     size_t k = 0;
     for (auto id : ids) to[k++] = id;
-  }
-  template <size_t N>
-  static void Fill(std::uint32_t (&to)[N], const std::vector<std::uint32_t>& ids) {
-    for (size_t k = 0; k < ids.size() && k < N; ++k) to[k] = ids[k];
   }
 
   // The tables candidates point into: every point's ref, then every segment's, then every CB vertex's; every point's
@@ -457,40 +497,36 @@ class CandidateGenerator {
   // the sources' positions ((x, y) order).
   static void SortAndDeduplicate(std::deque<CandidateEntry>& v, const std::vector<std::string>& str,
                                  const std::vector<Vector2d>& pts) {
+    // Lexicographic, a shorter list before a longer one it begins.
     auto refs_less = [&](const CandidateEntry& x, const CandidateEntry& y) {
-      for (int k = 0; k < 3; ++k) {
-        const bool xn = x.refs[k] == CandidateEntry::kNoIndex, yn = y.refs[k] == CandidateEntry::kNoIndex;
-        if (xn || yn) return xn && !yn;
-        const int c = str[x.refs[k]].compare(str[y.refs[k]]);
+      const size_t nx = RefCount(x), ny = RefCount(y);
+      for (size_t k = 0; k < std::min(nx, ny); ++k) {
+        const int c = str[x.ids[k]].compare(str[y.ids[k]]);
         if (c != 0) return c < 0;
       }
-      return false;
+      return nx < ny;
     };
     auto refs_equal = [&](const CandidateEntry& x, const CandidateEntry& y) {
-      for (int k = 0; k < 3; ++k) {
-        const bool xn = x.refs[k] == CandidateEntry::kNoIndex, yn = y.refs[k] == CandidateEntry::kNoIndex;
-        if (xn != yn) return false;
-        if (xn) return true;
-        if (x.refs[k] != y.refs[k] && str[x.refs[k]] != str[y.refs[k]]) return false;
-      }
+      const size_t n = RefCount(x);
+      if (n != RefCount(y)) return false;
+      for (size_t k = 0; k < n; ++k)
+        if (x.ids[k] != y.ids[k] && str[x.ids[k]] != str[y.ids[k]]) return false;
       return true;
     };
     auto sources_less = [&](const CandidateEntry& x, const CandidateEntry& y) {
-      for (int k = 0; k < 2; ++k) {
-        const bool xn = x.sources[k] == CandidateEntry::kNoIndex, yn = y.sources[k] == CandidateEntry::kNoIndex;
-        if (xn || yn) return xn && !yn;
-        const Vector2d &a = pts[x.sources[k]], &b = pts[y.sources[k]];
+      const size_t nx = SourceCount(x), ny = SourceCount(y);
+      for (size_t k = 0; k < std::min(nx, ny); ++k) {
+        const Vector2d &a = pts[SourceId(x, k)], &b = pts[SourceId(y, k)];
         if (a.x() < b.x() || (a.x() == b.x() && a.y() < b.y())) return true;
         if (b.x() < a.x() || (a.x() == b.x() && b.y() < a.y())) return false;
       }
-      return false;
+      return nx < ny;
     };
     auto sources_equal = [&](const CandidateEntry& x, const CandidateEntry& y) {
-      for (int k = 0; k < 2; ++k) {
-        const bool xn = x.sources[k] == CandidateEntry::kNoIndex, yn = y.sources[k] == CandidateEntry::kNoIndex;
-        if (xn != yn) return false;
-        if (!xn && pts[x.sources[k]] != pts[y.sources[k]]) return false;
-      }
+      const size_t n = SourceCount(x);
+      if (n != SourceCount(y)) return false;
+      for (size_t k = 0; k < n; ++k)
+        if (pts[SourceId(x, k)] != pts[SourceId(y, k)]) return false;
       return true;
     };
     std::sort(v.begin(), v.end(), [&](const CandidateEntry& x, const CandidateEntry& y) {
@@ -880,8 +916,7 @@ CriticalOrientation CandidateList::Get(std::size_t i) const {
 
 std::vector<std::string> CandidateList::Refs(std::size_t i) const {
   std::vector<std::string> refs;
-  for (auto r : entries_[i].refs)
-    if (r != CandidateEntry::kNoIndex) refs.push_back(strings_[r]);
+  for (size_t k = 0; k < RefCount(entries_[i]); ++k) refs.push_back(strings_[entries_[i].ids[k]]);
   return refs;
 }
 

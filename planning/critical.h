@@ -107,21 +107,25 @@ struct CriticalCounts {
 /// scanning all of them (the obvious reference the tests compare with; O(n³)). Both give the same candidates.
 enum class CandidateSearch : std::uint8_t { kIndexed, kScan };
 
-/// One candidate of a CandidateList: its θ, kind, cause and point, and its refs, sources and features as indices into
-/// the list's tables of strings and points (kNoIndex where absent). 64 bytes and no allocation of its own: a
-/// large scene with a camera has tens of millions of candidates (n = 106, seed 2 of BM_MultiStep: 27 million, 24
-/// million of them free-edge), which as CriticalOrientations took 21 GB.
+/// One candidate of a CandidateList: its θ, kind and cause, the free vertex of a free-vertex event, and the indices
+/// its refs, sources and features are read from (in the list's tables of strings and points; which is which depends on
+/// `form`, planning/critical.cc). 40 bytes and no allocation of its own: a large scene with a camera has tens of
+/// millions of candidates (n = 106, seed 2 of BM_MultiStep: 27 million, 24 million of them free-edge), which as
+/// CriticalOrientations took 21 GB.
 struct CandidateEntry {
   static constexpr std::uint32_t kNoIndex = 0xffffffffu;
+  /// kRefs: refs only (vc); kSlidingFeature: ref ids[0], the feature's points ids[1] (and ids[2]); kThroughPoint: a
+  /// free edge through a point (vgraph, R): refs ids[0], ids[1], which are also its points (`flags`: 1 the source is
+  /// ids[1], else ids[0]; 2 its sign is −1, else +1; 4 along a static segment: the feature is both, else the point is
+  /// the one that is not the source); kFreeVertex: refs ids[0..2], sources ids[0] (+1) and ids[1] (−1), point `point`.
+  enum Form : std::uint8_t { kRefs, kSlidingFeature, kThroughPoint, kFreeVertex };
   double theta = 0.0;
-  std::uint32_t refs[3] = {kNoIndex, kNoIndex, kNoIndex};
-  std::uint32_t sources[2] = {kNoIndex, kNoIndex};
-  std::uint32_t feature[2] = {kNoIndex, kNoIndex};
-  double point[2] = {0.0, 0.0};  ///< CriticalOrientation::point, where has_point
+  double point[2] = {0.0, 0.0};
+  std::uint32_t ids[3] = {kNoIndex, kNoIndex, kNoIndex};
   CriticalKind kind = CriticalKind::kVgraph;
   SlidingCause sliding = SlidingCause::kNone;
-  std::int8_t source_signs[2] = {0, 0};
-  bool has_point = false;
+  Form form = kRefs;
+  std::uint8_t flags = 0;
 };
 
 /// The candidates of CriticalCandidates, stored compactly (CandidateEntry) and read one at a time.
