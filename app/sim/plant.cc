@@ -45,8 +45,8 @@ void ParseUdpAddress(const std::string& address, const char* option, std::string
   const std::string p = address.substr(colon + 1);
   char* end = nullptr;
   const long value = std::strtol(p.c_str(), &end, 10);
-  if (*end != '\0' || value < 1 || value > 65535) {
-    throw InputError("command line", option, "the port must be 1..65535, not '" + p + "'");
+  if (*end != '\0' || value < 0 || value > 65535) {
+    throw InputError("command line", option, "the port must be 0..65535, not '" + p + "'");
   }
   port = static_cast<int>(value);
 }
@@ -73,6 +73,9 @@ UdpPlant::UdpPlant(const PlantOptions& options, drivers::SimulatedRobot& robot) 
     fd_ = -1;
     throw JobFailed("plant: cannot bind UDP " + options.address + ": " + std::strerror(e));
   }
+  socklen_t len = sizeof addr;
+  getsockname(fd_, reinterpret_cast<sockaddr*>(&addr), &len);
+  port_ = ntohs(addr.sin_port);
   if (!options.trace_path.empty()) {
     trace_ = std::fopen(options.trace_path.c_str(), "w");
     if (trace_ == nullptr) {

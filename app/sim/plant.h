@@ -22,7 +22,7 @@
 namespace visco::sim {
 
 struct PlantOptions {
-  std::string address;          // HOST:PORT to listen on (UDP), e.g. 127.0.0.1:47000
+  std::string address;          // HOST:PORT to listen on (UDP), e.g. 127.0.0.1:47000; port 0: any free port
   double period_s = 0.001;      // the physics step
   double axis_timeout_s = 0.1;  // a drive silent this long: its axis is commanded 0
   std::string trace_path;       // set: the robot's state every 10 ms, a text line "t x y vx vy contact" (t:
@@ -50,17 +50,20 @@ class UdpPlant {
   void Run(const std::atomic<bool>& stop);
   /// Any thread.
   PlantStats Stats() const;
+  /// The UDP port it listens on (the one given, or the one the system chose for port 0).
+  int port() const { return port_; }
 
  private:
   PlantOptions options_;
   drivers::SimulatedRobot& robot_;
   int fd_ = -1;
+  int port_ = 0;
   std::FILE* trace_ = nullptr;
   mutable std::mutex mutex_;
   PlantStats stats_;  // under mutex_
 };
 
-/// Parses HOST:PORT (an IPv4 address or "localhost"). @throws InputError naming `option`.
+/// Parses HOST:PORT (an IPv4 address or "localhost"; port 0..65535). @throws InputError naming `option`.
 void ParseUdpAddress(const std::string& address, const char* option, std::string& host, int& port);
 
 }  // namespace visco::sim

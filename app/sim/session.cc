@@ -193,7 +193,9 @@ SimSession::SimSession(const SimOptions& options) : impl_(std::make_unique<Impl>
   }
   impl_->lcm = std::make_unique<lcm::LCM>(o.lcm_url);
   if (!impl_->lcm->good()) throw JobFailed("LCM: cannot initialise provider '" + o.lcm_url + "'");
-  if (impl_->plant) spdlog::info("sim: the plant of simulated drives on UDP {}", o.plant.address);
+  if (impl_->plant) {
+    spdlog::info("sim: the plant of simulated drives on UDP {} (port {})", o.plant.address, impl_->plant->port());
+  }
   spdlog::info("sim: scene {}, {}, cone {:.1f} deg, seed {}, {} CVC ray(s), camera {:.0f} Hz ({})", scene.name,
                impl_->robot ? fmt::format("{} C-obstacle part(s), robot at ({:.3f}, {:.3f})",
                                           impl_->robot->model().world().obstacles.size(), start.x, start.y)

@@ -262,12 +262,12 @@ TEST(UdpPlant, TheDrivesVelocitiesMoveTheRobotAndContactStopsIt) {
   config.max_acceleration = 100.0;
   drivers::SimulatedRobot robot(config);
   PlantOptions options;
-  options.address = "127.0.0.1:47931";
+  options.address = "127.0.0.1:0";  // a free port: tests of other builds may run beside this one
   options.axis_timeout_s = 0.1;
   UdpPlant plant(options, robot);
   std::atomic<bool> stop{false};
   std::thread thread([&] { plant.Run(stop); });
-  PlantDrive x(47931, 0), y(47931, 1);
+  PlantDrive x(plant.port(), 0), y(plant.port(), 1);
   double px = 0, vx = 0, py = 0, vy = 0;
   ASSERT_TRUE(x.Exchange(0.0, px, vx));
   ASSERT_TRUE(y.Exchange(0.0, py, vy));
@@ -309,7 +309,7 @@ TEST(UdpPlant, TheDrivesVelocitiesMoveTheRobotAndContactStopsIt) {
 
 TEST(UdpPlant, BadAddressesAreInputErrors) {
   drivers::SimulatedRobot robot;
-  for (const char* address : {"47000", "127.0.0.1:", "nohost:47000", "127.0.0.1:70000"}) {
+  for (const char* address : {"47000", "127.0.0.1:", "nohost:47000", "127.0.0.1:70000", "127.0.0.1:-1"}) {
     PlantOptions options;
     options.address = address;
     EXPECT_THROW(UdpPlant(options, robot), InputError) << address;
