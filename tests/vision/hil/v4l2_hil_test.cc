@@ -7,6 +7,7 @@
 //   v4l2_hil_test [gtest options]         in the VM; HIL_FRAMES names the frames file
 //   v4l2_hil_test --render-frames FILE    on the host: renders the frames (the demo world, robot sliding)
 //   v4l2_hil_test --write-frames FILE     in the VM: loops the frames through vivid until SIGTERM
+//   v4l2_hil_test --setup-loop            in the VM: vivid's HDMI output looped to its input, 640x480 GREY
 
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -357,6 +358,10 @@ int main(int argc, char** argv) {
       out.write(reinterpret_cast<const char*>(image.pixels.data()), static_cast<std::streamsize>(kFrameBytes));
     }
     return out ? 0 : 1;
+  }
+  if (argc == 2 && std::string(argv[1]) == "--setup-loop") {
+    visco::hil::SetupLoop(V4L2_PIX_FMT_GREY);
+    return 0;
   }
   if (argc == 3 && std::string(argv[1]) == "--write-frames") {
     const auto frames = visco::vision::ReadFrames(argv[2]);
