@@ -40,8 +40,16 @@ std::uint32_t Driver::NextNonce() {
 }
 
 void Driver::NewSession(std::int64_t now_us) {
+  const auto tag_is_recent = [this](std::uint32_t nonce) {
+    const int n = std::min(recent_tag_count_, kRecentTags);
+    return std::find(recent_tags_.begin(), recent_tags_.begin() + n, static_cast<std::uint8_t>(nonce)) !=
+           recent_tags_.begin() + n;
+  };
   std::uint32_t nonce = NextNonce();
-  while (nonce == 0 || nonce == session_) nonce = NextNonce();
+  while (nonce == 0 || tag_is_recent(nonce)) nonce = NextNonce();
+  recent_tags_[recent_tag_count_ % kRecentTags] = static_cast<std::uint8_t>(nonce);
+  ++recent_tag_count_;
+  if (recent_tag_count_ == 2 * kRecentTags) recent_tag_count_ = kRecentTags;  // the ring is full; keep it bounded
   session_ = nonce;
   last_seq_ = 0;
   accepted_frames_.Clear();

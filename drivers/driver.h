@@ -24,6 +24,7 @@
 // - STOPPED is latched: a reset command with the faults gone returns the driver to READY. The reset command's
 //   velocity is ignored. NMT start has no effect; NMT reset node restarts the session (DISABLED, or ESTOP if latched).
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <limits>
@@ -141,6 +142,12 @@ class Driver {
   bool robot_fault_ = false;    // the robot reported a fault (one stop per episode; a reset ends it)
   std::uint64_t rng_ = 0;       // splitmix64 state of the nonces
   std::uint32_t session_ = 0;
+  // The tag bytes (CAN: a nonce's low byte) of the last kRecentTags sessions: a new session never reuses one, so a
+  // frame recorded in any of them fails the tag check outright. (Two sessions with the same tag would accept each
+  // other's frames whenever the 8-bit CRC collides: 1 frame in 256.)
+  static constexpr int kRecentTags = 64;
+  std::array<std::uint8_t, kRecentTags> recent_tags_{};
+  int recent_tag_count_ = 0;
   std::uint32_t last_seq_ = 0;  // last accepted command number in the session (0: none)
   // The session's last accepted frame of each low byte (CAN): a replay of one from the last wrap of the counter is
   // rejected even where its CRC matches the number it claims by chance (1 in 256).

@@ -233,6 +233,34 @@ TEST(Driver, SessionNoncesAreFreshSeededAndNeverZero) {
   EXPECT_NE(d1.session(), d2.session());
 }
 
+// Two sessions with the same tag byte accept each other's frames wherever the 8-bit CRC collides (1 frame in 256):
+// a new session never reuses the tag of any of the last 64, so frames recorded in those fail the tag check outright.
+TEST(Driver, ANewSessionNeverReusesARecentSessionsTag) {
+  for (std::uint64_t seed : {3ULL, 11ULL, 12345ULL}) {
+    Rig rig(false, seed);
+    std::vector<std::uint32_t> sessions = {rig.driver.session()};
+    for (int i = 0; i < 300; ++i) {
+      rig.transport.Event(DriverEventKind::kResetRequest);  // an NMT reset: a new session each time
+      rig.Run(2);
+      ASSERT_NE(rig.driver.session(), sessions.back()) << "seed " << seed << ", reset " << i;
+      sessions.push_back(rig.driver.session());
+    }
+    int tag_reused_within_256 = 0;
+    for (std::size_t i = 1; i < sessions.size(); ++i) {
+      for (std::size_t back = 1; back <= std::min<std::size_t>(i, 256); ++back) {
+        const bool same_tag = (sessions[i] & 0xFF) == (sessions[i - back] & 0xFF);
+        if (back <= 64) {
+          EXPECT_FALSE(same_tag) << "seed " << seed << ": session " << i << " reuses the tag of " << back
+                                 << " sessions before";
+        }
+        tag_reused_within_256 += same_tag;
+      }
+    }
+    // Beyond the 64 the tags are drawn at random again (not a fixed cycle that an observer could predict).
+    EXPECT_GT(tag_reused_within_256, 0) << "seed " << seed;
+  }
+}
+
 TEST(Driver, WatchdogStopsWithinPeriodAndResetOfTheNewSessionRecovers) {
   Rig rig;
   rig.Enable();

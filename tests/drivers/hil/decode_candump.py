@@ -10,7 +10,9 @@ node 1's layouts at base + N) and checks the bus record on its own, with a model
 - every command frame is judged as the driver must judge it (the session's tag and CRC over the nonce and the
   counter reconstructed 1..8 ahead of the last accepted command); the driver's statuses may only acknowledge
   commands the rule accepted, and must acknowledge those; a command frame identical to one of an earlier session
-  (a replay) is never accepted;
+  (a replay) is never accepted, unless the two sessions share their tag byte (the 8-bit CRC then passes 1 frame in
+  256: the protocol cannot tell them apart) and are not within the last RECENT_TAGS sessions of one driver run, whose
+  tags the driver never reuses (checked too: a boot-up heartbeat starts a run);
 - the safety story from the bus alone: every watchdog EMCY comes no earlier than the watchdog period after that
   node's last accepted command and no later than the period plus --slack-ms, and is followed by a zero-velocity
   STOPPED status.
@@ -25,6 +27,7 @@ import sys
 
 ERR_FLAG = 0x20000000
 WINDOW = 8         # README: a command is accepted 1..8 ahead of the last accepted one
+RECENT_TAGS = 64   # README: a new session's tag byte differs from those of the driver's last 64 sessions
 STATUS_WINDOW = 127
 
 
@@ -127,6 +130,9 @@ class Node:
         self.replay_triple = None     # the same for a replayed (injected) copy of an earlier status triple
         self.stop_pending = None      # time of a watchdog EMCY not yet followed by a zero-velocity STOPPED status
         self.frames_of_session = {}   # command payload -> session it was first seen in
+        self.run = 0                  # driver runs (boot-ups) seen
+        self.run_sessions = []        # this run's sessions, oldest first
+        self.session_place = {}       # nonce -> (run, index in that run)
         self.last_wrap = {}           # low byte -> the last accepted command frame with it, in the session
 
 
@@ -160,6 +166,7 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
     frames = 0
     replays = 0               # command frames identical to one of an earlier session
     replays_accepted = 0
+    replays_colliding = 0     # accepted replays the protocol cannot reject (same tag, CRC collision, sessions apart)
     acked = 0
     unacked = 0
     status_gaps = 0
@@ -223,8 +230,14 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
             first_session = node.frames_of_session.setdefault(payload, node.session)
             replay = first_session != node.session
             replays += replay
+            if verdict == "accepted" and replay:
+                run, index = node.session_place.get(first_session, (None, None))
+                recent = run == node.run and len(node.run_sessions) - 1 - index <= RECENT_TAGS
+                if first_session & 0xFF == node.session & 0xFF and not recent:
+                    replays_colliding += 1
+                else:
+                    replays_accepted += 1
             if verdict == "accepted":
-                replays_accepted += replay
                 node.last = counter
                 node.last_wrap[data[0]] = bytes(data[:8])
                 node.recent = (node.recent + [counter])[-32:]
@@ -241,6 +254,13 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
             if nonce != node.session:
                 if node.unacked is not None and node.unacked[0] < t - 0.05:
                     unacked += 1
+                for back, earlier in enumerate(reversed(node.run_sessions[-RECENT_TAGS:]), 1):
+                    if earlier & 0xFF == nonce & 0xFF:
+                        problems.append("node %d: session %08X at %.3f reuses the tag byte of the session %d before "
+                                        "it in the same driver run (%08X)" % (n, nonce, t, back, earlier))
+                        break
+                node.session_place[nonce] = (node.run, len(node.run_sessions))
+                node.run_sessions.append(nonce)
                 node.session = nonce
                 node.sessions += 1
                 node.epoch = int.from_bytes(data[4:7], "little")
@@ -352,6 +372,8 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
             node = node_of(n)
             node.status_counter = None  # a boot-up: the counter may restart; the next session frame gives it
             node.triple = None
+            node.run += 1  # a new driver run: it knows nothing of the tags used before
+            node.run_sessions = []
 
     for n, node in nodes.items():
         if node.unacked is not None:
@@ -359,8 +381,9 @@ def check(messages, values, lines, watchdog, slack, expect_faults, quiet=False):
     out = [] if quiet else None
     report = out.append if quiet else print
     report("candump: %d frames, %d error frames; per message %s; commands judged by the acceptance rule %s; "
-           "replays of an earlier session's command frames %d (accepted %d); EMCY %s" %
-           (frames, errors, counts, verdicts, replays, replays_accepted, emcy_names))
+           "replays of an earlier session's command frames %d (accepted %d; %d more where an earlier run's session had "
+           "the same tag and the CRC collided); EMCY %s" %
+           (frames, errors, counts, verdicts, replays, replays_accepted, replays_colliding, emcy_names))
     report("  sessions per node %s; accepted commands acknowledged %d, never acknowledged %d; status counter gaps %d" %
            ({n: node.sessions for n, node in nodes.items() if node.sessions}, acked, unacked, status_gaps))
     for t, n, since in watchdog_emcy:
@@ -452,8 +475,24 @@ def self_test(dbc):
     def tail(counter):
         return [emcy(0.313, 0x8250)] + triple(0.314, counter, 2, state=3)
 
+    # A second session with the first one's tag byte whose CRC collides with it for the command (2, vx 1000) of
+    # base(): that frame, replayed, is valid in both sessions.
+    replayed = command(0.012, 2, session, vx=1000)
+    twin = next(session & 0xFF | k << 8 for k in range(1, 1 << 24)
+                if command(0.012, 2, session & 0xFF | k << 8, vx=1000) == replayed)
+
+    def replay_into(twin_session, boot_up):
+        log = base() + tail(4) + ([frame(0.400, 0x701, b"\0")] if boot_up else [])
+        return log + [session_frame(0.401, twin_session, 1), command(0.402, 1, twin_session, reset=True),
+                      replayed.replace("(0.012000)", "(0.403000)")]
+
     cases = {
         "clean log": (base() + tail(4), None),
+        "a session reusing the tag of a recent one of the same run": (
+            base() + tail(4) + [session_frame(0.400, session ^ 0x100, 1)], "reuses the tag byte"),
+        "a replay the protocol cannot reject (same tag, CRC collision), the sessions in two runs": (
+            replay_into(twin, True), None),
+        "the same replay within one run": (replay_into(twin, False), "were accepted by the rule"),
         "a status acknowledges a command of another session": (
             base() + [command(0.100, 3, session ^ 0x55)] + triple(0.101, 4, 3, state=2, vx=1000) + tail(5),
             "did not accept"),
