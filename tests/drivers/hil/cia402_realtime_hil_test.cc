@@ -147,8 +147,9 @@ TEST(Cia402RealtimeHil, TheLoopNeverAllocatesLocksOrThrowsInMotionStopsResetsAnd
   const double command[2] = {0.2, -0.1};
   const double zero[2] = {0.0, 0.0};
   // Warm-up: the drives enabled, the first motion (first calls of every path happen here), then 0.5 s at speed.
-  Loop(robot, 5.0, [&](Cia402Robot& r) { r.SetVelocity(command); },
-       [](const RobotFeedback& f) { return f.velocity[0] > 0.19 || f.fault; });
+  Loop(
+      robot, 5.0, [&](Cia402Robot& r) { r.SetVelocity(command); },
+      [](const RobotFeedback& f) { return f.velocity[0] > 0.19 || f.fault; });
   Loop(robot, 0.5, [&](Cia402Robot& r) { r.SetVelocity(command); });
   ASSERT_FALSE(robot.Read().fault) << robot.Read().fault_message;
   ASSERT_EQ(robot.drive_state(0), cia402::DriveState::kOperationEnabled);
@@ -167,15 +168,17 @@ TEST(Cia402RealtimeHil, TheLoopNeverAllocatesLocksOrThrowsInMotionStopsResetsAnd
   {
     RealtimeGuard guard;
     robot.QuickStop();
-    Loop(robot, 3.0, [&](Cia402Robot& r) { r.SetVelocity(zero); },
-         [](const RobotFeedback& f) { return (f.velocity[0] == 0.0 && f.velocity[1] == 0.0) || f.fault; });
+    Loop(
+        robot, 3.0, [&](Cia402Robot& r) { r.SetVelocity(zero); },
+        [](const RobotFeedback& f) { return (f.velocity[0] == 0.0 && f.velocity[1] == 0.0) || f.fault; });
     const RobotFeedback stopped = robot.Read();
     robot.Reset();
     // The drives go through shutdown, switch on and enable operation again, one SYNC-driven PDO exchange each,
     // then ramp up at 2 m/s^2: about 0.2 s on a quiet machine, several times that under emulation and load.
     const std::int64_t reset_at = MonotonicMicros();
-    Loop(robot, 5.0, [&](Cia402Robot& r) { r.SetVelocity(command); },
-         [](const RobotFeedback& f) { return f.velocity[0] > 0.1 || f.fault; });
+    Loop(
+        robot, 5.0, [&](Cia402Robot& r) { r.SetVelocity(command); },
+        [](const RobotFeedback& f) { return f.velocity[0] > 0.1 || f.fault; });
     const double moving_after_s = static_cast<double>(MonotonicMicros() - reset_at) * 1e-6;
     const RobotFeedback again = robot.Read();
     ExpectRealtime(guard.counts(), "quick stop, reset, motion");
