@@ -226,6 +226,24 @@ Outcome RunScenario(Scenario& s) {
   return out;
 }
 
+// A run the host starved: the loop never got going (10 periods or fewer before it stopped) or stalled for longer
+// than `max_stall_ms` in all (overruns). On a busy host the emulated CPU can lose a second at a time; the loop then
+// rightly stops for what that looks like (the kernel dropping the driver's frames, its heartbeat lost), which tests
+// the starvation, not the scenario. Such a run is printed and run again, at most three times in all: a scenario
+// that fails for its own reasons fails every time.
+Outcome RunOnAHostThatKeepsUp(Scenario& s, double max_stall_ms) {
+  Outcome o;
+  for (int attempt = 1; attempt <= 3; ++attempt) {
+    o = RunScenario(s);
+    const double stall_ms = static_cast<double>(o.overruns) * s.config.period_s * 1e3;
+    if (o.guarded_cycles > 10 && stall_ms < max_stall_ms) break;
+    std::printf("hil-rt: run %d starved by the host (%lld guarded periods, about %.0f ms of overruns, stop: %s)%s\n",
+                attempt, static_cast<long long>(o.guarded_cycles), stall_ms, o.stop_reason.c_str(),
+                attempt < 3 ? ": run again" : "");
+  }
+  return o;
+}
+
 void ExpectRealtimeClean(const Outcome& o, const char* name) {
   SCOPED_TRACE(name);
   EXPECT_TRUE(o.setup.fifo) << o.setup.message;
@@ -274,16 +292,8 @@ TEST(CanRealtimeHil, GoalWithOverrunsUnderTheGuard) {
     ASSERT_EQ(std::system(cmd.c_str()), 0);
   };
   // The pause is 60 ms (~30 periods) when the (emulated) machine keeps up; a busy host can stretch it past the
-  // driver's 300 ms watchdog, which then rightly stops the robot: that run tested the watchdog, not the overrun, so it
-  // is run again (at most three times; the stretched runs are printed).
-  Outcome o;
-  for (int attempt = 0; attempt < 3; ++attempt) {
-    o = RunScenario(s);
-    const double stall_ms = static_cast<double>(o.overruns) * s.config.period_s * 1e3;
-    if (stall_ms < 200) break;
-    std::printf("hil-rt: the 60 ms pause stalled the loop for about %.0f ms (host busy): run %d again\n", stall_ms,
-                attempt + 1);
-  }
+  // driver's 300 ms watchdog, which then rightly stops the robot: that run tested the watchdog, not the overrun.
+  const Outcome o = RunOnAHostThatKeepsUp(s, 200);
   ExpectRealtimeClean(o, "goal");
   EXPECT_EQ(o.mode, Mode::kDone) << o.stop_reason;
   EXPECT_GT(o.overruns, 10);
@@ -301,7 +311,7 @@ TEST(CanRealtimeHil, EStopUnderTheGuard) {
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
     estop.store(true, std::memory_order_release);
   };
-  const Outcome o = RunScenario(s);
+  const Outcome o = RunOnAHostThatKeepsUp(s, 200);
   ExpectRealtimeClean(o, "e-stop");
   EXPECT_EQ(o.mode, Mode::kStopped);
   EXPECT_EQ(o.stop_code, FaultCode::kEstop) << o.stop_reason;
@@ -318,7 +328,7 @@ TEST(CanRealtimeHil, KilledDriverUnderTheGuard) {
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
     driver.Kill(SIGKILL);
   };
-  const Outcome o = RunScenario(s);
+  const Outcome o = RunOnAHostThatKeepsUp(s, 200);
   ExpectRealtimeClean(o, "link fault");
   EXPECT_EQ(o.mode, Mode::kStopped);
   EXPECT_EQ(o.stop_code, FaultCode::kPeerTimeout) << o.stop_reason;
@@ -331,7 +341,7 @@ TEST(CanRealtimeHil, DriverBoundsFaultUnderTheGuard) {
   s.task = StraightTask(0.0, 0.0, testing::Square({5.0, 0.0}, 0.03));
   s.config = BaseConfig();
   s.driver_args = {"--workspace", "-1", "-1", "0.3", "1"};
-  const Outcome o = RunScenario(s);
+  const Outcome o = RunOnAHostThatKeepsUp(s, 200);
   ExpectRealtimeClean(o, "bounds");
   EXPECT_EQ(o.mode, Mode::kStopped);
   EXPECT_EQ(o.stop_code, FaultCode::kLimit) << o.stop_reason;
@@ -343,7 +353,7 @@ TEST(CanRealtimeHil, StepTimeOutUnderTheGuard) {
   Scenario s;
   s.task = StraightTask(0.0, 1.5, testing::Square({5.0, 0.0}, 0.03));
   s.config = BaseConfig();
-  const Outcome o = RunScenario(s);
+  const Outcome o = RunOnAHostThatKeepsUp(s, 200);
   ExpectRealtimeClean(o, "time-out");
   EXPECT_EQ(o.mode, Mode::kStopped);
   EXPECT_EQ(o.stop_code, FaultCode::kStepTimeout) << o.stop_reason;
@@ -369,7 +379,7 @@ TEST(CanRealtimeHil, BusOffUnderTheGuard) {
     restarted.id = drivers::can::kErrFlag | drivers::can::kErrRestarted;
     ASSERT_EQ(injector.Write(restarted), drivers::CanIo::kOk);
   };
-  const Outcome o = RunScenario(s);
+  const Outcome o = RunOnAHostThatKeepsUp(s, 200);
   ExpectRealtimeClean(o, "bus-off");
   EXPECT_EQ(o.mode, Mode::kStopped);
   EXPECT_EQ(o.stop_code, FaultCode::kCanError) << o.stop_reason;
