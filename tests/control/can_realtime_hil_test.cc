@@ -229,14 +229,15 @@ Outcome RunScenario(Scenario& s) {
 // A run the host starved: the loop never got going (10 periods or fewer before it stopped) or stalled for longer
 // than `max_stall_ms` in all (overruns). On a busy host the emulated CPU can lose a second at a time; the loop then
 // rightly stops for what that looks like (the kernel dropping the driver's frames, its heartbeat lost), which tests
-// the starvation, not the scenario. Such a run is printed and run again, at most three times in all: a scenario
-// that fails for its own reasons fails every time.
-Outcome RunOnAHostThatKeepsUp(Scenario& s, double max_stall_ms) {
+// the starvation, not the scenario. A starved run that did not end as `expected` (mode and stop code) is printed and
+// run again, at most three times in all: a scenario that fails for its own reasons fails every time.
+Outcome RunOnAHostThatKeepsUp(Scenario& s, Mode mode, FaultCode code, double max_stall_ms = 200) {
   Outcome o;
   for (int attempt = 1; attempt <= 3; ++attempt) {
     o = RunScenario(s);
     const double stall_ms = static_cast<double>(o.overruns) * s.config.period_s * 1e3;
-    if (o.guarded_cycles > 10 && stall_ms < max_stall_ms) break;
+    const bool starved = o.guarded_cycles <= 10 || stall_ms >= max_stall_ms;
+    if (!starved || (o.mode == mode && (mode == Mode::kDone || o.stop_code == code))) break;
     std::printf("hil-rt: run %d starved by the host (%lld guarded periods, about %.0f ms of overruns, stop: %s)%s\n",
                 attempt, static_cast<long long>(o.guarded_cycles), stall_ms, o.stop_reason.c_str(),
                 attempt < 3 ? ": run again" : "");
@@ -293,7 +294,7 @@ TEST(CanRealtimeHil, GoalWithOverrunsUnderTheGuard) {
   };
   // The pause is 60 ms (~30 periods) when the (emulated) machine keeps up; a busy host can stretch it past the
   // driver's 300 ms watchdog, which then rightly stops the robot: that run tested the watchdog, not the overrun.
-  const Outcome o = RunOnAHostThatKeepsUp(s, 200);
+  const Outcome o = RunOnAHostThatKeepsUp(s, Mode::kDone, FaultCode::kNone);
   ExpectRealtimeClean(o, "goal");
   EXPECT_EQ(o.mode, Mode::kDone) << o.stop_reason;
   EXPECT_GT(o.overruns, 10);
@@ -311,7 +312,7 @@ TEST(CanRealtimeHil, EStopUnderTheGuard) {
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
     estop.store(true, std::memory_order_release);
   };
-  const Outcome o = RunOnAHostThatKeepsUp(s, 200);
+  const Outcome o = RunOnAHostThatKeepsUp(s, Mode::kStopped, FaultCode::kEstop);
   ExpectRealtimeClean(o, "e-stop");
   EXPECT_EQ(o.mode, Mode::kStopped);
   EXPECT_EQ(o.stop_code, FaultCode::kEstop) << o.stop_reason;
@@ -328,7 +329,7 @@ TEST(CanRealtimeHil, KilledDriverUnderTheGuard) {
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
     driver.Kill(SIGKILL);
   };
-  const Outcome o = RunOnAHostThatKeepsUp(s, 200);
+  const Outcome o = RunOnAHostThatKeepsUp(s, Mode::kStopped, FaultCode::kPeerTimeout);
   ExpectRealtimeClean(o, "link fault");
   EXPECT_EQ(o.mode, Mode::kStopped);
   EXPECT_EQ(o.stop_code, FaultCode::kPeerTimeout) << o.stop_reason;
@@ -341,7 +342,7 @@ TEST(CanRealtimeHil, DriverBoundsFaultUnderTheGuard) {
   s.task = StraightTask(0.0, 0.0, testing::Square({5.0, 0.0}, 0.03));
   s.config = BaseConfig();
   s.driver_args = {"--workspace", "-1", "-1", "0.3", "1"};
-  const Outcome o = RunOnAHostThatKeepsUp(s, 200);
+  const Outcome o = RunOnAHostThatKeepsUp(s, Mode::kStopped, FaultCode::kLimit);
   ExpectRealtimeClean(o, "bounds");
   EXPECT_EQ(o.mode, Mode::kStopped);
   EXPECT_EQ(o.stop_code, FaultCode::kLimit) << o.stop_reason;
@@ -353,7 +354,7 @@ TEST(CanRealtimeHil, StepTimeOutUnderTheGuard) {
   Scenario s;
   s.task = StraightTask(0.0, 1.5, testing::Square({5.0, 0.0}, 0.03));
   s.config = BaseConfig();
-  const Outcome o = RunOnAHostThatKeepsUp(s, 200);
+  const Outcome o = RunOnAHostThatKeepsUp(s, Mode::kStopped, FaultCode::kStepTimeout);
   ExpectRealtimeClean(o, "time-out");
   EXPECT_EQ(o.mode, Mode::kStopped);
   EXPECT_EQ(o.stop_code, FaultCode::kStepTimeout) << o.stop_reason;
@@ -379,7 +380,7 @@ TEST(CanRealtimeHil, BusOffUnderTheGuard) {
     restarted.id = drivers::can::kErrFlag | drivers::can::kErrRestarted;
     ASSERT_EQ(injector.Write(restarted), drivers::CanIo::kOk);
   };
-  const Outcome o = RunOnAHostThatKeepsUp(s, 200);
+  const Outcome o = RunOnAHostThatKeepsUp(s, Mode::kStopped, FaultCode::kCanError);
   ExpectRealtimeClean(o, "bus-off");
   EXPECT_EQ(o.mode, Mode::kStopped);
   EXPECT_EQ(o.stop_code, FaultCode::kCanError) << o.stop_reason;
