@@ -409,8 +409,12 @@ TEST_F(CanHil, InterfaceDownStopsTheRobotAndUpRecovers) {
   RunFor(150'000);
   EXPECT_EQ(link_->bus_state(), BusState::kBusOff);
   ASSERT_EQ(std::system("ip link set vcan0 up"), 0);
-  // While the interface was down nothing could be seen; after it is up the driver reports a stopped robot.
-  RunUntil(1'000'000, [&] { return last_.state == RobotState::kStopped && Stopped() && last_.utime > 0; });
+  // While the interface was down nothing could be seen; after it is up the driver reports a stopped robot, and its
+  // EMCY saying so (which may come after the first status of the stopped robot: wait for both).
+  RunUntil(1'000'000, [&] {
+    return last_.state == RobotState::kStopped && Stopped() && last_.utime > 0 &&
+           SawFault(can::kEmcyBusOffRecovered, true);
+  });
   EXPECT_EQ(last_.state, RobotState::kStopped);
   EXPECT_TRUE(Stopped());
   EXPECT_TRUE(SawFault(can::kEmcyBusOffRecovered, true))
