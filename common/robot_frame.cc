@@ -135,15 +135,23 @@ RobotFrame FitRobotFrame(const std::vector<FramePoint>& points, bool with_scale,
   return f;
 }
 
-std::vector<FramePoint> LoadFramePoints(const std::string& path) {
+namespace {
+
+// The file's JSON, or an InputError naming the file.
+nlohmann::json ReadJsonFile(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw InputError(path, "", "file does not exist or cannot be read");
-  nlohmann::json j;
   try {
-    j = nlohmann::json::parse(in);
+    return nlohmann::json::parse(in);
   } catch (const nlohmann::json::exception& e) {
     throw InputError(path, "", std::string("not valid JSON: ") + e.what());
   }
+}
+
+}  // namespace
+
+std::vector<FramePoint> LoadFramePoints(const std::string& path) {
+  const nlohmann::json j = ReadJsonFile(path);
   if (!j.is_object() || !j.contains("points") || !j["points"].is_array()) {
     throw InputError(path, "points",
                      "missing (expected {\"points\": [{\"commanded\": [x, y], \"observed\": [x, y]}, ...]})");
@@ -189,14 +197,7 @@ void SaveRobotFrame(const RobotFrame& f, const std::string& path) {
 }
 
 RobotFrame LoadRobotFrame(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path, "", "file does not exist or cannot be read");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::exception& e) {
-    throw InputError(path, "", std::string("not valid JSON: ") + e.what());
-  }
+  const nlohmann::json j = ReadJsonFile(path);
   if (!j.is_object() || !j.contains("robot_frame") || !j["robot_frame"].is_object()) {
     throw InputError(path, "robot_frame", "missing (expected {\"robot_frame\": {\"theta_deg\", \"scale\", \"t\"}})");
   }

@@ -18,30 +18,18 @@
 
 #include "common/error.h"
 #include "vision/pipeline.h"
+#include "vision/v4l2_ioctl.h"
 
 namespace visco::vision {
 namespace {
+
+using internal::FourccText;
+using internal::Xioctl;
 
 std::int64_t ClockUs(clockid_t clock) {
   timespec ts{};
   clock_gettime(clock, &ts);
   return static_cast<std::int64_t>(ts.tv_sec) * 1000000 + ts.tv_nsec / 1000;
-}
-
-// ioctl, retried when a signal interrupts it.
-int Xioctl(int fd, unsigned long request, void* arg) {
-  int r;
-  do {
-    r = ioctl(fd, request, arg);
-  } while (r == -1 && errno == EINTR);
-  return r;
-}
-
-std::string FourccText(std::uint32_t f) {
-  std::string s;
-  for (int i = 0; i < 4; ++i) s += static_cast<char>((f >> (8 * i)) & 0xff);
-  while (!s.empty() && s.back() == ' ') s.pop_back();
-  return s;
 }
 
 std::uint32_t FourccOf(V4l2PixelFormat f) {

@@ -15,24 +15,13 @@
 #include <vector>
 
 #include "common/error.h"
+#include "vision/v4l2_ioctl.h"
 
 namespace visco::vision {
 namespace {
 
-int Xioctl(int fd, unsigned long request, void* arg) {
-  int r;
-  do {
-    r = ioctl(fd, request, arg);
-  } while (r == -1 && errno == EINTR);
-  return r;
-}
-
-std::string FourccText(std::uint32_t f) {
-  std::string s;
-  for (int i = 0; i < 4; ++i) s += static_cast<char>((f >> (8 * i)) & 0xff);
-  while (!s.empty() && s.back() == ' ') s.pop_back();
-  return s;
-}
+using internal::FourccText;
+using internal::Xioctl;
 
 std::string Errno() { return std::strerror(errno); }
 
