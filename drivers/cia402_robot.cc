@@ -345,6 +345,10 @@ void Cia402Robot::Step(double /*dt*/) {
     if (next_sync_us_ <= now) next_sync_us_ = now + static_cast<std::int64_t>(config_.sync_period_ms * 1000.0);
   }
   if (want_ != Want::kDisabled) Watch(now);
+  UpdateFeedback();
+}
+
+void Cia402Robot::UpdateFeedback() {
   for (int i = 0; i < 2; ++i) {
     feedback_.position[i] = drives_[i].position / config_.axes[i].counts_per_metre;
     feedback_.velocity[i] = drives_[i].velocity / config_.axes[i].velocity_units_per_mps;
@@ -609,6 +613,7 @@ void Cia402Robot::Activate() {
                     " ms (in " + ToString(d.state) + ", statusword " + Hex(d.statusword, 4) + emcy + ")");
     }
   }
+  UpdateFeedback();  // Read() before the loop's first Step gives the drives' positions, not zeros
   spdlog::info("CiA 402: nodes {} and {} on {} switched on; the driver's reset enables them", drives_[0].node,
                drives_[1].node, config_.interface);
 }

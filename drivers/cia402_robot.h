@@ -104,6 +104,7 @@ class Cia402Robot final : public RobotInterface {
   void Cycle(std::int64_t now_us);  // the SYNC period's frames
   void Write(const can::Frame& frame);
   void Watch(std::int64_t now_us);
+  void UpdateFeedback();  // feedback_ from the drives' last TPDOs, in metres and m/s
   void Fault(bool bus, std::uint16_t code, const char* format, ...) __attribute__((format(printf, 4, 5)));
   // Configuration helpers (outside the loop: they wait).
   void Pump(std::int64_t until_us);
