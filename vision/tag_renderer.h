@@ -9,6 +9,7 @@
 
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -72,5 +73,30 @@ struct RenderOptions {
 /// @throws InputError if the camera has no image size or a tag's family/id is unknown.
 GrayImage Render(const CameraModel& camera, const Eigen::Isometry3d& wMc, const RenderScene& scene,
                  const RenderOptions& options = {});
+
+/// Renders frame after frame a scene made of a fixed part (table, obstacles) and a moving part (the robot): byte for
+/// byte what Render() draws of their union (the fixed polygons then the moving ones, the fixed tags then the moving
+/// ones), noise and blur included, but faster. The fixed part alone is rendered once per camera pose and options;
+/// each frame then casts rays only in the box of pixels the moving items can cover (plus the one-pixel ring of the
+/// edge test) and re-blurs only the rows around it. The noise is drawn over the whole frame, as Render() draws it.
+/// A change of wMc or of the options' background, black, white, supersample or blur_sigma re-renders the fixed part
+/// (as slow as Render()); noise_stddev and seed may change every frame at no cost. Not thread-safe (the cache).
+class CachedRenderer {
+ public:
+  /// @throws InputError if the camera has no image size or a tag's family/id in `fixed` is unknown.
+  CachedRenderer(const CameraModel& camera, const RenderScene& fixed);
+  ~CachedRenderer();
+  CachedRenderer(const CachedRenderer&) = delete;
+  CachedRenderer& operator=(const CachedRenderer&) = delete;
+
+  /// The fixed part with `moving` seen by the camera placed at wMc. @throws InputError for an unknown tag in `moving`.
+  GrayImage Render(const Eigen::Isometry3d& wMc, const RenderScene& moving, const RenderOptions& options = {});
+
+  const CameraModel& camera() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 }  // namespace visco::vision

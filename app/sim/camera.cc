@@ -17,7 +17,8 @@ struct RenderedCamera::Impl {
   vision::CameraModel camera;
   Eigen::Isometry3d wMc = Eigen::Isometry3d::Identity();
   vision::ObjectModels models;
-  vision::RenderScene fixed;  // the obstacles (world frame)
+  vision::RenderScene fixed;                         // the table and the obstacles (world frame)
+  std::unique_ptr<vision::CachedRenderer> renderer;  // renders `fixed` once; each frame only around the robot
 };
 
 namespace {
@@ -84,6 +85,7 @@ RenderedCamera::RenderedCamera(const RenderedCameraConfig& config) : impl_(std::
   for (const auto& o : impl_->models.obstacles) {
     AddObject(impl_->fixed, o, Eigen::Isometry3d::Identity(), kObstacleTop, kObstacleSide);
   }
+  impl_->renderer = std::make_unique<vision::CachedRenderer>(impl_->camera, impl_->fixed);
   // Fail now, not in the camera thread: render once (unknown tag families or ids throw InputError).
   image_t probe;
   Capture({0.0, 0.0}, 0, 0, {}, probe);
@@ -92,8 +94,8 @@ RenderedCamera::RenderedCamera(const RenderedCameraConfig& config) : impl_(std::
 RenderedCamera::~RenderedCamera() = default;
 
 void RenderedCamera::Capture(control::Vec2 q, std::int64_t utime, std::int64_t seq, const CaptureConditions& conditions,
-                             image_t& image) const {
-  vision::RenderScene scene = impl_->fixed;
+                             image_t& image) {
+  vision::RenderScene scene;  // the moving part: the robot
   if (!conditions.robot_occluded) {
     Eigen::Isometry3d wMr = Eigen::Isometry3d::Identity();
     wMr.translation() = Eigen::Vector3d(q.x, q.y, 0.0);
@@ -104,7 +106,8 @@ void RenderedCamera::Capture(control::Vec2 q, std::int64_t utime, std::int64_t s
   options.blur_sigma = impl_->config.blur_sigma_px;
   options.noise_stddev = impl_->config.noise_gray;
   options.seed = static_cast<std::uint32_t>(impl_->config.seed + static_cast<std::uint64_t>(seq));
-  const vision::GrayImage picture = vision::Render(impl_->camera, impl_->wMc, scene, options);
+  // What vision::Render draws of the fixed part and the robot, byte for byte.
+  const vision::GrayImage picture = impl_->renderer->Render(impl_->wMc, scene, options);
   image.utime = utime;
   image.seq = seq;
   image.camera = impl_->camera.name.empty() ? "camera" : impl_->camera.name;

@@ -3,7 +3,9 @@
 // the obstacles fixed) through a calibrated camera with vision's tag renderer (real tag36h11 code bitmaps, OpenCV
 // blur and noise) and packs the picture into an LCM image_t, the message a real camera publishes on
 // VISCO_CAMERA_IMAGE. The object models, calibration and extrinsics are the very files `visco track` reads, so the
-// real vision pipeline sees what it would see from a camera. Not real-time code (allocates, ~10-40 ms per frame).
+// real vision pipeline sees what it would see from a camera. Not real-time code (allocates). The table and the
+// obstacles are rendered once (vision::CachedRenderer); a frame re-renders only around the robot, then blur and noise
+// (a few ms per 640x480 frame; tests/bench/vision/render_benchmark.cc).
 // No OpenCV or vision type appears here.
 
 #include <cstdint>
@@ -50,9 +52,9 @@ class RenderedCamera {
 
   /// Renders the scene with the robot's reference point at `q` (metres) and fills `image` (GRAY8, or PNG with
   /// png_level >= 0; row_stride =
-  /// width). `utime`/`seq` go into the message unchanged.
+  /// width). `utime`/`seq` go into the message unchanged. Not thread-safe (the renderer's cache).
   void Capture(control::Vec2 q, std::int64_t utime, std::int64_t seq, const CaptureConditions& conditions,
-               image_t& image) const;
+               image_t& image);
 
   int width() const;
   int height() const;

@@ -168,7 +168,7 @@ LockstepResult RunLockstep(const LockstepOptions& o) {
 
   RenderedCameraConfig render = o.render;
   render.seed = o.robot.seed ^ 0x1a9e5ULL;  // as `visco sim`
-  const RenderedCamera camera(render);
+  RenderedCamera camera(render);
   vision::PipelineConfig pipeline_config;
   pipeline_config.camera = render.calibration_path;
   pipeline_config.camera_name = render.camera_name;

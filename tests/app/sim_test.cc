@@ -158,7 +158,7 @@ struct RenderedSlot {
 
 TEST(RenderedCamera, VisionFindsTheTruePoseAndOcclusionHidesTheRobot) {
   const RenderedSlot slot;
-  const RenderedCamera camera(slot.Config());
+  RenderedCamera camera(slot.Config());
   vision::VisionPipeline pipeline(slot.camera, slot.wMc, slot.models, slot.Options());
   const std::vector<control::Vec2> path = {{2.0, 5.2}, {3.0, 5.2}, {4.5, 5.0}, {6.0, 4.6},
                                            {5.0, 3.2}, {4.1, 2.1}, {4.1, 1.0}};
@@ -202,7 +202,7 @@ TEST(RenderedCamera, VisionFindsTheTruePoseAndOcclusionHidesTheRobot) {
 
 TEST(RenderedCamera, DeterministicPerSeedAndFrame) {
   const RenderedSlot slot;
-  const RenderedCamera a(slot.Config()), b(slot.Config());
+  RenderedCamera a(slot.Config()), b(slot.Config());
   image_t ia, ib, ic;
   a.Capture({3.0, 5.0}, 1, 7, {}, ia);
   b.Capture({3.0, 5.0}, 1, 7, {}, ib);
