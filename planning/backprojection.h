@@ -138,6 +138,10 @@ struct VcSelectionOptions {
   /// or an active ray (its sweep could not be adopted: the region it gives has no point the current one lacks). The
   /// same choice either way, fewer sweeps; false is the reference the tests compare with.
   bool skip_open_ended = true;
+  /// kTrack only: do not sweep again a dropped ray whose every piece complies to an open end or to a point of CB
+  /// outside the current region's closure, without meeting the goal or an active ray (its sweep could not be adopted
+  /// either). The same choice either way, fewer sweeps; false is the reference the tests compare with.
+  bool skip_outside_landings = true;
 };
 
 /// B_θ(G) by the plane sweep. @throws std::invalid_argument on malformed input (empty bounds, ε_v outside [0, π/2),

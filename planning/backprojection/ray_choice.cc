@@ -3,6 +3,7 @@
 #include "planning/backprojection/ray_choice.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -98,13 +99,17 @@ std::vector<int> GreedySelection(const BackprojectionProblem& problem, SweepFram
   return active;
 }
 
-bool LeadsOnlyToOpenEnds(const BackprojectionProblem& problem, int c, const std::vector<int>& active) {
+namespace {
+// The end of ray segment `s` that complying down it leads to (the end further along θ).
+int Destination(const std::array<Vector2d, 2>& s, double theta) {
+  return (s[1] - s[0]).dot(Vector2d(std::cos(theta), std::sin(theta))) > 0 ? 1 : 0;
+}
+
+// True if no segment of ray c meets the goal (boxes: conservative) or an active ray: complying down it runs to the
+// segment's destination end.
+bool MeetsOnlyItsEnds(const BackprojectionProblem& problem, int c, const std::vector<int>& active) {
   const CvcRayInput& ray = problem.rays[c];
-  const Vector2d dir(std::cos(problem.theta), std::sin(problem.theta));
-  for (size_t k = 0; k < ray.segments.size(); ++k) {
-    const auto& s = ray.segments[k];
-    const int destination = (s[1] - s[0]).dot(dir) > 0 ? 1 : 0;
-    if (k >= ray.open_ends.size() || !ray.open_ends[k][destination]) return false;
+  for (const auto& s : ray.segments) {
     const Vector2d lo = s[0].cwiseMin(s[1]), hi = s[0].cwiseMax(s[1]);
     for (const NamedPolygon& g : problem.goal) {
       Vector2d glo = g.vertices.front(), ghi = g.vertices.front();
@@ -120,10 +125,32 @@ bool LeadsOnlyToOpenEnds(const BackprojectionProblem& problem, int c, const std:
   }
   return true;
 }
+}  // namespace
+
+bool LeadsOnlyToOpenEnds(const BackprojectionProblem& problem, int c, const std::vector<int>& active) {
+  const CvcRayInput& ray = problem.rays[c];
+  for (size_t k = 0; k < ray.segments.size(); ++k) {
+    if (k >= ray.open_ends.size() || !ray.open_ends[k][Destination(ray.segments[k], problem.theta)]) return false;
+  }
+  return MeetsOnlyItsEnds(problem, c, active);
+}
+
+bool LandsOnlyOutside(const BackprojectionProblem& problem, int c, const std::vector<int>& active,
+                      const Region& region) {
+  const CvcRayInput& ray = problem.rays[c];
+  const double margin = kLandingMargin * (problem.bounds_max - problem.bounds_min).norm();
+  for (size_t k = 0; k < ray.segments.size(); ++k) {
+    const int destination = Destination(ray.segments[k], problem.theta);
+    if (k < ray.open_ends.size() && ray.open_ends[k][destination]) continue;
+    const Vector2d& end = ray.segments[k][destination];
+    if (region.Contains(end) || region.BoundaryDistance(end) <= margin) return false;
+  }
+  return MeetsOnlyItsEnds(problem, c, active);
+}
 
 std::vector<int> TrackSelection(const BackprojectionProblem& problem, SweepFrame& frame,
                                 const std::vector<int>& candidates, SweepResult& current, int& sweeps,
-                                bool skip_open_ended) {
+                                bool skip_open_ended, bool skip_outside_landings) {
   const PolygonSet base_set = ToPolygonSet(current.rings);
   std::vector<int> active = candidates;
   SweepResult trial;
@@ -145,7 +172,9 @@ std::vector<int> TrackSelection(const BackprojectionProblem& problem, SweepFrame
   PolygonSet current_set = ToPolygonSet(current.rings);
   for (int c : candidates) {
     if (std::find(active.begin(), active.end(), c) != active.end()) continue;
-    if (skip_open_ended && LeadsOnlyToOpenEnds(problem, c, active)) continue;  // its sweep could not be adopted
+    // Its sweep could not be adopted: with c active no point joins the region.
+    if (skip_open_ended && LeadsOnlyToOpenEnds(problem, c, active)) continue;
+    if (skip_outside_landings && LandsOnlyOutside(problem, c, active, current.region)) continue;
     std::vector<int> with = active;
     with.push_back(c);
     if (AdoptIfLarger(problem, frame, with, current, current_set, sweeps)) active = std::move(with);
@@ -251,7 +280,8 @@ VcBackprojection VcEnlargedBackprojection(const BackprojectionProblem& problem, 
     out.selection = RaySelection::kNone;
   } else if (options.method == RaySelection::kTrack) {
     out.selection = RaySelection::kTrack;
-    active = TrackSelection(problem, frame, candidates, result, out.sweeps, options.skip_open_ended);
+    active = TrackSelection(problem, frame, candidates, result, out.sweeps, options.skip_open_ended,
+                            options.skip_outside_landings);
   } else if (options.method == RaySelection::kExact && out.candidates <= options.exact_limit) {
     out.selection = RaySelection::kExact;
     active = ExactSelection(problem, frame, candidates, result, out.sweeps);

@@ -168,9 +168,12 @@ TEST(VcSoundnessProperty, SkippingRaysThatOnlyLeadToOpenEndsChangesNothing) {
     const CSpace cspace(s);
     const VcRays rays = ComputeVcRays(s, cspace);
     const BackprojectionProblem pr = ProblemFromScene(s, cspace, &rays, theta, /*kernel=*/false);
-    VcSelectionOptions reference;
+    // The skip alone (the one for landings outside the region skips these rays too).
+    VcSelectionOptions skip;
+    skip.skip_outside_landings = false;
+    VcSelectionOptions reference = skip;
     reference.skip_open_ended = false;
-    const VcBackprojection with_skip = VcEnlargedBackprojection(pr);
+    const VcBackprojection with_skip = VcEnlargedBackprojection(pr, skip);
     const VcBackprojection without = VcEnlargedBackprojection(pr, reference);
     ++scenes;
     EXPECT_EQ(with_skip.active_rays, without.active_rays) << "seed " << seed;
@@ -182,6 +185,43 @@ TEST(VcSoundnessProperty, SkippingRaysThatOnlyLeadToOpenEndsChangesNothing) {
   EXPECT_GE(scenes, 60);
   if (testing::DesignedSeeds()) {  // not vacuous
     EXPECT_GT(saved, 20);
+  }
+}
+
+// The track choice skips sweeping again the dropped rays whose every piece ends open or lands on CB outside the current
+// region (VcSelectionOptions::skip_outside_landings, LandsOnlyOutside): on whole random scenes (with and without
+// heights, with and without the goal on CB, where rays land beside the region), at three θ each, it chooses exactly
+// what it chooses without that skip, with fewer sweeps.
+TEST(VcSoundnessProperty, SkippingRaysThatLandOutsideTheRegionChangesNothing) {
+  int problems = 0, skipped_any = 0, saved = 0;
+  for (std::uint64_t seed = 1; seed <= 60; ++seed) {
+    Scene s;
+    double theta = 0;
+    if (!testing::RandomWholeScene(seed, s, theta, 3, 3, /*goal_on_cb=*/seed % 3 == 0)) continue;
+    if (seed % 2 == 0) {
+      s.camera->height = 3.0;
+      for (Obstacle& o : s.obstacles) o.height = 1.0 + 0.25 * static_cast<double>(o.shape.polygon.size() % 4);
+    }
+    const CSpace cspace(s);
+    const VcRays rays = ComputeVcRays(s, cspace);
+    for (const double turn : {0.0, 2.0 * M_PI / 3.0, 4.0 * M_PI / 3.0}) {
+      const BackprojectionProblem pr = ProblemFromScene(s, cspace, &rays, theta + turn, /*kernel=*/false);
+      VcSelectionOptions reference;
+      reference.skip_outside_landings = false;
+      const VcBackprojection with_skip = VcEnlargedBackprojection(pr);
+      const VcBackprojection without = VcEnlargedBackprojection(pr, reference);
+      ++problems;
+      EXPECT_EQ(with_skip.active_rays, without.active_rays) << "seed " << seed << " turn " << turn;
+      EXPECT_EQ(with_skip.region.area, without.region.area) << "seed " << seed << " turn " << turn;
+      EXPECT_LE(with_skip.sweeps, without.sweeps) << "seed " << seed << " turn " << turn;
+      saved += without.sweeps - with_skip.sweeps;
+      skipped_any += with_skip.sweeps < without.sweeps;
+    }
+  }
+  std::printf("problems %d, of which the skip saved sweeps in %d, sweeps saved %d\n", problems, skipped_any, saved);
+  EXPECT_GE(problems, 120);
+  if (testing::DesignedSeeds()) {  // not vacuous
+    EXPECT_GT(skipped_any, 20);
   }
 }
 
