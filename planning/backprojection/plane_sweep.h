@@ -120,6 +120,9 @@ class Sweep {
     using is_transparent = void;
     const P2* p = nullptr;
     int Side(const Curve* c) const {  // -1: the curve passes left of p, 0: through p, +1: right of p
+      // A curve ending at p is the common case at an event, and a tie the interval filter cannot decide: the
+      // orientation would be computed in exact rationals (a sixth of a sweep's time), the point comparison is cheap.
+      if (Same(c->hi, *p) || Same(c->lo, *p)) return 0;
       switch (CGAL::orientation(c->lo, c->hi, *p)) {
         case CGAL::RIGHT_TURN:
           return -1;
