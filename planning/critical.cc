@@ -3,10 +3,14 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <deque>
+#include <exception>
 #include <initializer_list>
+#include <mutex>
 #include <set>
+#include <thread>
 #include <tuple>
 #include <utility>
 
@@ -398,7 +402,7 @@ class CandidateGenerator {
   // The candidates as a compact list (reference = false) or, as before CandidateList, as CriticalOrientations in
   // `reference_out` (the tests compare the two).
   CandidateList Run(CriticalCounts* counts, bool r_only = false,
-                    std::vector<CriticalOrientation>* reference_out = nullptr) {
+                    std::vector<CriticalOrientation>* reference_out = nullptr, int threads = 1) {
     r_only_ = r_only;
     reference_ = reference_out != nullptr;
     MakeTables();
@@ -406,8 +410,13 @@ class CandidateGenerator {
       SlidingEvents();
       RayEvents();
     }
-    VisibilityEvents();
-    FreeVertexEvents();
+    along_static_ = PairsAlongStaticSegments();
+    if (threads > 1 && !reference_) {
+      PairEventsInParallel(threads);
+    } else {
+      VisibilityEvents(0, points_.size());
+      FreeVertexEvents(0, points_.size());
+    }
     if (reference_) {
       SortReference();
       if (counts) Count(counts, reference_out_.size(), [&](size_t i) { return reference_out_[i].kind; });
@@ -774,11 +783,67 @@ class CandidateGenerator {
     return pairs;
   }
 
-  // A free edge from one point through another point it sees.
-  void VisibilityEvents() {
+  // The events of pairs of points (visibility, then free vertices) on `threads` threads: the first points cut into
+  // blocks, each block's events listed by a copy of the generator (the grids' query marks are its own) into a list
+  // of its own, and the lists joined in block order, each freed as it is joined. The same entries in the same order
+  // as one thread lists them, so the sort that follows gives the same list.
+  void PairEventsInParallel(int threads) {
     const size_t n = points_.size();
-    const auto along_static = PairsAlongStaticSegments();
-    for (size_t i = 0; i < n; ++i) {
+    const size_t per_kind = std::min<size_t>(n, 64 * static_cast<size_t>(threads));
+    // Free-vertex blocks shrink towards the first points: point i pairs with the n − i − 1 after it.
+    std::vector<size_t> cuts = {0};
+    for (size_t b = 1; b < per_kind; ++b) {
+      const double f = static_cast<double>(b) / static_cast<double>(per_kind);
+      cuts.push_back(static_cast<size_t>(static_cast<double>(n) * (1.0 - std::sqrt(1.0 - f))));
+    }
+    cuts.push_back(n);
+    cuts.erase(std::unique(cuts.begin(), cuts.end()), cuts.end());
+    const size_t blocks = cuts.size() - 1;
+    std::vector<std::deque<CandidateEntry>> lists(2 * blocks);
+    std::vector<std::int64_t> pairs(static_cast<size_t>(threads), 0);
+    std::atomic<size_t> next{0};
+    std::atomic<bool> failed{false};
+    std::exception_ptr error;
+    std::mutex error_mutex;
+    auto work = [&](size_t t) {
+      CandidateGenerator copy = *this;
+      copy.entries_.clear();
+      try {
+        for (size_t task = next++; task < 2 * blocks && !failed; task = next++) {
+          const size_t b = task % blocks;
+          if (task < blocks) {
+            copy.VisibilityEvents(cuts[b], cuts[b + 1]);
+          } else {
+            copy.FreeVertexEvents(cuts[b], cuts[b + 1]);
+          }
+          lists[task] = std::move(copy.entries_);
+          copy.entries_.clear();
+        }
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+        failed = true;
+      }
+      pairs[t] = copy.visible_pairs_;
+    };
+    std::vector<std::thread> pool;
+    for (size_t t = 1; t < static_cast<size_t>(threads); ++t) pool.emplace_back(work, t);
+    work(0);
+    for (auto& th : pool) th.join();
+    if (error) std::rethrow_exception(error);
+    for (auto& list : lists) {
+      entries_.insert(entries_.end(), list.begin(), list.end());
+      std::deque<CandidateEntry>().swap(list);
+    }
+    for (const std::int64_t p : pairs) visible_pairs_ += p;
+    generated_ = static_cast<std::int64_t>(entries_.size());
+  }
+
+  // A free edge from one point i in [i0, i1) through another point j > i it sees.
+  void VisibilityEvents(size_t i0, size_t i1) {
+    const size_t n = points_.size();
+    const auto& along_static = along_static_;
+    for (size_t i = i0; i < i1; ++i) {
       for (size_t j = i + 1; j < n; ++j) {
         const Vector2d d = points_[j].p - points_[i].p;
         if (d.norm() <= cb_.tolerance) continue;
@@ -816,13 +881,14 @@ class CandidateGenerator {
   // A free vertex f: the +ε_v free edge from a (direction θ + π + ε_v) meets the −ε_v one from b. Seen from f, a is at
   // θ + ε_v and b at θ − ε_v, so f lies on a fixed circle through a and b on which ab subtends 2ε_v; its crossings
   // with every edge give the orientations.
-  void FreeVertexEvents() {
+  // (For the first points i in [i0, i1).)
+  void FreeVertexEvents(size_t i0, size_t i1) {
     const size_t n = points_.size();
     const double two_eps = 2 * eps_;
     if (two_eps < 1e-6) return;  // parallel free edges: no free vertex inside the bounds
     // The circles of (a, b) and of (b, a) are the same two, bit for bit (the midpoint, the negated normal and the
     // sign of the side cancel exactly): the index walks each once for both orders; the scan keeps every order.
-    for (size_t i = 0; i < n; ++i) {
+    for (size_t i = i0; i < i1; ++i) {
       for (size_t j = indexed_ ? i + 1 : 0; j < n; ++j) {
         if (i == j) continue;
         const Vector2d a = points_[i].p, b = points_[j].p;
@@ -894,6 +960,7 @@ class CandidateGenerator {
   SegmentGrid seg_grid_;  // every segment (the circles of free vertices meet them)
   bool indexed_ = false;
   std::int64_t visible_pairs_ = 0;
+  std::set<std::pair<size_t, size_t>> along_static_;  // PairsAlongStaticSegments
   bool reference_ = false;
   std::int64_t generated_ = 0;
   std::vector<std::string> strings_;  // the tables (MakeTables)
@@ -990,8 +1057,9 @@ double WrapAngle(double theta) {
 }
 
 CandidateList CriticalCandidateList(const BackprojectionProblem& problem, const NamedPolygon* start,
-                                    CriticalCounts* counts, CandidateSearch search, const std::atomic<bool>* stop) {
-  return CandidateGenerator(problem, start, search, stop).Run(counts);
+                                    CriticalCounts* counts, CandidateSearch search, const std::atomic<bool>* stop,
+                                    int threads) {
+  return CandidateGenerator(problem, start, search, stop).Run(counts, false, nullptr, threads);
 }
 
 namespace {

@@ -157,11 +157,12 @@ class CandidateList {
 /// Every candidate critical orientation of the problem's B_θ(G) and B_vcθ(G) over all θ (problem.theta is ignored),
 /// sorted by θ in [−π, π), exact duplicates (same θ, kind, refs and sources) removed. `start` (may be null) adds the
 /// R-critical orientations of that region. A superset: the nondirectional backprojection (nondirectional.h) keeps
-/// those where the structure really changes. Not real-time safe.
+/// those where the structure really changes. `threads` list the pairs of points' events side by side (the same list
+/// whatever the threads). Not real-time safe.
 CandidateList CriticalCandidateList(const BackprojectionProblem& problem, const NamedPolygon* start,
                                     CriticalCounts* counts = nullptr,
                                     CandidateSearch search = CandidateSearch::kIndexed,
-                                    const std::atomic<bool>* stop = nullptr);
+                                    const std::atomic<bool>* stop = nullptr, int threads = 1);
 
 /// The same candidates as CriticalOrientations (for the command line and the tests; large scenes take gigabytes).
 std::vector<CriticalOrientation> CriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon* start,

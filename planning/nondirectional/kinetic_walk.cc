@@ -33,7 +33,8 @@ NondirectionalBackprojection KineticWalk::Run() {
     for (const auto& ray : pr_.rays)
       ray_segments_.insert(ray_segments_.end(), ray.segments.begin(), ray.segments.end());
   }
-  structural_ = CriticalCandidateList(pr_, start_, &nd.stats.counts, CandidateSearch::kIndexed, options_.stop);
+  structural_ = CriticalCandidateList(pr_, start_, &nd.stats.counts, CandidateSearch::kIndexed, options_.stop,
+                                      std::max(1, options_.threads));
   nd.stats.candidates = static_cast<std::int64_t>(structural_.size());
   std::vector<CriticalOrientation> r_candidates = structural_.TakeKind(CriticalKind::kR);
   // Events: groups of structural candidates at (nearly) one θ.

@@ -59,10 +59,12 @@ void ExpectSameCandidates(const std::string& name, const BackprojectionProblem& 
 }
 
 // The compact list against the reference listing: every field of every candidate, in order, and the counts.
-void ExpectSameAsReference(const std::string& name, const BackprojectionProblem& pr, const NamedPolygon* start) {
-  CriticalCounts list_counts, reference_counts;
-  const CandidateList list = CriticalCandidateList(pr, start, &list_counts);
-  const auto reference = CriticalCandidatesReference(pr, start, &reference_counts);
+void ExpectListIsTheReference(const std::string& name, const BackprojectionProblem& pr, const NamedPolygon* start,
+                              const std::vector<CriticalOrientation>& reference, const CriticalCounts& reference_counts,
+                              int threads) {
+  CriticalCounts list_counts;
+  const CandidateList list =
+      CriticalCandidateList(pr, start, &list_counts, CandidateSearch::kIndexed, nullptr, threads);
   ASSERT_EQ(list.size(), reference.size()) << name;
   CriticalOrientation c;
   for (size_t k = 0; k < reference.size(); ++k) {
@@ -105,6 +107,19 @@ void ExpectSameAsReference(const std::string& name, const BackprojectionProblem&
   }
   EXPECT_EQ(t, taken.size()) << name;
   EXPECT_EQ(o, rest.size()) << name;
+}
+
+// The list is made on one thread and on three (the pairs' events listed side by side).
+void ExpectSameAsReference(const std::string& name, const BackprojectionProblem& pr, const NamedPolygon* start) {
+  const auto reference_counts_and_list = [&] {
+    CriticalCounts counts;
+    auto list = CriticalCandidatesReference(pr, start, &counts);
+    return std::make_pair(counts, std::move(list));
+  }();
+  for (const int threads : {1, 3}) {
+    ExpectListIsTheReference(name + (threads > 1 ? " (3 threads)" : ""), pr, start, reference_counts_and_list.second,
+                             reference_counts_and_list.first, threads);
+  }
 }
 
 #if defined(__SANITIZE_ADDRESS__)
