@@ -194,7 +194,12 @@ TEST(VcSoundnessProperty, SkippingRaysThatOnlyLeadToOpenEndsChangesNothing) {
 // what it chooses without that skip, with fewer sweeps.
 TEST(VcSoundnessProperty, SkippingRaysThatLandOutsideTheRegionChangesNothing) {
   int problems = 0, skipped_any = 0, saved = 0;
-  for (std::uint64_t seed = 1; seed <= 60; ++seed) {
+#if defined(__SANITIZE_ADDRESS__)
+  const std::uint64_t seeds = 12;  // about ten times slower under the sanitizer
+#else
+  const std::uint64_t seeds = 60;
+#endif
+  for (std::uint64_t seed = 1; seed <= seeds; ++seed) {
     Scene s;
     double theta = 0;
     if (!testing::RandomWholeScene(seed, s, theta, 3, 3, /*goal_on_cb=*/seed % 3 == 0)) continue;
@@ -219,9 +224,9 @@ TEST(VcSoundnessProperty, SkippingRaysThatLandOutsideTheRegionChangesNothing) {
     }
   }
   std::printf("problems %d, of which the skip saved sweeps in %d, sweeps saved %d\n", problems, skipped_any, saved);
-  EXPECT_GE(problems, 120);
+  EXPECT_GE(problems, static_cast<int>(2 * seeds));
   if (testing::DesignedSeeds()) {  // not vacuous
-    EXPECT_GT(skipped_any, 20);
+    EXPECT_GT(skipped_any, static_cast<int>(seeds / 3));
   }
 }
 
