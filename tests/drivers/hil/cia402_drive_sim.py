@@ -19,6 +19,7 @@ Run standalone (`cia402_drive_sim.py --interface vcan1 --nodes 2 3`) or imported
 the methods of Sim (inject_fault, silence, power_on, ...) and reads what each drive did from Drive.history.
 """
 import argparse
+import json
 import signal
 import random
 import socket
@@ -450,6 +451,14 @@ class Sim:
                 self.bus.socket.setsockopt(socket.SOL_SOCKET, 33, 4 << 20)  # SO_RCVBUFFORCE (root)
             except (AttributeError, OSError):
                 pass
+            # Only the frames a drive of these nodes can need, filtered by the kernel: those whose COB-ID carries
+            # one of its node ids (its RPDOs and SDO requests with the predefined connection set's COB-IDs), NMT,
+            # SYNC and every heartbeat; not the other drives' PDOs. Beside the whole loop on the emulated CPU the
+            # drive reads a third of the bus's frames.
+            filters = [{"can_id": n, "can_mask": 0x7F} for n in nodes]
+            filters += [{"can_id": 0x000, "can_mask": 0x7FF}, {"can_id": 0x080, "can_mask": 0x7FF},
+                        {"can_id": 0x700, "can_mask": 0x780}]
+            self.bus.set_filters(filters)
         self.lock = threading.Lock()
         self.rng = random.Random(seed)
         self.speed_uncertainty = speed_uncertainty
@@ -592,6 +601,11 @@ def main():
     sim.stop()
     for node in args.nodes:
         print(node, sim.snapshot(node), flush=True)
+        # What the drive did and when (CLOCK_MONOTONIC seconds): for a test that judges a stop by its cause.
+        events = [(t, what, value) for t, what, value in sim.drive(node).history
+                  if what in ("heartbeat lost", "emcy") or (what == "state" and value in (QUICK_STOP, FAULT_REACTION,
+                                                                                         FAULT, ENABLED))]
+        print(json.dumps({"node": node, "events": events[-20:]}), flush=True)
 
 
 if __name__ == "__main__":

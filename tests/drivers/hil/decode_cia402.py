@@ -125,7 +125,8 @@ def analyse(lines, nodes, visco, master=127, quiet=False):
 def command_latencies(frames, nodes, visco):
     """Seconds from each controller command that changes the x velocity (the visco protocol's command 0x200 + visco
     node, vx int16 at bytes 2-3) to the first RPDO1 of the x axis' drive (nodes[0]) whose target velocity changes to a
-    value of the same sign, other than 0: the driver's and the master's part of the path to the drive."""
+    value of the same sign, other than 0, within a second: the driver's and the master's part of the path to the
+    drive."""
     out = []
     last_vx, last_target, waiting = 0, 0, None
     for t, iface, cid, data in frames:
@@ -137,7 +138,9 @@ def command_latencies(frames, nodes, visco):
         elif cid == 0x200 + nodes[0] and len(data) == 6:
             target = struct.unpack("<Hi", data)[1]
             if waiting is not None and target != last_target and target != 0 and (target > 0) == (waiting[1] > 0):
-                out.append(t - waiting[0])
+                # Over a second: the drives were down when the command came (a test that restarts them).
+                if t - waiting[0] < 1.0:
+                    out.append(t - waiting[0])
                 waiting = None
             last_target = target
     return out

@@ -10,8 +10,12 @@
 #  7. the CiA 402 backend (`visco-rt driver --robot cia402`) against simulated CiA 402 drives (python-can) on vcan1
 #     and vcan0, the drives' traffic recorded and decoded;
 #  8. the CiA 402 backend's loop under the real-time guard (no allocation, lock or throw) against the simulator;
-#  9. (with --bench) command throughput against cangen and the command-to-feedback round trip.
-# usage: run_in_vm.sh BUILD_DIR [--bench]   (working directory: the repository top)
+#  9. the whole loop through the kernel's interfaces: the simulated world's camera through vivid's video output and
+#     V4L2 capture -> `visco track` -> `visco run` -> vcan0 -> `visco-rt driver --robot cia402` -> vcan1 -> simulated
+#     drives -> the physics of the simulated world (`visco sim --plant`); the controller, a drive and the driver killed
+#     in turn, then the goal and `visco replay --check` of the run's log; both buses decoded, the loop's latency;
+# 10. (with --bench) command throughput against cangen and the command-to-feedback round trip.
+# usage: run_in_vm.sh BUILD_DIR [--bench]   (working directory: the repository top; the VM of scripts/hil-vm --vivid)
 set -u
 build="$1"
 bench="${2:-}"
@@ -128,6 +132,21 @@ kept $py -S tests/drivers/hil/decode_cia402.py "$out/cia402_candump.log" --nodes
 
 step "the CiA 402 backend's loop (SetVelocity, Step, Read, QuickStop, Reset) under the real-time guard, against the drive simulator on vcan1"
 kept "$build/bin/drivers_cia402_realtime_hil_test" --gtest_brief=1 || failed /tmp/hil_step.log
+
+step "the whole loop through the kernel's interfaces (tests/drivers/hil/whole_loop_test.py): kills, then the goal"
+loop_start=$(date +%s)
+if "$build/bin/vision_v4l2_hil_test" --setup-loop >/tmp/hil_step.log 2>&1; then
+  kept $py -S tests/drivers/hil/whole_loop_test.py "$build" "$out/loop" || failed /tmp/hil_step.log
+else
+  cat /tmp/hil_step.log
+  failed
+fi
+echo "whole loop: $(($(date +%s) - loop_start)) s in the VM"
+step "whole loop: both buses decoded (traffic, bus load, command -> drive); camera frame -> drive target"
+kept $py -S tests/drivers/hil/decode_cia402.py "$out/loop/candump.log" --nodes 2 3 --visco-node 1 \
+  || failed /tmp/hil_step.log
+kept $py -S tests/drivers/hil/loop_latency.py "$out/loop/controller.lcmlog" "$out/loop/candump.log" \
+  || failed /tmp/hil_step.log
 
 if [ "$bench" = "--bench" ]; then
   step "benchmarks on vcan0: command throughput vs cangen, round trip vs vcan loopback"
