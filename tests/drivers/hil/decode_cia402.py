@@ -46,7 +46,8 @@ def kind_of(cid, dlc, nodes, visco, master):
         return "SYNC" if dlc == 0 else None
     base, node = cid & 0x780, cid & 0x7F
     if node == visco and base in (0x080, 0x180, 0x200, 0x280, 0x380, 0x480, 0x700):
-        return "visco"
+        return {0x200: "visco command", 0x180: "visco status", 0x280: "visco position", 0x380: "visco force",
+                0x480: "visco session", 0x700: "visco heartbeat", 0x080: "visco EMCY"}[base]
     if node not in nodes:
         return None
     return {(0x080, 8): "EMCY", (0x180, 6): "TPDO1", (0x200, 6): "RPDO1", (0x280, 4): "TPDO2",
@@ -168,9 +169,11 @@ def figures(counts):
               (iface, total, end - start, busiest["frames"],
                ", ".join("%s %d" % kv for kv in sorted(busiest["kinds"].items())),
                busiest["bits"] / 1e4, busiest["worst"] / 1e4))
-        # The steady state: seconds of cyclic exchange (SYNC at no less than 80 % of its busiest rate) without SDO.
-        top = max(w["kinds"].get("SYNC", 0) for w in windows.values())
-        steady = [w for w in windows.values() if top and w["kinds"].get("SYNC", 0) >= 0.8 * top
+        # The steady state: seconds of cyclic exchange (SYNC at no less than 80 % of its busiest rate) without SDO;
+        # on a bus without SYNC, seconds of the controller's commands at no less than 80 % of their busiest rate.
+        cyclic = "SYNC" if "SYNC" in kinds else "visco command"
+        top = max(w["kinds"].get(cyclic, 0) for w in windows.values())
+        steady = [w for w in windows.values() if top and w["kinds"].get(cyclic, 0) >= 0.8 * top
                   and "SDO request" not in w["kinds"]]
         if steady:
             per_kind = {k: statistics.median(w["kinds"].get(k, 0) for w in steady)
