@@ -53,13 +53,13 @@ START = (4.1, 1.7)  # in the plan's preimage, in the slot 0.9 m above the goal
 COUNTS = 100000     # counts per metre (x; y counts the other way)
 # The rates and time limits, scaled for the emulated CPU. Vision runs a full detection in every frame here (the
 # capture publishes the newest of vivid's 59.94 Hz frames, so the frame numbers it passes on have gaps, after which
-# the tracker's prediction is void): 0.5-1.5 s a frame in the VM. The controller's vision age limit covers a frame
-# period and two of them.
+# the tracker's prediction is void): 0.5-2 s a frame in the VM, and the controller's vision up to 5 s old when a frame
+# reaches it on a loaded host. Its age limit covers that and the next frame's period.
 CAMERA_HZ = 1        # frames rendered per second (`visco sim --camera-hz`)
 # Frames published per second at most (`visco capture --max-fps`), below vision's rate here: vision takes the
 # oldest of the newest four frames waiting, so a camera faster than vision adds up to four frame periods of latency.
 CAPTURE_FPS = 0.5
-VISION_AGE_MS = 5000
+VISION_AGE_MS = 8000
 SPEED = 0.1          # m/s, the controller's limit (the demo's 1 m/s divided by 10)
 RATE = 25            # Hz, the controller's loop (500 Hz divided by 20)
 WATCHDOG_MS = 1000   # the driver's command watchdog (the demo's 500 ms; 100 ms on a real machine)
@@ -202,6 +202,16 @@ def moving_since(t0, threshold=0.03):
     return bool(rows) and rows[-1][0] >= t0 and speed(rows[-1]) > threshold
 
 
+def slowing():
+    """The robot's speed fell over the trace's last 50 ms (a stop under way)."""
+    rows = trace()
+    return len(rows) < 6 or speed(rows[-1]) < speed(rows[-6]) - 0.005
+
+
+def vision_frames(tag):
+    return [line for line in text(os.path.join(out, "track_%s.jsonl" % tag)).splitlines() if '"seq"' in line]
+
+
 def still_at(t_kill, threshold=1e-3):
     """The first time after t_kill from which the robot stays still (None: it never did)."""
     rows = [r for r in trace() if r[0] >= t_kill]
@@ -292,10 +302,13 @@ def kill_case(tag, victim, limit_s, mechanism):
         stop("run_" + tag)
         stop_robot(tag)
         return
-    # Killed while the robot moves (not while the controller holds it for a late frame): the trace's newest sample,
-    # at most 100 ms old, above 3 cm/s.
-    fresh = wait_for(lambda: moving_since(time.monotonic() - 0.1), 60, 0.02)
+    # Killed while the robot moves, just after vision delivered a frame (so that no hold for a late frame stops the
+    # robot meanwhile): the trace's newest sample at most 100 ms old, above 3 cm/s and not slowing down.
+    frames = len(vision_frames("kills"))
+    wait_for(lambda: len(vision_frames("kills")) > frames, 20, 0.05)
+    fresh = wait_for(lambda: moving_since(time.monotonic() - 0.1) and not slowing(), 20, 0.02)
     v_kill = speed(trace()[-1])
+    log_lines = len(text(os.path.join(out, "driver_%s.log" % tag)).splitlines())
     t_kill = time.monotonic()
     procs[victim].send_signal(signal.SIGKILL)
     wait(procs[victim])
@@ -316,11 +329,12 @@ def kill_case(tag, victim, limit_s, mechanism):
               (tag, (t_end - t_kill) * 1e3, summary.get("reason", "(no summary)")))
     stop("run_" + tag)
     stop_robot(tag)
-    driver_log = text(os.path.join(out, "driver_%s.log" % tag))
-    mechanism(tag, t_kill, taken, driver_log)
+    # What the driver logged after the kill.
+    driver_log = "\n".join(text(os.path.join(out, "driver_%s.log" % tag)).splitlines()[log_lines:])
+    mechanism(tag, t_kill, taken, limit_s, driver_log)
 
 
-def controller_killed(tag, t_kill, taken, driver_log):
+def controller_killed(tag, t_kill, taken, limit_s, driver_log):
     fired = [l for l in driver_log.splitlines() if "no valid command for" in l and "watchdog" in l]
     check(len(fired) > 0, "%s: the driver's command watchdog (%d ms) fired: %s" %
           (tag, WATCHDOG_MS, fired[0].split(" ", 3)[-1] if fired else "no such line in the driver's log"))
@@ -328,26 +342,27 @@ def controller_killed(tag, t_kill, taken, driver_log):
            "both drives)" % (taken * 1e3, WATCHDOG_MS))
 
 
-def drive_killed(tag, t_kill, taken, driver_log):
+def drive_killed(tag, t_kill, taken, limit_s, driver_log):
     fired = [l for l in driver_log.splitlines() if "0x8130" in l]
     check(len(fired) > 0, "%s: the driver's consumer of node 3's heartbeat (%d ms) fired: %s" %
           (tag, HEARTBEAT_TIMEOUT_MS, fired[0].split(" ", 3)[-1] if fired else "no EMCY 0x8130 in the driver's log"))
     stopped = [t for t, what, value in drive_events("drive2_" + tag) if what == "state" and value == "QUICK STOP ACTIVE"
                and t >= t_kill]
-    check(len(stopped) > 0, "%s: node 2 quick-stopped %s after the kill" %
+    check(stopped and stopped[0] - t_kill <= limit_s + SLACK_S, "%s: node 2 quick-stopped %s after the kill" %
           (tag, "%.0f ms" % ((stopped[0] - t_kill) * 1e3) if stopped else "(not: no QUICK STOP ACTIVE)"))
     figure("a drive (node 3) killed: the robot still after %.0f ms (the driver's consumer of its heartbeat, %d ms: "
            "EMCY 0x8130, node 2 quick-stopped, the plant braked the dead drive's axis)" %
            (taken * 1e3, HEARTBEAT_TIMEOUT_MS))
 
 
-def driver_killed(tag, t_kill, taken, driver_log):
+def driver_killed(tag, t_kill, taken, limit_s, driver_log):
     for node in (2, 3):
         lost = [t for t, what, value in drive_events("drive%d_%s" % (node, tag)) if what == "heartbeat lost"
                 and t >= t_kill]
         faulted = [t for t, what, value in drive_events("drive%d_%s" % (node, tag)) if what == "state"
                    and value == "FAULT" and t >= t_kill]
-        check(lost and faulted, "%s: node %d lost the master's heartbeat %s after the kill and faulted %s after" %
+        check(lost and faulted and faulted[0] - t_kill <= limit_s + SLACK_S,
+              "%s: node %d lost the master's heartbeat %s after the kill and faulted %s after" %
               (tag, node, "%.0f ms" % ((lost[0] - t_kill) * 1e3) if lost else "(not)",
                "%.0f ms" % ((faulted[0] - t_kill) * 1e3) if faulted else "(not)"))
     figure("the driver killed: the robot still after %.0f ms (each drive's consumer of the master's heartbeat, %d ms: "
