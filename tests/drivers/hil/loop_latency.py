@@ -55,6 +55,25 @@ def cycle(payload):
     return c
 
 
+def frame_times(log, rpdo_times):
+    """For each camera frame the controller used (the first period whose robot estimate comes from it): its capture
+    time, the period's time and the first drive target after it (None while no drive ran: no RPDO1 within 0.5 s,
+    before the drives are up or after they stopped), all in seconds of the wall clock."""
+    last_seq = None
+    for _, _, channel, payload in logtool.read(log):
+        if channel != logtool.CYCLE:
+            continue
+        c = cycle(payload)
+        if not c["have_estimate"] or c["estimate_frame_seq"] == last_seq:
+            continue
+        last_seq = c["estimate_frame_seq"]
+        wall_minus_mono = c["utime"] * 1e-6 - c["now_ns"] * 1e-9
+        used = c["utime"] * 1e-6
+        i = bisect.bisect_right(rpdo_times, used)
+        target = rpdo_times[i] if i < len(rpdo_times) and rpdo_times[i] - used < 0.5 else None
+        yield c["estimate_capture_ns"] * 1e-9 + wall_minus_mono, used, target
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("log")
@@ -69,26 +88,14 @@ def main():
         if m and m.group(2) == args.interface and int(m.group(3), 16) in rpdo_ids:
             rpdo_times.append(float(m.group(1)))
     rpdo_times.sort()
-    latencies, to_controller, to_drive, last_seq, idle = [], [], [], None, 0
-    for _, _, channel, payload in logtool.read(args.log):
-        if channel != logtool.CYCLE:
-            continue
-        c = cycle(payload)
-        if not c["have_estimate"] or c["estimate_frame_seq"] == last_seq:
-            continue
-        last_seq = c["estimate_frame_seq"]
-        wall_minus_mono = c["utime"] * 1e-6 - c["now_ns"] * 1e-9
-        capture = c["estimate_capture_ns"] * 1e-9 + wall_minus_mono
-        used = c["utime"] * 1e-6
-        i = bisect.bisect_right(rpdo_times, used)
-        # Only while the drives are in their cyclic exchange (an RPDO1 within 0.5 s): before the drives are up, or
-        # after they stopped, no target follows the frame.
-        if i < len(rpdo_times) and rpdo_times[i] - used < 0.5:
-            latencies.append(rpdo_times[i] - capture)
-            to_controller.append(used - capture)
-            to_drive.append(rpdo_times[i] - used)
-        else:
+    latencies, to_controller, to_drive, idle = [], [], [], 0
+    for capture, used, target in frame_times(args.log, rpdo_times):
+        if target is None:
             idle += 1
+            continue
+        latencies.append(target - capture)
+        to_controller.append(used - capture)
+        to_drive.append(target - used)
     if not latencies:
         print("loop latency: no frame of the log matched a drive target on %s" % args.interface)
         return 1
