@@ -86,6 +86,8 @@ void CheckOptions(const Options& a) {
   if (!(a.speed > 0) || a.speed > 1.0) throw InputError("command line", "--speed", "must be in (0, 1] m/s");
   if (!(a.slow >= 1) || a.slow > 100) throw InputError("command line", "--slow-machine", "must be in [1, 100]");
   if (a.jobs < 1 || a.jobs > 8) throw InputError("command line", "--jobs", "must be between 1 and 8");
+  if (!(a.image_noise >= 0)) throw InputError("command line", "--image-noise", "must be >= 0");
+  if (!(a.blur_px >= 0)) throw InputError("command line", "--blur-px", "must be >= 0");
   if (a.lockstep && (a.can || a.netns)) {
     throw InputError("command line", a.can ? "--can" : "--netns",
                      "not with --lockstep (one process on a simulated clock, its bus in memory)");
@@ -285,6 +287,8 @@ void Report(const Options& a, const Setup& su, const std::vector<RunOutcome>& do
       {"netns", a.netns},
       {"lockstep", a.lockstep},
       {"png_level", a.png_level >= 0 ? nlohmann::json(a.png_level) : nlohmann::json(nullptr)},
+      {"image_noise", a.image_noise},
+      {"blur_px", a.blur_px},
       {"plan", a.plan.empty() ? nlohmann::json(nullptr) : nlohmann::json(a.plan)},
       {"v4l2", a.v4l2_output.empty()
                    ? nlohmann::json(nullptr)
@@ -389,11 +393,19 @@ void RegisterDemoCommand(CLI::App& app) {
                   "the rendered camera publishes PNG (lossless) at this zlib level, 0..9, instead of raw grey: smaller "
                   "logs (run.lcmlog, controller.lcmlog) for CPU per frame (docs/camera.md)")
       ->check(CLI::Range(0, 9));
+  cmd->add_option("--image-noise", args->image_noise,
+                  "the rendered camera's pixel noise, grey levels (1 sigma): drawn over every pixel of every frame, "
+                  "the renderer's largest cost per frame (0 on an emulated CPU: docs/camera.md)")
+      ->capture_default_str();
+  cmd->add_option("--blur-px", args->blur_px, "the rendered camera's Gaussian blur, pixels (sigma)")
+      ->capture_default_str();
   cmd->add_option("--slow-machine", args->slow,
                   "the machine is this many times slower than a 2-core PC (e.g. 10 in the HIL VM's emulated CPU): "
                   "the processes' time limits (vision age, hold, start-up, status, heartbeat, watchdog, --timeout) "
                   "are multiplied by it; the commanded speed, the camera rate, the controller's rate and telemetry, "
-                  "the driver's robot update and true-state rates divided by it; no supersampling")
+                  "the driver's robot update and true-state rates divided by it; no supersampling; vision's full "
+                  "detections at half resolution (visco track --decimate 2); with --v4l2-output, visco capture at the "
+                  "camera's rate (not twice it)")
       ->capture_default_str();
   cmd->add_flag("--lockstep", args->lockstep,
                 "run the closed loop as one process on a simulated clock (`visco sim --lockstep`: the same driver, "

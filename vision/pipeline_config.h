@@ -23,9 +23,10 @@ struct PipelineConfig {
   std::string camera, camera_name, extrinsics, objects;
   std::string mode = "roi";
   int full_every = 30;
+  float decimate = 1;  ///< full detections' quad decimation (AprilTag quad_decimate; corners refined at full size)
   float quad_sigma = 0;
   double corner_sigma = 0.3;
-  std::set<std::string> given;  ///< the options of --mode, --full-every, --quad-sigma, --corner-sigma given
+  std::set<std::string> given;  ///< the options of --mode, --full-every, --decimate, --quad-sigma, --corner-sigma given
 };
 
 /// Where the files' contents come from when they are not given.
@@ -35,7 +36,8 @@ enum class ConfigDefaults {
   kLog,   ///< `visco replay`: all three from the log (VISCO_CAMERA_INFO, VISCO_VISION_CONFIG)
 };
 
-/// Adds --camera, --camera-name, --extrinsics, --objects, --mode, --full-every, --quad-sigma and --corner-sigma to
+/// Adds --camera, --camera-name, --extrinsics, --objects, --mode, --full-every, --decimate, --quad-sigma and
+/// --corner-sigma to
 /// `command`. Not real-time safe.
 void AddPipelineConfigOptions(CLI::App& command, PipelineConfig& config,
                               ConfigDefaults defaults = ConfigDefaults::kNone);
@@ -62,7 +64,8 @@ inline constexpr char kVisionConfigChannel[] = "VISCO_VISION_CONFIG";
 inline constexpr char kVisionConfigKind[] = "vision_config";
 
 /// The configuration but the calibration (which travels as camera_info_t on VISCO_CAMERA_INFO) as JSON text:
-/// {"objects": (the object-model file's JSON), "options": {"mode", "full_every", "quad_sigma", "corner_sigma"},
+/// {"objects": (the object-model file's JSON), "options": {"mode", "full_every", "decimate", "quad_sigma",
+/// "corner_sigma"},
 /// "files": {"camera", "extrinsics", "objects"}, "calibration_source": the camera_info_t.source of the calibration
 /// vision ran with}. Numbers are written so that they read back exactly.
 std::string VisionConfigToJson(const LoadedPipeline& pipeline);

@@ -101,7 +101,8 @@ RunOutcome ExecuteLockstepRun(const Setup& su, int r, std::uint64_t seed, const 
                                    (rd / "run.lcmlog").string()};
   args.insert(args.end(), su.cam.begin(), su.cam.end());
   args.insert(args.end(), {"--camera-hz", fmt::format("{}", std::max(2.0, std::round(15 / a.slow))), "--supersample",
-                           a.slow > 1 ? "1" : "2", "--latency-ms", "5", "--image-noise", "2", "--blur-px", "0.5"});
+                           a.slow > 1 ? "1" : "2", "--latency-ms", "5", "--image-noise",
+                           fmt::format("{}", a.image_noise), "--blur-px", fmt::format("{}", a.blur_px)});
   if (a.png_level >= 0) args.insert(args.end(), {"--png-level", std::to_string(a.png_level)});
   fs::create_directories(rd / "params");
   const std::vector<std::string> argv = WithParameterFile(su.self, "sim", args, rd / "params" / "lockstep.json");
@@ -210,20 +211,24 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
   const bool v4l2 = !a.v4l2_output.empty();
   if (su.rendered) {
     camera.insert(camera.end(), su.cam.begin(), su.cam.end());
-    camera.insert(camera.end(), {"--camera-hz", fmt::format("{}", camera_hz), "--supersample", a.slow > 1 ? "1" : "2",
-                                 "--latency-ms", "5", "--image-noise", "2", "--blur-px", "0.5"});
+    camera.insert(camera.end(),
+                  {"--camera-hz", fmt::format("{}", camera_hz), "--supersample", a.slow > 1 ? "1" : "2", "--latency-ms",
+                   "5", "--image-noise", fmt::format("{}", a.image_noise), "--blur-px", fmt::format("{}", a.blur_px)});
     if (v4l2) camera.insert(camera.end(), {"--v4l2-output", a.v4l2_output});
     if (a.png_level >= 0 && !v4l2) camera.insert(camera.end(), {"--png-level", std::to_string(a.png_level)});
   }
   if (v4l2) {
     // The camera process of a real camera: it captures what the rendered camera wrote to the output device and
     // publishes it with the calibration. The device's loop may run faster than the renderer (vivid's HDMI at
-    // 59.94 Hz): twice the rendering rate keeps every rendered frame without flooding the bus with repeats.
+    // 59.94 Hz): twice the rendering rate keeps every rendered frame without flooding the bus with repeats. On a
+    // slow machine the rendering rate: vision could not take twice as many frames (some rendered frame may then be
+    // skipped, another captured twice).
+    const double capture_hz = a.slow > 1 ? camera_hz : 2 * camera_hz;
     std::vector<std::string> capture = {"--device",       a.v4l2_capture,
                                         "--width",        std::to_string(su.image_width),
                                         "--height",       std::to_string(su.image_height),
                                         "--pixel-format", "GREY",
-                                        "--max-fps",      fmt::format("{}", 2 * camera_hz),
+                                        "--max-fps",      fmt::format("{}", capture_hz),
                                         "--timeout-ms",   Slowed(a, 1000),
                                         "--lcm-url",      bus};
     if (a.v4l2_input >= 0) capture.insert(capture.end(), {"--input", std::to_string(a.v4l2_input)});
@@ -239,6 +244,8 @@ RunOutcome ExecuteRun(const Setup& su, int r, std::uint64_t seed, const Eigen::V
   if (su.rendered) {
     std::vector<std::string> track = {"--lcm", "--lcm-url", bus};
     track.insert(track.end(), su.cam.begin(), su.cam.end());
+    // On a slow machine the full detections find the quads at half resolution (about 3x faster).
+    if (a.slow > 1) track.insert(track.end(), {"--decimate", "2"});
     children.push_back(spawn("track",
                              on_host("track", WithParameterFile(su.self, "track", track, rd / "params" / "track.json")),
                              rd / "track.jsonl", rd / "track.log"));

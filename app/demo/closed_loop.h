@@ -33,9 +33,11 @@ struct Options {
   double timeout_s = 120;
   double speed = 0.6;
   bool netns = false;
-  bool lockstep = false;      // one process on a simulated clock (`visco sim --lockstep`) instead of the five
-  double slow = 1;            // --slow-machine: time limits times this, camera rate and speed divided by it
-  int png_level = -1;         // >= 0: the rendered camera publishes PNG at this zlib level
+  bool lockstep = false;   // one process on a simulated clock (`visco sim --lockstep`) instead of the five
+  double slow = 1;         // --slow-machine: time limits times this, camera rate and speed divided by it
+  int png_level = -1;      // >= 0: the rendered camera publishes PNG at this zlib level
+  double image_noise = 2;  // the rendered camera's pixel noise (grey levels, 1 sigma) and blur (pixels)
+  double blur_px = 0.5;
   std::string plan;           // a strategy made earlier for the scene (plan.json): no planning
   std::vector<double> start;  // X Y: the run starts there instead of a start drawn from the start region
   // The camera through the kernel's video interface: the rendered frames written to a V4L2 output device

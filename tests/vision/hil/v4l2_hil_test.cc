@@ -361,6 +361,9 @@ int main(int argc, char** argv) {
   }
   if (argc == 2 && std::string(argv[1]) == "--setup-loop") {
     visco::hil::SetupLoop(V4L2_PIX_FMT_GREY);
+    // Until the first frame is written the capture shows vivid's test pattern: black (index 5, "100% Black") costs
+    // vision nothing, where the colour bars cost it a long full detection on the emulated CPU.
+    visco::hil::SetControl(visco::hil::kCaptureDevice, "test_pattern", 5);
     return 0;
   }
   if (argc == 3 && std::string(argv[1]) == "--write-frames") {
