@@ -60,6 +60,25 @@ def write(path, data):
     open(path, "wb").write(data)
 
 
+class Message:
+    """Reads an lcm-gen encoded message field by field: big-endian, booleans as one byte, strings with a length that
+    counts their NUL."""
+
+    def __init__(self, payload):
+        self.data, self.pos = payload, 8  # after the type's fingerprint
+
+    def take(self, fmt):
+        values = struct.unpack_from(">" + fmt, self.data, self.pos)
+        self.pos += struct.calcsize(">" + fmt)
+        return values[0] if len(values) == 1 else values
+
+    def string(self):
+        n = self.take("i")
+        text = bytes(self.data[self.pos:self.pos + n - 1]).decode(errors="replace")
+        self.pos += n
+        return text
+
+
 def image_fields(payload):
     """Offsets in an encoded visco.image_t: (seq, offset of width, offset of data, data length)."""
     seq = struct.unpack(">q", payload[16:24])[0]

@@ -13,7 +13,6 @@ import bisect
 import os
 import re
 import statistics
-import struct
 import sys
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "replay"))
@@ -22,26 +21,9 @@ import logtool  # noqa: E402  (lcm-logger's format, standard library only)
 LINE = re.compile(r"^\((\d+\.\d+)\)\s+(\S+)\s+([0-9A-Fa-f]{3})#([0-9A-Fa-f]*)\s*$")
 
 
-class Reader:
-    """LCM's encoding: big-endian, booleans as one byte, strings with a length that counts their NUL."""
-
-    def __init__(self, payload):
-        self.data, self.pos = payload, 8  # after the type's fingerprint
-
-    def take(self, fmt):
-        values = struct.unpack_from(">" + fmt, self.data, self.pos)
-        self.pos += struct.calcsize(">" + fmt)
-        return values[0] if len(values) == 1 else values
-
-    def string(self):
-        n = self.take("i")
-        self.pos += n
-        return None
-
-
 def cycle(payload):
     """The fields of controller_cycle_t up to the command (lcmtypes/controller_cycle_t.lcm)."""
-    r = Reader(payload)
+    r = logtool.Message(payload)
     c = {}
     c["utime"], c["now_ns"], c["cycle"] = r.take("qqq")
     r.take("?qqii"), r.take("dd"), r.take("dd"), r.take("?"), r.take("dd"), r.take("iiq?i")

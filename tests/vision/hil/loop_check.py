@@ -3,8 +3,8 @@
 
     loop_check.py RUN_DIR
 
-RUN_DIR holds what the demo wrote (summary.json, camera.json, run.lcmlog). Its own reader of the log and of the
-messages (the lcm-gen layouts, big-endian): it shares no code with visco.
+RUN_DIR holds what the demo wrote (summary.json, camera.json, run.lcmlog). The log and its messages are read with
+tests/replay/logtool.py (the lcm-gen layouts, big-endian): it shares no code with visco.
 
 Checks: the goal was reached; every image vision processed, from the world's first frame on, is one the rendered
 camera wrote, byte for byte (by the pixel digest vision recorded against the one the world recorded when it wrote the
@@ -17,41 +17,11 @@ latency from the render to the first command after vision's estimate of that fra
 """
 import bisect
 import json
-import struct
+import os
 import sys
 
-SYNC = 0xEDA1DA01
-
-
-def events(path):
-    with open(path, "rb") as f:
-        data = f.read()
-    at = 0
-    while at + 28 <= len(data):
-        sync, _num, ts, clen, dlen = struct.unpack_from(">IqqII", data, at)
-        if sync != SYNC:
-            raise SystemExit("%s: no event at byte %d" % (path, at))
-        at += 28
-        channel = data[at:at + clen].decode()
-        at += clen
-        yield ts, channel, data[at:at + dlen]
-        at += dlen
-
-
-class Reader:
-    def __init__(self, buf):
-        self.buf, self.at = buf, 8  # past the fingerprint
-
-    def take(self, fmt):
-        v = struct.unpack_from(">" + fmt, self.buf, self.at)
-        self.at += struct.calcsize(">" + fmt)
-        return v if len(v) > 1 else v[0]
-
-    def string(self):
-        n = self.take("i")
-        s = self.buf[self.at:self.at + n - 1].decode(errors="replace")
-        self.at += n
-        return s
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "replay"))
+import logtool  # noqa: E402  (lcm-logger's format, standard library only)
 
 
 def quantiles(values):
@@ -72,9 +42,9 @@ def main():
     written = {}  # pixel digest -> (render utime, written utime)
     written_seqs = set()
     images, detections, estimates, commands, truth = [], {}, [], [], []
-    for ts, ch, d in events(run_dir + "/run.lcmlog"):
+    for _, ts, ch, d in logtool.read(run_dir + "/run.lcmlog"):
         first_ts = ts if first_ts is None else first_ts
-        r = Reader(d)
+        r = logtool.Message(d)
         if ch == "VISCO_SIM_FRAME":
             r.take("q")
             r.string(), r.string()
