@@ -145,9 +145,10 @@ sys.exit(0 if s["first_difference"]["frame_seq"] == int(sys.argv[2]) else 1)' "$
 # 5. lcm-spy's type database (visco spy's class path) decodes every channel of the log, read from the file with LCM's
 #    own log reader; and lcm-logplayer plays the log onto a bus where the same decoder listens. The decoder takes
 #    SPYTEST_.* channels, so the copy has its channels prefixed. A 300 KB image crosses a udpm bus only if the
-#    receiver's socket buffer holds its five 64 KB fragments (net.core.rmem_max, LCM's advice for large messages):
-#    on a machine with the kernel's default 208 KB a busy receiver loses every image, so the images are required on
-#    the bus only where the buffer is large enough (they are decoded from the file in any case).
+#    receiver's socket buffer holds its five 64 KB fragments. lcm-spy's Java LCM ignores the URL's recv_buf_size and
+#    gets the kernel's default buffer (net.core.rmem_default, 208 KB unless raised): there a receiver that is not
+#    instantly back at its socket loses the image (CI lost all 828 in three plays once), so the images are required on
+#    the bus only where rmem_default holds them (they are decoded from the file in any case).
 python3 -S $here/logtool.py rename "$tmp/track.lcmlog" "$tmp/spy.lcmlog" SPYTEST_ || fail "logtool rename"
 classpath=$("$visco" spy --print | sed -e 's/.* -cp \([^ ]*\) .*/\1/')
 channels=(CAMERA_IMAGE TAG_DETECTIONS OBJECT_POSES ROBOT_ESTIMATE VISUAL_EVENTS COMMAND STATUS TELEMETRY)
@@ -163,10 +164,11 @@ grep -E '^(undecodable|error)' "$tmp/decode_file.out" | grep -qv 'SPYTEST_LCM_SE
   fail "lcm-spy could not decode some channel of the log file"
 
 bus_channels=("${channels[@]}")
-rmem_max=$(cat /proc/sys/net/core/rmem_max 2>/dev/null || echo 0)
-if ((rmem_max < 2097152)); then
+rmem_default=$(cat /proc/sys/net/core/rmem_default 2>/dev/null || echo 0)
+if ((rmem_default < 2097152)); then
   bus_channels=("${channels[@]:1}")
-  echo "note: net.core.rmem_max is $rmem_max bytes: images not required on the bus (decoded from the file above)"
+  echo "note: net.core.rmem_default is $rmem_default bytes (lcm-spy's receive buffer): images not required on the bus" \
+    "(decoded from the file above)"
 fi
 spy_url="udpm://239.255.76.67:$((port + 1))?ttl=0&recv_buf_size=4194304"
 timeout 90 java -Djava.net.preferIPv4Stack=true -cp "$classpath:$spy_check" SpyDecodeCheck "$spy_url" 80 \
