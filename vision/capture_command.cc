@@ -179,9 +179,12 @@ void RunCapture(const CaptureArgs& a) {
   const double cpu_start = CpuSeconds();
   std::int64_t published = 0;
   // --max-fps: the next frame due for publication (the stream's frames before it are held back, counted).
+  // image_t.seq is the driver's number less the frames held back since the stream (re)started: +1 a published frame,
+  // so that its gaps are frames lost (vision reads a gap as lost frames and voids its tracking prediction).
   const std::int64_t publish_period_us = a.max_fps > 0 ? static_cast<std::int64_t>(1e6 / a.max_fps) : 0;
-  std::int64_t next_publish_us = 0, held_back = 0;
-  std::uint64_t image_bytes = 0;  // image_t.data published
+  std::int64_t next_publish_us = 0, held_back = 0, seq_offset = 0;
+  std::int64_t last_driver_seq = -1;  // the driver counts from 0; -1: no frame yet
+  std::uint64_t image_bytes = 0;      // image_t.data published
   V4l2Frame frame;
   V4l2Fault fault;
   std::string error;
@@ -195,13 +198,21 @@ void RunCapture(const CaptureArgs& a) {
     const V4l2Camera::Status status = camera.Grab(100, frame, fault);
     if (status == V4l2Camera::Status::kFault) {
       publish_fault(fault);
-      if (fault.kind == V4l2Fault::Kind::kReopened) publish_info();
+      if (fault.kind == V4l2Fault::Kind::kReopened) {
+        publish_info();
+        seq_offset = 0;  // the driver counts from its own start again
+        last_driver_seq = -1;
+      }
       continue;
     }
     if (status != V4l2Camera::Status::kFrame) continue;
+    const bool counter_advanced = frame.seq > last_driver_seq;
+    last_driver_seq = frame.seq;
     if (publish_period_us > 0) {
       if (frame.dequeued_monotonic_us < next_publish_us) {
         ++held_back;
+        // A counter that does not advance (said by the camera as a fault) is passed on as it is.
+        if (counter_advanced) ++seq_offset;
         continue;
       }
       // On the period's grid (a frame a little late does not shift it); after a gap, a new grid (no burst).
@@ -211,7 +222,7 @@ void RunCapture(const CaptureArgs& a) {
                             : next_publish_us + publish_period_us;
     }
     image.utime = frame.utime;
-    image.seq = frame.seq;
+    image.seq = frame.seq - seq_offset;
     auto bad_frame = [&](const std::string& why) {
       ++bad;
       V4l2Fault f;
@@ -309,8 +320,8 @@ void RegisterCaptureCommand(CLI::App& app) {
       "(grey; MJPEG passed through), its calibration (--camera, --extrinsics) as camera_info_t on VISCO_CAMERA_INFO "
       "at start and every --info-period, and its faults (frames dropped, skipped or damaged, no frame in time, "
       "device gone or back) on VISCO_FAULT and as {\"fault\": ...} lines on stdout. Always the newest frame; "
-      "image_t.seq "
-      "is the driver's sequence number, utime the buffer's capture time. Ends on SIGINT/SIGTERM (or --max-frames, "
+      "image_t.seq is the driver's sequence number (less the frames --max-fps held back), utime the buffer's "
+      "capture time. Ends on SIGINT/SIGTERM (or --max-frames, "
       "--duration) with a {\"summary\": ...} line: counts, CPU per frame and capture-to-publish latency. "
       "docs/camera.md.");
   c->add_option("--device", a->v4l2.device, "V4L2 capture device")->capture_default_str();
@@ -345,7 +356,8 @@ void RegisterCaptureCommand(CLI::App& app) {
   c->add_option("--max-fps", a->max_fps,
                 "publish at most this many frames per second, the newest each time, for a device whose rate cannot "
                 "be set (an HDMI input such as vivid's loop runs at its timings' 59.94 Hz); the frames in between are "
-                "counted in the summary's held_back, not published (0: every frame)")
+                "counted in the summary's held_back, not published, and not counted in image_t.seq (its gaps stay "
+                "frames lost) (0: every frame)")
       ->capture_default_str();
   c->add_option("--max-frames", a->max_frames, "stop after publishing this many frames (0: no limit)");
   c->add_option("--duration", a->duration_s, "stop after this many seconds (0: no limit)");

@@ -51,10 +51,9 @@ BUS = URL + "&recv_buf_size=4194304"
 PLANT = "127.0.0.1:47000"
 START = (4.1, 1.7)  # in the plan's preimage, in the slot 0.9 m above the goal
 COUNTS = 100000     # counts per metre (x; y counts the other way)
-# The rates and time limits, scaled for the emulated CPU. Vision runs a full detection in every frame here (the
-# capture publishes the newest of vivid's 59.94 Hz frames, so the frame numbers it passes on have gaps, after which
-# the tracker's prediction is void): 0.5-2 s a frame in the VM, and the controller's vision up to 5 s old when a frame
-# reaches it on a loaded host. Its age limit covers that and the next frame's period.
+# The rates and time limits, scaled for the emulated CPU. Vision's full detections take 0.5-2 s a frame in the VM
+# (the first frame, and every frame after a lost one or a lost tag), and the controller's vision is up to 5 s old
+# when a frame reaches it on a loaded host. Its age limit covers that and the next frame's period.
 CAMERA_HZ = 1        # frames rendered per second (`visco sim --camera-hz`)
 # Frames published per second at most (`visco capture --max-fps`), below vision's rate here: vision takes the
 # oldest of the newest four frames waiting, so a camera faster than vision adds up to four frame periods of latency.
