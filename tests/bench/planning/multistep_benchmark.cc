@@ -15,7 +15,6 @@
 // (for `visco plan` under /usr/bin/time -v or heaptrack).
 
 #include <benchmark/benchmark.h>
-#include <time.h>
 
 #include <cstdlib>
 #include <fstream>
@@ -23,34 +22,16 @@
 
 #include "planning/cspace.h"
 #include "planning/strategy.h"
+#include "tests/bench/planning/process_stats.h"
 #include "tests/planning/multistep_scenes.h"
 #include "tests/planning/scene_json.h"
 
 namespace visco::planning {
 namespace {
 
-// Peak memory of one benchmark: Linux resets the process's peak resident set (VmHWM) when "5" is written to
-// /proc/self/clear_refs, so each benchmark reports its own peak, not the largest of the run so far. 0 where unknown.
-void ResetPeakMemory() { std::ofstream("/proc/self/clear_refs") << "5"; }
-double PeakMemoryMiB() {
-  std::ifstream status("/proc/self/status");
-  std::string key;
-  while (status >> key) {
-    if (key == "VmHWM:") {
-      double kib = 0;
-      status >> kib;
-      return kib / 1024.0;
-    }
-    status.ignore(1 << 20, '\n');
-  }
-  return 0.0;
-}
-
-double ProcessCpuSeconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
+using bench::PeakMemoryMiB;
+using bench::ProcessCpuSeconds;
+using bench::ResetPeakMemory;
 
 void BM_MultiStep(benchmark::State& state) {
   const auto n = static_cast<std::size_t>(state.range(0));

@@ -38,6 +38,7 @@
 #include "planning/threads.h"
 #include "planning/vc_rays.h"
 #include "tests/bench/planning/pentagon_grid.h"
+#include "tests/bench/planning/process_stats.h"
 #include "tests/planning/random_vc_scenes.h"
 
 #ifndef VISCO_SOURCE_DIR
@@ -47,28 +48,9 @@
 namespace visco::planning {
 namespace {
 
-// Peak memory of one benchmark: Linux resets the process's peak resident set (VmHWM) when "5" is written to
-// /proc/self/clear_refs, so each benchmark reports its own peak, not the largest of the run so far. 0 where unknown.
-void ResetPeakMemory() { std::ofstream("/proc/self/clear_refs") << "5"; }
-double PeakMemoryMiB() {
-  std::ifstream status("/proc/self/status");
-  std::string key;
-  while (status >> key) {
-    if (key == "VmHWM:") {
-      double kib = 0;
-      status >> kib;
-      return kib / 1024.0;
-    }
-    status.ignore(1 << 20, '\n');
-  }
-  return 0.0;
-}
-
-double ProcessCpuSeconds() {
-  timespec ts{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
-}
+using bench::PeakMemoryMiB;
+using bench::ProcessCpuSeconds;
+using bench::ResetPeakMemory;
 
 void BM_Candidates(benchmark::State& state) {
   const BackprojectionProblem pr = bench::PentagonGrid(static_cast<int>(state.range(1)) / 5);
