@@ -120,5 +120,7 @@ function(visco_add_benchmark)
   add_test(NAME ${ARG_NAME}.smoke
            COMMAND ${ARG_NAME} --benchmark_min_time=0.001 ${ARG_SMOKE_ARGS}
            WORKING_DIRECTORY ${PROJECT_SOURCE_DIR})
-  set_tests_properties(${ARG_NAME}.smoke PROPERTIES LABELS bench TIMEOUT 600)
+  # Google Benchmark exits 0 when the filter matches nothing: a smoke run that ran no benchmark fails.
+  set_tests_properties(${ARG_NAME}.smoke PROPERTIES LABELS bench TIMEOUT 600
+                       FAIL_REGULAR_EXPRESSION "Failed to match any benchmarks")
 endfunction()
