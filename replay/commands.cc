@@ -46,6 +46,22 @@ void RunOnce(const ReplayOptions& o, int loop, int loops) {
   } else {
     std::fprintf(stderr, "\n");
   }
+  // An image live vision processed that the log lacks, before the difference: the likely cause, said with it.
+  auto missing_image_before = [&](std::int64_t log_utime) {
+    for (const ReplaySummary::MissingImage& m : s.images_missing) {
+      if (m.output_log_utime > log_utime) break;
+      std::string text = "; the log lacks the image of a frame live vision processed before it (capture utime " +
+                         std::to_string(m.frame_utime) + ", lost by the logger): vision's state carries from frame " +
+                         "to frame, so the replay differs after it";
+      if (m.replay_to_s >= 0) {
+        char to[64];
+        std::snprintf(to, sizeof to, "%.6f", m.replay_to_s);
+        text += std::string("; --to ") + to + " compares up to the last image before it";
+      }
+      return text;
+    }
+    return std::string();
+  };
   if (o.check && s.differences.empty() && !s.identical()) {
     throw JobFailed("replay --check: " +
                     std::string(s.compared_total() == 0
@@ -60,7 +76,7 @@ void RunOnce(const ReplayOptions& o, int loop, int loops) {
                      : "frame seq " + std::to_string(d.frame_seq) + ", capture utime " + std::to_string(d.frame_utime);
     throw JobFailed("replay --check: first difference on " + d.channel + " at log time " + std::to_string(d.log_utime) +
                     " (" + where + "), field " + d.field.field + ": log " + d.field.logged + ", replay " +
-                    d.field.replayed);
+                    d.field.replayed + missing_image_before(d.log_utime));
   }
   if (o.check && verdict == CheckVerdict::kIncomplete) {
     throw Incomplete("replay --check: " + o.log_path + " is incomplete (" + IncompleteLogReason(s) + "): the " +

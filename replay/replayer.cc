@@ -91,6 +91,20 @@ std::vector<std::uint8_t> Encode(const M& m) {
 }
 
 // The frame (image_t.utime) a logged vision output belongs to, if it is one.
+// An image's capture time from its first fields (the fingerprint, then image_t.utime, big-endian), without decoding
+// its pixels. False for an event too short or of another type.
+bool ImageUtime(const LogEvent& e, std::int64_t& utime) {
+  if (e.data.size() < 16) return false;
+  std::uint64_t hash = 0, value = 0;
+  for (int k = 0; k < 8; ++k) {
+    hash = hash << 8 | e.data[static_cast<std::size_t>(k)];
+    value = value << 8 | e.data[static_cast<std::size_t>(8 + k)];
+  }
+  if (hash != static_cast<std::uint64_t>(image_t::getHash())) return false;
+  utime = static_cast<std::int64_t>(value);
+  return true;
+}
+
 bool VisionOutputFrame(const LogEvent& e, std::int64_t& frame_utime) {
   const std::string_view c = e.channel;
   if (c == channels::kTagDetections) {
@@ -346,6 +360,8 @@ LogIndex ReadLog(const ReplayOptions& o, ReplaySummary& s) {
   s.log_end_utime = index.events.back().timestamp;
 
   std::int64_t first_image = 0, last_image = 0;
+  std::map<std::int64_t, std::int64_t> image_log_utime;  // image_t.utime -> log time, of every image in the log
+  std::map<std::int64_t, std::int64_t> first_output;     // frame utime -> log time of vision's first output for it
   for (std::size_t i = 0; i < index.events.size(); ++i) {
     const LogEvent& e = index.events[i];
     const std::string channel(e.channel);
@@ -354,6 +370,8 @@ LogIndex ReadLog(const ReplayOptions& o, ReplaySummary& s) {
     if (channel == channels::kCameraImage) {
       if (index.images++ == 0) first_image = e.timestamp;
       last_image = e.timestamp;
+      std::int64_t utime = 0;
+      if (ImageUtime(e, utime)) image_log_utime.emplace(utime, e.timestamp);
     }
     if (channel == control::kCycleChannel) index.cycles.push_back(i);
     if (channel == channels::kCameraInfo) index.camera_infos.push_back(i);
@@ -376,7 +394,18 @@ LogIndex ReadLog(const ReplayOptions& o, ReplaySummary& s) {
     if (VisionOutputFrame(e, frame_utime)) {
       index.vision_outputs[{channel, frame_utime}].push_back(i);
       index.vision_frames.insert(frame_utime);
+      first_output.emplace(frame_utime, e.timestamp);
     }
+  }
+  for (const auto& [frame_utime, output_log_utime] : first_output) {
+    if (image_log_utime.count(frame_utime) > 0) continue;
+    ReplaySummary::MissingImage m{frame_utime, output_log_utime, -1};
+    // The last image the log holds from before the missing one (in capture time).
+    auto before = image_log_utime.lower_bound(frame_utime);
+    if (before != image_log_utime.begin()) {
+      m.replay_to_s = SecondsBetween(s.log_start_utime, std::prev(before)->second) + 1e-3;
+    }
+    s.images_missing.push_back(m);
   }
   if (index.images > 1 && last_image > first_image) {
     s.log_frame_rate_hz = static_cast<double>(index.images - 1) / SecondsBetween(first_image, last_image);
@@ -892,6 +921,13 @@ std::string ReplaySummary::ToJson() const {
   j["republished"] = publishing ? republished : 0;
   j["compared"] = compared;
   j["unmatched_logged"] = unmatched_logged;
+  nlohmann::json missing = nlohmann::json::array();
+  for (const MissingImage& m : images_missing) {
+    missing.push_back({{"frame_utime", m.frame_utime},
+                       {"output_log_utime", m.output_log_utime},
+                       {"replay_to_s", m.replay_to_s >= 0 ? nlohmann::json(m.replay_to_s) : nlohmann::json(nullptr)}});
+  }
+  j["images_missing"] = missing;
   j["differences"] = differences.size();
   if (!differences.empty()) {
     const Difference& d = differences.front();

@@ -82,13 +82,22 @@ struct ReplaySummary {
   // Frames the live pipeline never processed (the log holds vision output, none for them): skipped, so that vision's
   // state follows the live run.
   std::int64_t skipped_frames = 0;
-  std::int64_t warmup_frames = 0;               // frames before --from (processed, not published)
-  std::int64_t produced = 0;                    // messages produced (published, written with --out, or neither)
-  bool publishing = false;                      // produced messages went out on LCM (not --no-publish)
-  bool checked = false;                         // --check: compared with the log
-  std::int64_t republished = 0;                 // logged non-image messages passed on unchanged
-  std::int64_t compared = 0;                    // messages compared with the log
-  std::int64_t unmatched_logged = 0;            // logged vision outputs no replayed frame produced
+  std::int64_t warmup_frames = 0;     // frames before --from (processed, not published)
+  std::int64_t produced = 0;          // messages produced (published, written with --out, or neither)
+  bool publishing = false;            // produced messages went out on LCM (not --no-publish)
+  bool checked = false;               // --check: compared with the log
+  std::int64_t republished = 0;       // logged non-image messages passed on unchanged
+  std::int64_t compared = 0;          // messages compared with the log
+  std::int64_t unmatched_logged = 0;  // logged vision outputs no replayed frame produced
+  // Frames the live vision published outputs for whose image is not in the log (lost by the logger, e.g. a UDP
+  // datagram under load): their image_t.utime and the log time of their first output. Vision's state carries from
+  // frame to frame, so a replay differs after the first of them.
+  struct MissingImage {
+    std::int64_t frame_utime = 0;
+    std::int64_t output_log_utime = 0;
+    double replay_to_s = -1;  // --to up to the last image before it (seconds after the log's first event); -1: none
+  };
+  std::vector<MissingImage> images_missing;
   std::vector<Difference> differences;          // --check stops at the first
   std::int64_t control_cycles = 0;              // controller periods replayed
   std::int64_t control_compared = 0;            // periods whose command, mode and faults were compared

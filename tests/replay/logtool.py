@@ -10,7 +10,8 @@ usage: logtool.py list LOG
                                                      0 if identical, 1 at the first difference (printed)
        logtool.py corrupt-image LOG OUT SEQ         XOR every pixel byte of the image with image_t.seq SEQ with 0x08
        logtool.py damage LOG OUT KIND               KIND: truncate | flip-header | bad-sync | unknown-channel |
-                                                     undecodable | garbage | empty | only-undecodable
+                                                     undecodable | garbage | empty | only-undecodable |
+                                                     lose-image (an image vision processed, not written)
        logtool.py extract-images LOG DIR            write the PNG images of the log as DIR/frame_NNNN.png
        logtool.py rename LOG OUT PREFIX             prefix every channel name
        logtool.py corrupt-cycle LOG OUT K           flip the lowest bit of the commanded x velocity in the K-th
@@ -276,6 +277,12 @@ def main():
             c = b"VISCO_CAMERA_IMAGE"
             junk = bytes(range(200))
             data += struct.pack(">IqqII", SYNC, len(events), events[-1][1] + 1, len(c), len(junk)) + c + junk
+        elif kind == "lose-image":
+            # The image of a frame vision processed, a third into the run, never reached the logger (UDP under load):
+            # the event is not written at all, so no event number is missing.
+            images = [k for k, e in enumerate(events) if e[2] == "VISCO_CAMERA_IMAGE"]
+            kept = events[:images[len(images) // 3]] + events[images[len(images) // 3] + 1:]
+            data = encode(kept)
         elif kind == "garbage":
             data = bytearray((i * 7919) % 251 for i in range(20000))
         elif kind == "empty":

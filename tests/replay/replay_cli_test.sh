@@ -114,6 +114,21 @@ done
 grep -q '"SOMEONE_ELSES_CHANNEL":1' <("$visco" replay "$tmp/unknown-channel.lcmlog" "${cam[@]}" --fast --no-publish 2>/dev/null) ||
   fail "the unknown channel is not in the summary"
 grep -q "does not decode as visco.image_t" "$tmp/err.log" || fail "the undecodable image is not reported"
+# An image vision processed that the logger lost (no event number missing): the first difference comes with the
+# missing image named and the --to that compares up to it, and that window replays identically.
+python3 -S $here/logtool.py damage "$log" "$tmp/lose-image.lcmlog" lose-image
+status=$(replay "$tmp/lose-image.lcmlog" --check)
+[[ $status -eq 1 ]] || fail "lose-image: exit $status, expected 1"
+grep -q "the log lacks the image of a frame live vision processed before it (capture utime [0-9]*, lost by the logger)" \
+  "$tmp/err.log" || fail "lose-image: the missing image is not named with the difference"
+to=$(sed -n 's/.*; --to \([0-9.]*\) compares up to the last image before it.*/\1/p' "$tmp/err.log")
+[[ -n "$to" ]] || fail "lose-image: no --to given"
+grep -q '"images_missing":\[{"frame_utime":[0-9]*,' "$tmp/out.json" || fail "lose-image: not in the summary's images_missing"
+status=$(replay "$tmp/lose-image.lcmlog" --check --to "$to")
+[[ $status -eq 0 ]] || fail "lose-image --to $to: exit $status, expected 0 (identical up to the lost image)"
+grep -q '"images_missing":\[\]' <("$visco" replay "$log" "${cam[@]}" --fast --no-publish 2>/dev/null) ||
+  fail "the whole fixture reports a missing image"
+
 # Nothing usable: exit 2 with the reason.
 for kind in garbage empty only-undecodable; do
   python3 -S $here/logtool.py damage "$log" "$tmp/$kind.lcmlog" $kind
