@@ -14,10 +14,15 @@
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 namespace visco::planning {
+
+namespace internal {
+struct StaticOverlay;  // planning/backprojection/plane_sweep.h
+}
 
 /// A polygon with names for its vertices and edges (edge i runs from vertex i to vertex i + 1, wrapping). Names are
 /// the provenance refs of the output (docs/formats.md); empty names are filled in as "<prefix>[i].v[k]"/"…e[k]".
@@ -59,7 +64,16 @@ struct BackprojectionProblem {
   /// Regions where arriving fails, treated like the outside of the bounds (their edges appear as `bounds` edges):
   /// e.g. the parts of a visual guarded step's ray outside the next preimage, where the step would end too early.
   std::vector<NamedPolygon> forbidden;
+  /// The overlay of the static geometry (C-obstacles, goal, bounds, forbidden regions), computed once for every sweep
+  /// of these statics at any θ (PrepareStaticOverlay); empty: each sweep overlays them itself. A sweep uses it only
+  /// if it was made from the same statics (it keeps a copy of them and compares), so changing them is safe.
+  std::shared_ptr<const internal::StaticOverlay> static_overlay;
 };
+
+/// Computes `problem.static_overlay`: the arrangement of its static geometry, the same at every θ up to the sweep
+/// frame's exact rotation, so that each later sweep maps it instead of building it (planning_strategy.md, "Where a
+/// sweep's time went"). The regions are the same with it as without.
+void PrepareStaticOverlay(BackprojectionProblem& problem);
 
 enum class EdgeKind : std::uint8_t { kObstacle, kGoal, kFree, kVc, kBounds };
 const char* EdgeKindName(EdgeKind kind);

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <memory>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -29,8 +30,144 @@ namespace {
 
 using SegTraits = CGAL::Arr_segment_traits_2<K>;
 using Traits = CGAL::Arr_consolidated_curve_data_traits_2<SegTraits, int>;
-using Dcel = CGAL::Arr_face_extended_dcel<Traits, int>;
+using Dcel = CGAL::Arr_extended_dcel<Traits, int, int, int>;  // vertex: index, face: label counts
 using Arr = CGAL::Arrangement_2<Traits, Dcel>;
+
+// Where the lines through a, b and through c, d cross (they are not parallel).
+P2 LinesMeet(const P2& a, const P2& b, const P2& c, const P2& d) {
+  const auto hit = CGAL::intersection(K::Line_2(a, b), K::Line_2(c, d));
+  const P2* x = hit ? boost::get<P2>(&*hit) : nullptr;
+  if (x == nullptr) throw std::logic_error("backprojection: the prepared overlay's crossing is not one point");
+  return *x;
+}
+
+// The overlay of `sources` (in one frame): CGAL's arrangement of their segments (merging overlapping C-obstacles,
+// splitting crossing edges), every face labelled by a traversal from the unbounded face that counts how many bounds,
+// obstacle and goal polygons contain it, and the edges the sweep sees with the source each stands for. Every
+// decision here is an exact predicate that a similarity with positive determinant does not change (orientations,
+// signs of dot products): the overlay of rotated sources is the rotated overlay.
+OverlayGraph BuildOverlay(const std::vector<Source>& sources, bool vertex_sources) {
+  Arr arr;
+  {
+    std::vector<Traits::Curve_2> cv;
+    cv.reserve(sources.size());
+    for (size_t i = 0; i < sources.size(); ++i) cv.emplace_back(Seg(sources[i].a, sources[i].b), static_cast<int>(i));
+    CGAL::insert(arr, cv.begin(), cv.end());
+  }
+  OverlayGraph out;
+  for (auto v = arr.vertices_begin(); v != arr.vertices_end(); ++v) {
+    v->set_data(static_cast<int>(out.vertices.size()));
+    out.vertices.push_back(v->point());
+  }
+  if (vertex_sources) out.vertex_sources.resize(out.vertices.size());
+  // Face labels by a traversal from the unbounded face, counting how many bounds/obstacle/goal polygons contain
+  // each face.
+  struct Counts {
+    int bounds = 0, obstacle = 0, goal = 0;
+  };
+  std::vector<Counts> counts;
+  for (auto f = arr.faces_begin(); f != arr.faces_end(); ++f) f->set_data(-1);
+  auto label_of = [&](int idx) {
+    const Counts& c = counts[idx];
+    if (c.bounds <= 0) return Label::kOutside;
+    if (c.obstacle > 0) return Label::kObstacle;
+    if (c.goal > 0) return Label::kGoal;
+    return Label::kGood;
+  };
+  {
+    std::vector<Arr::Face_handle> queue;
+    Arr::Face_handle uf = arr.unbounded_face();
+    uf->set_data(0);
+    counts.push_back({});
+    queue.push_back(uf);
+    auto visit = [&](Arr::Halfedge_handle he, Arr::Face_handle f) {
+      Arr::Face_handle g = he->twin()->face();
+      if (g->data() != -1) return;
+      Counts c = counts[f->data()];
+      const V2 hd = he->target()->point() - he->source()->point();
+      for (auto it = he->curve().data().begin(); it != he->curve().data().end(); ++it) {
+        const Source& s = sources[*it];
+        const bool same = CGAL::sign(hd * (s.b - s.a)) == CGAL::POSITIVE;
+        const int delta = same ? -1 : 1;  // leaving the polygon whose interior is on the left of s
+        if (s.kind == EdgeKind::kBounds) c.bounds += delta;
+        if (s.kind == EdgeKind::kObstacle) c.obstacle += delta;
+        if (s.kind == EdgeKind::kGoal) c.goal += delta;
+      }
+      g->set_data(static_cast<int>(counts.size()));
+      counts.push_back(c);
+      queue.push_back(g);
+    };
+    for (size_t qi = 0; qi < queue.size(); ++qi) {
+      Arr::Face_handle f = queue[qi];
+      if (!f->is_unbounded()) {
+        auto circ = f->outer_ccb();
+        auto start = circ;
+        do {
+          visit(circ, f);
+        } while (++circ != start);
+      }
+      for (auto hole = f->holes_begin(); hole != f->holes_end(); ++hole) {
+        auto circ = *hole;
+        auto start = circ;
+        do {
+          visit(circ, f);
+        } while (++circ != start);
+      }
+    }
+  }
+  for (auto e = arr.edges_begin(); e != arr.edges_end(); ++e) {
+    Arr::Halfedge_handle he = e;
+    const P2& s = he->source()->point();
+    const P2& t = he->target()->point();
+    // The face of a halfedge lies on its left.
+    const Label left = label_of(he->face()->data());
+    const Label right = label_of(he->twin()->face()->data());
+    int vc = -1, bounds = -1, goal = -1, obstacle = -1;
+    for (auto it = he->curve().data().begin(); it != he->curve().data().end(); ++it) {
+      const int i = *it;
+      const Source& src = sources[i];
+      if (vertex_sources) {
+        out.vertex_sources[he->source()->data()].push_back(i);
+        out.vertex_sources[he->target()->data()].push_back(i);
+      }
+      if (src.kind == EdgeKind::kVc && (vc < 0 || i < vc)) vc = i;
+      if (src.kind == EdgeKind::kBounds && (bounds < 0 || i < bounds)) bounds = i;
+      if (src.kind == EdgeKind::kGoal && (goal < 0 || i < goal)) goal = i;
+      if (src.kind == EdgeKind::kObstacle) {
+        // Prefer the obstacle edge whose interior is the obstacle side.
+        const bool same = CGAL::sign((t - s) * (src.b - src.a)) == CGAL::POSITIVE;
+        const bool interior_left = same;  // the source's interior is on the left of s->t
+        const Label inside = interior_left ? left : right;
+        if (inside == Label::kObstacle && (obstacle < 0 || i < obstacle)) obstacle = i;
+        if (obstacle < 0) obstacle = i;
+      }
+    }
+    OverlayEdge c{he->source()->data(), he->target()->data(), left, right, EdgeKind::kObstacle, -1};
+    if (left == right) {
+      if (!(IsFree(left) && vc >= 0)) continue;
+      c.kind = EdgeKind::kVc;
+      c.src = vc;
+    } else if (left == Label::kOutside || right == Label::kOutside) {
+      c.kind = EdgeKind::kBounds;
+      c.src = bounds >= 0 ? bounds : (obstacle >= 0 ? obstacle : goal);
+    } else if (left == Label::kObstacle || right == Label::kObstacle) {
+      const Label other = left == Label::kObstacle ? right : left;
+      if (other == Label::kGoal && goal >= 0) {
+        c.kind = EdgeKind::kGoal;
+        c.src = goal;
+      } else {
+        c.kind = EdgeKind::kObstacle;
+        c.src = obstacle >= 0 ? obstacle : goal;
+      }
+    } else {
+      c.kind = EdgeKind::kGoal;
+      c.src = goal >= 0 ? goal : (vc >= 0 ? vc : obstacle);
+    }
+    if (c.src < 0) continue;
+    out.edges.push_back(c);
+  }
+  return out;
+}
 
 }  // namespace
 
@@ -51,8 +188,7 @@ bool Sweep::RunsAlongCB(const P2& lower, const P2& upper, SweepFrame& frame) con
   return false;
 }
 
-Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_rays, SweepFrame& frame)
-    : problem_(pr), rot_(frame.rotation()) {
+Sweep::Sweep(const BackprojectionProblem& pr, SweepFrame& frame, StaticsOnly) : problem_(pr), rot_(frame.rotation()) {
   if (!(pr.bounds_max.x() > pr.bounds_min.x() && pr.bounds_max.y() > pr.bounds_min.y())) {
     throw std::invalid_argument("backprojection: bounds are empty");
   }
@@ -73,7 +209,32 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
   cone_ccw_ = -free_left_;
   less_.p = &current_;
   status_ = std::set<Curve*, StatusLess>(less_);
+  AddStaticSources(frame);
+}
 
+Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_rays, SweepFrame& frame)
+    : Sweep(pr, frame, StaticsOnly{}) {
+  const size_t statics = sources_.size();
+  AddRayParts(active_rays, frame);
+  const StaticOverlay* prepared = pr.static_overlay.get();
+  if (prepared != nullptr && sources_.size() == statics && statics == prepared->sources && prepared->Matches(pr)) {
+    // The prepared overlay, mapped: its input points through the frame (the same exact points as the sources'), its
+    // crossings as the crossings of the mapped sources' lines (the rotation of the world's crossing, exactly).
+    std::vector<P2> vertices;
+    vertices.reserve(prepared->vertices.size());
+    for (const StaticOverlay::Vertex& v : prepared->vertices) {
+      vertices.push_back(v.a < 0 ? frame.Map(v.point)
+                                 : LinesMeet(sources_[v.a].a, sources_[v.a].b, sources_[v.b].a, sources_[v.b].b));
+    }
+    SetStaticEvents(vertices, prepared->edges);
+  } else {
+    const OverlayGraph overlay = BuildOverlay(sources_, false);
+    SetStaticEvents(overlay.vertices, overlay.edges);
+  }
+}
+
+void Sweep::AddStaticSources(SweepFrame& frame) {
+  const BackprojectionProblem& pr = problem_;
   auto to_exact = [&](const Vector2d& w) { return frame.Map(w); };
   auto add_polygon = [&](const NamedPolygon& poly, EdgeKind kind, const std::string& prefix, size_t index) {
     std::vector<Vector2d> v = poly.vertices;
@@ -161,6 +322,11 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
     for (const auto& c : corners) top = std::max(top, rot_.Apply(c).y());
     top_ = FT(top + 1.0 + std::abs(top));
   }
+}
+
+void Sweep::AddRayParts(const std::vector<int>& active_rays, SweepFrame& frame) {
+  const BackprojectionProblem& pr = problem_;
+  auto to_exact = [&](const Vector2d& w) { return frame.Map(w); };
   // Active rays, clipped to the bounds exactly in the sweep frame (their rounded ends may lie a hair outside). An
   // end that is open (clipped here or by the C-space cut, or the camera end) fails when complied to: docs/semantics.md,
   // "the bounds are no end of a ray". Compliance runs down a reliable ray, so only lower ends matter.
@@ -273,121 +439,20 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
       }
     }
   }
+}
 
-  // Overlay.
-  Arr arr;
-  {
-    std::vector<Traits::Curve_2> cv;
-    cv.reserve(sources_.size());
-    for (size_t i = 0; i < sources_.size(); ++i)
-      cv.emplace_back(Seg(sources_[i].a, sources_[i].b), static_cast<int>(i));
-    CGAL::insert(arr, cv.begin(), cv.end());
-  }
-  // Face labels by a traversal from the unbounded face, counting how many bounds/obstacle/goal polygons contain
-  // each face.
-  struct Counts {
-    int bounds = 0, obstacle = 0, goal = 0;
-  };
-  std::vector<Counts> counts;
-  for (auto f = arr.faces_begin(); f != arr.faces_end(); ++f) f->set_data(-1);
-  auto label_of = [&](int idx) {
-    const Counts& c = counts[idx];
-    if (c.bounds <= 0) return Label::kOutside;
-    if (c.obstacle > 0) return Label::kObstacle;
-    if (c.goal > 0) return Label::kGoal;
-    return Label::kGood;
-  };
-  {
-    std::vector<Arr::Face_handle> queue;
-    Arr::Face_handle uf = arr.unbounded_face();
-    uf->set_data(0);
-    counts.push_back({});
-    queue.push_back(uf);
-    auto visit = [&](Arr::Halfedge_handle he, Arr::Face_handle f) {
-      Arr::Face_handle g = he->twin()->face();
-      if (g->data() != -1) return;
-      Counts c = counts[f->data()];
-      const V2 hd = he->target()->point() - he->source()->point();
-      for (auto it = he->curve().data().begin(); it != he->curve().data().end(); ++it) {
-        const Source& s = sources_[*it];
-        const bool same = CGAL::sign(hd * (s.b - s.a)) == CGAL::POSITIVE;
-        const int delta = same ? -1 : 1;  // leaving the polygon whose interior is on the left of s
-        if (s.kind == EdgeKind::kBounds) c.bounds += delta;
-        if (s.kind == EdgeKind::kObstacle) c.obstacle += delta;
-        if (s.kind == EdgeKind::kGoal) c.goal += delta;
-      }
-      g->set_data(static_cast<int>(counts.size()));
-      counts.push_back(c);
-      queue.push_back(g);
-    };
-    for (size_t qi = 0; qi < queue.size(); ++qi) {
-      Arr::Face_handle f = queue[qi];
-      if (!f->is_unbounded()) {
-        auto circ = f->outer_ccb();
-        auto start = circ;
-        do {
-          visit(circ, f);
-        } while (++circ != start);
-      }
-      for (auto hole = f->holes_begin(); hole != f->holes_end(); ++hole) {
-        auto circ = *hole;
-        auto start = circ;
-        do {
-          visit(circ, f);
-        } while (++circ != start);
-      }
-    }
-  }
-
+void Sweep::SetStaticEvents(const std::vector<P2>& vertices, const std::vector<OverlayEdge>& edges) {
   // Static curves grouped by lower endpoint.
   std::map<P2, std::vector<StaticCurve>, LessYX> events;
-  for (auto e = arr.edges_begin(); e != arr.edges_end(); ++e) {
-    Arr::Halfedge_handle he = e;
-    P2 s = he->source()->point(), t = he->target()->point();
+  for (const OverlayEdge& e : edges) {
+    const P2& s = vertices[e.s];
+    const P2& t = vertices[e.t];
     const bool up = CGAL::compare_yx(s, t) == CGAL::SMALLER;
-    const P2 lo = up ? s : t;
-    const P2 hi = up ? t : s;
-    // The face of a halfedge lies on its left.
-    const Label left = label_of(up ? he->face()->data() : he->twin()->face()->data());
-    const Label right = label_of(up ? he->twin()->face()->data() : he->face()->data());
-    int vc = -1, bounds = -1, goal = -1, obstacle = -1;
-    for (auto it = he->curve().data().begin(); it != he->curve().data().end(); ++it) {
-      const int i = *it;
-      const Source& src = sources_[i];
-      if (src.kind == EdgeKind::kVc && (vc < 0 || i < vc)) vc = i;
-      if (src.kind == EdgeKind::kBounds && (bounds < 0 || i < bounds)) bounds = i;
-      if (src.kind == EdgeKind::kGoal && (goal < 0 || i < goal)) goal = i;
-      if (src.kind == EdgeKind::kObstacle) {
-        // Prefer the obstacle edge whose interior is the obstacle side.
-        const bool same = CGAL::sign((hi - lo) * (src.b - src.a)) == CGAL::POSITIVE;
-        const bool interior_left = same;  // the source's interior is on the left of lo->hi
-        const Label inside = interior_left ? left : right;
-        if (inside == Label::kObstacle && (obstacle < 0 || i < obstacle)) obstacle = i;
-        if (obstacle < 0) obstacle = i;
-      }
-    }
-    StaticCurve c{lo, hi, EdgeKind::kObstacle, -1, left, right, Vector2d::Zero(), false};
-    if (left == right) {
-      if (!(IsFree(left) && vc >= 0)) continue;
-      c.kind = EdgeKind::kVc;
-      c.src = vc;
-    } else if (left == Label::kOutside || right == Label::kOutside) {
-      c.kind = EdgeKind::kBounds;
-      c.src = bounds >= 0 ? bounds : (obstacle >= 0 ? obstacle : goal);
-    } else if (left == Label::kObstacle || right == Label::kObstacle) {
-      const Label other = left == Label::kObstacle ? right : left;
-      if (other == Label::kGoal && goal >= 0) {
-        c.kind = EdgeKind::kGoal;
-        c.src = goal;
-      } else {
-        c.kind = EdgeKind::kObstacle;
-        c.src = obstacle >= 0 ? obstacle : goal;
-      }
-    } else {
-      c.kind = EdgeKind::kGoal;
-      c.src = goal >= 0 ? goal : (vc >= 0 ? vc : obstacle);
-    }
-    if (c.src < 0) continue;
+    const P2& lo = up ? s : t;
+    const P2& hi = up ? t : s;
+    const Label left = up ? e.left : e.right;
+    const Label right = up ? e.right : e.left;
+    StaticCurve c{lo, hi, e.kind, e.src, left, right, Vector2d::Zero(), false};
     const Source& src = sources_[c.src];
     if (c.kind == EdgeKind::kObstacle && src.kind == EdgeKind::kObstacle) {
       c.sticking = src.sticking;
@@ -416,6 +481,87 @@ Sweep::Sweep(const BackprojectionProblem& pr, const std::vector<int>& active_ray
   }
   static_events_.assign(events.begin(), events.end());
 }
+
+namespace {
+std::vector<std::pair<std::vector<Vector2d>, bool>> Outlines(const std::vector<NamedPolygon>& polygons) {
+  std::vector<std::pair<std::vector<Vector2d>, bool>> out;
+  out.reserve(polygons.size());
+  for (const NamedPolygon& p : polygons) out.emplace_back(p.vertices, p.hole);
+  return out;
+}
+bool SameOutlines(const std::vector<std::pair<std::vector<Vector2d>, bool>>& a, const std::vector<NamedPolygon>& b,
+                  bool holes) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (a[i].first != b[i].vertices || (holes && a[i].second != b[i].hole)) return false;
+  }
+  return true;
+}
+}  // namespace
+
+bool StaticOverlay::Matches(const BackprojectionProblem& pr) const {
+  return bounds_min == pr.bounds_min && bounds_max == pr.bounds_max && SameOutlines(obstacles, pr.obstacles, true) &&
+         SameOutlines(goal, pr.goal, true) && SameOutlines(forbidden, pr.forbidden, false);
+}
+
+StaticOverlay Sweep::PrepareOverlay(const BackprojectionProblem& problem) {
+  // θ = −90° is the commanded velocity straight down: the sweep frame is the world frame, exactly (c = 1, s = 0).
+  SweepFrame frame(-M_PI / 2);
+  const Sweep statics(problem, frame, StaticsOnly{});
+  const OverlayGraph graph = BuildOverlay(statics.sources_, true);
+  // The input points, by their exact value: a vertex of the overlay is one of them or a crossing of two sources.
+  std::map<P2, Vector2d, LessYX> inputs;
+  for (const Source& s : statics.sources_) {
+    for (const P2* p : {&s.a, &s.b})
+      inputs.emplace(*p, Vector2d(CGAL::to_double(p->exact().x()), CGAL::to_double(p->exact().y())));
+  }
+  StaticOverlay out;
+  out.sources = statics.sources_.size();
+  out.edges = graph.edges;
+  out.vertices.resize(graph.vertices.size());
+  for (size_t v = 0; v < graph.vertices.size(); ++v) {
+    const auto input = inputs.find(graph.vertices[v]);
+    if (input != inputs.end()) {
+      out.vertices[v].point = input->second;
+      continue;
+    }
+    // Inside two sources' segments that cross (not an end of either): two of its sources are not parallel.
+    const std::vector<int>& through = graph.vertex_sources[v];
+    for (size_t i = 0; i < through.size() && out.vertices[v].a < 0; ++i) {
+      for (size_t j = i + 1; j < through.size(); ++j) {
+        const Source& a = statics.sources_[through[i]];
+        const Source& b = statics.sources_[through[j]];
+        if (CGAL::orientation(a.b - a.a, b.b - b.a) != CGAL::COLLINEAR) {
+          out.vertices[v].a = through[i];
+          out.vertices[v].b = through[j];
+          break;
+        }
+      }
+    }
+    if (out.vertices[v].a < 0)
+      throw std::logic_error("backprojection: an overlay vertex is neither an input point nor a crossing");
+    // The crossing is the vertex (the lines of two sources through it meet only there).
+  }
+  out.obstacles = Outlines(problem.obstacles);
+  out.goal = Outlines(problem.goal);
+  out.forbidden = Outlines(problem.forbidden);
+  out.bounds_min = problem.bounds_min;
+  out.bounds_max = problem.bounds_max;
+  return out;
+}
+
+}  // namespace visco::planning::internal
+
+namespace visco::planning {
+
+void PrepareStaticOverlay(BackprojectionProblem& problem) {
+  problem.static_overlay.reset();
+  problem.static_overlay = std::make_shared<const internal::StaticOverlay>(internal::Sweep::PrepareOverlay(problem));
+}
+
+}  // namespace visco::planning
+
+namespace visco::planning::internal {
 
 // Clips a segment to the closed bounds rectangle (exact, in the sweep frame); a clipped end becomes open. False if
 // nothing of positive length remains.

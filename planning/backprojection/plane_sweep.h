@@ -87,6 +87,40 @@ struct StaticCurve {
   bool obstacle_face = false;  // as Curve::obstacle_face
 };
 
+// The overlay of a sweep's static sources as the sweep reads it: its vertices, and its edges that separate two
+// static labels or carry an active ray, each with the labels on either side and the source it stands for.
+struct OverlayEdge {
+  int s = -1, t = -1;                             // vertex indices
+  Label left = Label::kBad, right = Label::kBad;  // static labels on the left and the right of s -> t
+  EdgeKind kind = EdgeKind::kObstacle;
+  int src = -1;
+};
+struct OverlayGraph {
+  std::vector<P2> vertices;
+  std::vector<OverlayEdge> edges;
+  // For each vertex, the sources of its edges (filled only when asked: PrepareStaticOverlay).
+  std::vector<std::vector<int>> vertex_sources;
+};
+
+// The overlay of a problem's statics (C-obstacles, goal, bounds, forbidden regions), computed once in the world frame
+// for every sweep at any θ (BackprojectionProblem::static_overlay). The sweep frame is an exact similarity of the
+// world, so the overlay of the mapped statics is the mapped overlay: the same vertices, edges and labels. Kept without
+// exact numbers (each vertex as an input point or as the crossing of two sources' lines, the sweep maps it in its own
+// frame), so threads share it read-only.
+struct StaticOverlay {
+  struct Vertex {
+    Vector2d point{0, 0};  // an input point (a < 0) ...
+    int a = -1, b = -1;    // ... or where the lines of sources a and b cross
+  };
+  std::vector<Vertex> vertices;
+  std::vector<OverlayEdge> edges;  // as OverlayGraph::edges
+  size_t sources = 0;              // the static sources the sweep makes of these statics
+  // The statics it was made from (vertices; holes), to tell whether a problem has the same.
+  std::vector<std::pair<std::vector<Vector2d>, bool>> obstacles, goal, forbidden;
+  Vector2d bounds_min{0, 0}, bounds_max{0, 0};
+  bool Matches(const BackprojectionProblem& problem) const;
+};
+
 struct Piece {
   P2 a, b;
   EdgeKind kind;
@@ -103,6 +137,8 @@ struct ExactRing {
 class Sweep {
  public:
   Sweep(const BackprojectionProblem& problem, const std::vector<int>& active_rays, SweepFrame& frame);
+  // The overlay of `problem`'s statics, for BackprojectionProblem::static_overlay.
+  static StaticOverlay PrepareOverlay(const BackprojectionProblem& problem);
   void Run();
   std::vector<ExactRing> Assemble() const;
   Region ToRegion(const std::vector<ExactRing>& rings) const;
@@ -162,6 +198,12 @@ class Sweep {
     Vector2d dir{0, 0};
   };
 
+  struct StaticsOnly {};
+  Sweep(const BackprojectionProblem& problem, SweepFrame& frame, StaticsOnly);  // the static sources, no overlay
+  void AddStaticSources(SweepFrame& frame);
+  void AddRayParts(const std::vector<int>& active_rays, SweepFrame& frame);
+  // The sweep's static events from an overlay of sources_ (vertices in the sweep frame).
+  void SetStaticEvents(const std::vector<P2>& vertices, const std::vector<OverlayEdge>& edges);
   void Process(const P2& p, const std::vector<StaticCurve>& uppers);
   Label StatusAtPoint(const std::vector<LRay>& rays, Label below) const;
   bool LandingIsGood(const StaticCurve& ray, const std::vector<LRay>& rays,

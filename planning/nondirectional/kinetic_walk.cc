@@ -389,6 +389,9 @@ const char* SweepPurposeName(SweepPurpose purpose) {
 
 NondirectionalBackprojection ComputeNondirectional(const BackprojectionProblem& problem, const NamedPolygon* start,
                                                    const NondirectionalOptions& options) {
-  return internal::KineticWalk(problem, start, options).Run();
+  // Every sweep of the walk (hundreds, at as many θ) maps one overlay of the statics instead of building its own.
+  BackprojectionProblem prepared = problem;
+  PrepareStaticOverlay(prepared);
+  return internal::KineticWalk(prepared, start, options).Run();
 }
 }  // namespace visco::planning

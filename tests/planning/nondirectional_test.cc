@@ -398,6 +398,75 @@ TEST(NondirectionalProperty, StructureIsConstantWithStripGoalsAndForbiddenStrips
   EXPECT_EQ(t.broken, 0);
 }
 
+// True if two regions are the same bit for bit: rings, vertices, edges with their provenance, area.
+bool IdenticalRegions(const Region& a, const Region& b) {
+  auto same_ring = [](const RegionRing& x, const RegionRing& y) {
+    if (x.vertices != y.vertices || x.edges.size() != y.edges.size()) return false;
+    for (size_t i = 0; i < x.edges.size(); ++i) {
+      const RegionEdge &e = x.edges[i], &f = y.edges[i];
+      if (e.kind != f.kind || e.ref != f.ref || e.source != f.source || e.line != f.line || e.sign != f.sign) {
+        return false;
+      }
+    }
+    return true;
+  };
+  if (a.area != b.area || a.polygons.size() != b.polygons.size()) return false;
+  for (size_t i = 0; i < a.polygons.size(); ++i) {
+    const RegionPolygon &p = a.polygons[i], &q = b.polygons[i];
+    if (!same_ring(p.outer, q.outer) || p.holes.size() != q.holes.size()) return false;
+    for (size_t h = 0; h < p.holes.size(); ++h) {
+      if (!same_ring(p.holes[h], q.holes[h])) return false;
+    }
+  }
+  return true;
+}
+
+// The overlay of the statics prepared once (PrepareStaticOverlay, which every nondirectional backprojection uses)
+// gives each sweep the regions and the ray choice it gets overlaying the statics itself, bit for bit: whole random
+// scenes with the goal resting on CB (the goal's edges cross CB's: crossings that are no input point) and the strip
+// problems of guarded steps (forbidden strips abutting the goal, crossing CB), at θ all around. A problem whose
+// statics changed after it was prepared is swept as if it had not been.
+TEST(NondirectionalProperty, APreparedOverlayGivesTheSameRegions) {
+  int problems = 0, compared = 0;
+  const std::uint64_t last = FullProperty() ? 100 : 20;
+  for (std::uint64_t seed = 1; seed <= last; ++seed) {
+    std::vector<BackprojectionProblem> cases;
+    {
+      Scene scene;
+      double theta = 0;
+      if (testing::RandomWholeScene(seed, scene, theta, 2, 1, /*goal_on_cb=*/true)) {
+        const CSpace cspace(scene);
+        cases.push_back(SceneProblem(scene, cspace, ComputeVcRays(scene, cspace)));
+      }
+    }
+    if (auto strip = StripProblem(seed)) cases.push_back(*strip);
+    for (const BackprojectionProblem& plain : cases) {
+      ++problems;
+      BackprojectionProblem prepared = plain;
+      PrepareStaticOverlay(prepared);
+      ASSERT_NE(prepared.static_overlay, nullptr);
+      for (int k = 0; k < 6; ++k) {
+        BackprojectionProblem p = plain, q = prepared;
+        p.theta = q.theta = WrapAngle(-M_PI + (k + 0.37) * M_PI / 3);
+        const VcBackprojection a = VcEnlargedBackprojection(p), b = VcEnlargedBackprojection(q);
+        EXPECT_TRUE(IdenticalRegions(a.classic, b.classic)) << "seed " << seed << " θ " << p.theta;
+        EXPECT_TRUE(IdenticalRegions(a.region, b.region)) << "seed " << seed << " θ " << p.theta;
+        EXPECT_EQ(a.active_rays, b.active_rays) << "seed " << seed << " θ " << p.theta;
+        ++compared;
+      }
+      // The goal moved after the overlay was prepared: the sweep must not use it.
+      BackprojectionProblem moved = plain, stale = prepared;
+      for (auto* pr : {&moved, &stale}) {
+        for (Vector2d& v : pr->goal.front().vertices) v += Vector2d(0.05, 0.03);
+        pr->theta = -M_PI / 2 + 0.2;
+      }
+      EXPECT_TRUE(IdenticalRegions(ClassicBackprojection(moved), ClassicBackprojection(stale))) << "seed " << seed;
+    }
+  }
+  std::printf("prepared overlays: %d problems, %d orientations compared\n", problems, compared);
+  EXPECT_GE(problems, 8);
+}
+
 // Every example scene, with its start region's R-critical orientations.
 TEST(NondirectionalExamples, StructureIsConstantBetweenConsecutiveOrientations) {
   Tally t;
