@@ -442,8 +442,9 @@ void Sweep::AddRayParts(const std::vector<int>& active_rays, SweepFrame& frame) 
 }
 
 void Sweep::SetStaticEvents(const std::vector<P2>& vertices, const std::vector<OverlayEdge>& edges) {
-  // Static curves grouped by lower endpoint.
-  std::map<P2, std::vector<StaticCurve>, LessYX> events;
+  // Static curves grouped by lower endpoint (the overlay's vertices are distinct points: one event each).
+  std::vector<std::vector<StaticCurve>> uppers(vertices.size());
+  std::vector<char> is_event(vertices.size(), 0);
   for (const OverlayEdge& e : edges) {
     const P2& s = vertices[e.s];
     const P2& t = vertices[e.t];
@@ -476,10 +477,16 @@ void Sweep::SetStaticEvents(const std::vector<P2>& vertices, const std::vector<O
       c.obstacle_face = true;
       c.n_free = left == Label::kObstacle ? Vector2d(-left_normal) : left_normal;
     }
-    events[lo].push_back(c);
-    events.try_emplace(hi);
+    uppers[up ? e.s : e.t].push_back(c);
+    is_event[e.s] = is_event[e.t] = 1;
   }
-  static_events_.assign(events.begin(), events.end());
+  std::vector<int> order;
+  for (size_t v = 0; v < vertices.size(); ++v) {
+    if (is_event[v]) order.push_back(static_cast<int>(v));
+  }
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return LessYX()(vertices[a], vertices[b]); });
+  static_events_.reserve(order.size());
+  for (const int v : order) static_events_.emplace_back(vertices[v], std::move(uppers[v]));
 }
 
 namespace {

@@ -9,10 +9,12 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <random>
 #include <string>
 #include <vector>
 
 #include "common/motion_model.h"
+#include "planning/backprojection/sweep_frame.h"
 #include "tests/planning/random_scenes.h"
 
 namespace visco::planning {
@@ -96,6 +98,37 @@ TEST(Backprojection, GoalOnAFlatFloorIsATriangleOfFreeEdges) {
   // A goal overlapping the floor gives the same region (the part inside CB is not configuration space).
   const Region b2 = ClassicBackprojection(Problem({Rect(0, 0, 10, 2)}, {Rect(4, 1, 6, 2.5)}, -90, 10, 20));
   EXPECT_LT(RelErr(b2.area, expected), 1e-9);
+}
+
+// The sweep frame's exact rotation of a point (c·x − s·y, s·x + c·y of doubles) computed on integers and powers of two
+// is the rational that general rational arithmetic gives, in lowest terms, for doubles of every size and sign.
+TEST(Backprojection, TheSweepFramesDyadicRotationIsTheExactOne) {
+  using ET = internal::FT::ET;
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> unit(-1, 1);
+  std::uniform_int_distribution<int> exponent(-80, 80);
+  const double special[] = {0.0,
+                            -0.0,
+                            1.0,
+                            -1.0,
+                            0.5,
+                            3.0,
+                            1e-300,
+                            -1e300,
+                            6.123233995736766e-17,
+                            std::numeric_limits<double>::denorm_min(),
+                            std::numeric_limits<double>::max()};
+  auto pick = [&](int i) {
+    if (i % 5 == 0) return special[rng() % std::size(special)];
+    return std::ldexp(unit(rng), exponent(rng));
+  };
+  for (int i = 0; i < 20000; ++i) {
+    const double a = pick(i), x = pick(i + 1), b = pick(i + 2), y = pick(i + 3);
+    const ET expected(ET(a) * ET(x) - ET(b) * ET(y));
+    const ET got = internal::DyadicDifference(a, x, b, y);
+    ASSERT_EQ(got, expected) << a << " " << x << " " << b << " " << y;
+    ASSERT_EQ(got.get_den(), expected.get_den()) << "not in lowest terms: " << a << " " << x << " " << b << " " << y;
+  }
 }
 
 TEST(Backprojection, RotatedSceneGivesTheSameArea) {
