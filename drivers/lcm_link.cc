@@ -30,6 +30,10 @@ namespace visco::drivers {
 namespace {
 
 constexpr std::uint32_t kLcmSeqModulus = 0x80000000U;
+// A status is newer than the last one when its number is 1..half the modulus ahead (serial number arithmetic): the
+// number is explicit here, so any run of lost statuses is a gap. (The CAN link's window of kStatusWindow comes from
+// reconstructing an 8-bit counter; over LCM it took every status after 128 lost ones for a replay.)
+constexpr std::uint32_t kLcmStatusWindow = kLcmSeqModulus / 2;
 
 // Owns an lcm::LCM, an eventfd and the thread that serves both. In a lockstep simulation (LockstepBus) it uses the
 // caller's instance instead, starts no thread, and Wake() flushes at once on the caller's thread; message times come
@@ -173,7 +177,7 @@ class LcmRobotLink final : public QueuedRobotLink {
       if (!session_.have() || s.session != session_.session()) continue;
       if (status_synced_) {
         const std::uint32_t ahead = (s.seq - status_last_) % kLcmSeqModulus;
-        if (ahead == 0 || ahead > kStatusWindow) {
+        if (ahead == 0 || ahead >= kLcmStatusWindow) {
           // A status of this session that is not newer than the last one: a replay or a duplicate. It must not
           // refresh the view of the driver; the controller stops (once per episode).
           ++counters_.stale_statuses;

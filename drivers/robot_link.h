@@ -56,7 +56,8 @@ inline constexpr std::uint16_t kAll = 255;
 /// current session nonce and its number is 1..kCommandWindow ahead of the last command it accepted in that session:
 /// up to kCommandWindow - 1 lost commands in a row are tolerated (at 500 Hz, 14 ms; the watchdog covers longer
 /// silences). A status is accepted by the controller only if it belongs to the current session and its number is
-/// 1..kStatusWindow ahead of the last accepted status.
+/// 1..kStatusWindow ahead of the last accepted status (CAN, whose frames carry 8 bits of it; over LCM, whose numbers
+/// are 31 bits, up to half their range ahead: any run of lost statuses is a gap there).
 inline constexpr std::uint32_t kCommandWindow = 8;
 inline constexpr std::uint32_t kStatusWindow = 127;
 

@@ -368,6 +368,50 @@ TEST_F(LcmLink, ReplayedStatusesDoNotRefreshTheView) {
   }));
 }
 
+// Statuses lost on the network (a stalled switch, a busy receiver) are a gap, however many: over LCM the number is
+// 31 bits, so only a number behind the last (a replay, a duplicate) is out of sequence. The CAN link's window of 127
+// comes from its 8-bit counter; over LCM it made every status after a gap of 128 (a quarter second of statuses at
+// the controller's rate) "out of sequence", and the controller stopped for a replay that never happened.
+TEST_F(LcmLink, AGapOfManyLostStatusesIsNotTakenForAReplay) {
+  ASSERT_TRUE(RunUntil(
+      3'000'000, [&] { return link_->peer_state(MonotonicMicros()) == PeerState::kAlive; }, false));
+  StopDriver();  // this test speaks for the driver from here on, in its session
+  RunUntil(
+      50'000, [] { return false; }, false);
+  const auto stale_before = link_->counters().stale_statuses;
+  const auto gaps_before = link_->counters().status_gaps;
+  lcm::LCM bus(Url());
+  ASSERT_TRUE(bus.good());
+  robot_status_t status{};
+  status.node_id = 1;
+  status.session = static_cast<std::int32_t>(link_->session());
+  status.command_seq = 0;
+  status.state = robot_status_t::STATE_READY;
+  const std::int64_t after_gap = static_cast<std::int64_t>(last_.seq) + 1000;
+  for (int i = 0; i < 3; ++i) {
+    status.utime = WallMicros();
+    status.seq = static_cast<std::int32_t>(after_gap + i);
+    status.velocity[0] = 0.001 * (i + 1);
+    bus.publish(channels::kStatus, &status);
+  }
+  EXPECT_TRUE(RunUntil(
+      1'000'000, [&] { return last_.seq == static_cast<std::uint32_t>(after_gap + 2); }, false))
+      << "the statuses after the gap were not taken (last " << last_.seq << ")";
+  EXPECT_EQ(link_->counters().stale_statuses, stale_before);
+  EXPECT_GE(link_->counters().status_gaps, gaps_before + 990);
+  EXPECT_FALSE(std::any_of(faults_.begin(), faults_.end(), [](const LinkFault& f) {
+    return f.what != nullptr && std::string(f.what).find("out of sequence") != std::string::npos;
+  }));
+  // A status from before the gap is behind: a replay.
+  status.seq = static_cast<std::int32_t>(after_gap - 500);
+  status.velocity[0] = 1.0;
+  bus.publish(channels::kStatus, &status);
+  RunUntil(
+      300'000, [] { return false; }, false);
+  EXPECT_NE(last_.velocity[0], 1.0) << "a status from before the gap refreshed the view";
+  EXPECT_EQ(link_->counters().stale_statuses, stale_before + 1);
+}
+
 TEST(SessionView, AdoptsTheFirstSessionAndReportsLosingAnOwnedOne) {
   SessionView view;
   EXPECT_FALSE(view.have());
