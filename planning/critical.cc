@@ -33,6 +33,7 @@ struct Pt {
   Vector2d p;
   std::string ref;
   bool start = false;  // a vertex of R or a crossing with one of R's edges
+  bool ray = false;    // only CVC rays make it (CandidateScope): a ray's end or cut, or a crossing with a ray
 };
 
 double Cross(const Vector2d& u, const Vector2d& v) { return u.x() * v.y() - u.y() * v.x(); }
@@ -385,11 +386,13 @@ void Materialize(const CandidateEntry& e, const std::vector<std::string>& string
 class CandidateGenerator {
  public:
   CandidateGenerator(const BackprojectionProblem& pr, const NamedPolygon* start, CandidateSearch search,
-                     const std::atomic<bool>* stop = nullptr)
+                     const std::atomic<bool>* stop = nullptr, const CandidateScope* scope = nullptr)
       : pr_(pr), stop_(stop) {
     eps_ = std::max(pr.velocity_cone, 1e-9);
     phi_ = pr.friction_cone;
+    with_start_ = start != nullptr;
     Collect(start);
+    Scope(scope);
     if (search == CandidateSearch::kIndexed) {
       const Eigen::AlignedBox2d extent(pr.bounds_min, pr.bounds_max);
       const double pad = 1e-9 * (pr.bounds_max - pr.bounds_min).norm();
@@ -426,10 +429,33 @@ class CandidateGenerator {
     auto entries = std::move(entries_);
     SortAndDeduplicate(entries, strings_, coords_);
     if (counts) Count(counts, entries.size(), [&](size_t i) { return entries[i].kind; });
-    return CandidateList(std::move(entries), std::move(strings_), std::move(coords_));
+    std::vector<Vector2d> ray_points;
+    for (const auto& p : points_)
+      if (p.ray) ray_points.push_back(p.p);  // points_ is sorted by x (Collect)
+    return CandidateList(std::move(entries), std::move(strings_), std::move(coords_), std::move(ray_points));
   }
 
  private:
+  // Which points' events are listed (CandidateScope): every point but the ray points the scope does not name.
+  void Scope(const CandidateScope* scope) {
+    listed_.assign(points_.size(), 1);
+    if (scope == nullptr || scope->all) return;
+    std::vector<Vector2d> wanted = scope->ray_points;
+    std::sort(wanted.begin(), wanted.end(), [](const Vector2d& a, const Vector2d& b) { return a.x() < b.x(); });
+    const double tol = 1e-9 * (pr_.bounds_max - pr_.bounds_min).norm();  // the walk's match of a source
+    for (size_t i = 0; i < points_.size(); ++i) {
+      if (!points_[i].ray) continue;
+      const Vector2d& p = points_[i].p;
+      bool named = false;
+      for (auto it = std::lower_bound(wanted.begin(), wanted.end(), p.x() - tol,
+                                      [](const Vector2d&w, double x) { return w.x() < x; });
+           it != wanted.end() && it->x() <= p.x() + tol && !named; ++it) {
+        named = (*it - p).norm() <= tol;
+      }
+      listed_[i] = named ? 1 : 0;
+    }
+  }
+
   void Add(double theta, CriticalKind kind, std::initializer_list<std::uint32_t> refs,
            std::initializer_list<std::uint32_t> sources = {}, std::initializer_list<std::int8_t> signs = {},
            const std::vector<std::uint32_t>& feature = {}, const Vector2d* point = nullptr) {
@@ -538,16 +564,42 @@ class CandidateGenerator {
         if (pts[SourceId(x, k)] != pts[SourceId(y, k)]) return false;
       return true;
     };
+    // A sliding candidate's feature: pieces of one edge (one ref) are candidates at one θ, each with its own piece,
+    // and the walk's rule reads the piece. Kept apart and ordered by it, so the list is the same whatever the order
+    // it was generated in (the listing of a CandidateScope is a part of the full one's).
+    auto feature_of = [&](const CandidateEntry& e) {
+      std::array<Vector2d, 2> f = {Vector2d::Zero(), Vector2d::Zero()};
+      if (e.form != CandidateEntry::kSlidingFeature) return std::make_pair(0, f);
+      int n = 0;
+      for (size_t k = 1; k < 3; ++k)
+        if (e.ids[k] != CandidateEntry::kNoIndex) f[static_cast<size_t>(n++)] = pts[e.ids[k]];
+      return std::make_pair(n, f);
+    };
+    auto features_less = [&](const CandidateEntry& x, const CandidateEntry& y) {
+      const auto [nx, fx] = feature_of(x);
+      const auto [ny, fy] = feature_of(y);
+      for (size_t k = 0; k < static_cast<size_t>(std::min(nx, ny)); ++k) {
+        if (fx[k].x() != fy[k].x()) return fx[k].x() < fy[k].x();
+        if (fx[k].y() != fy[k].y()) return fx[k].y() < fy[k].y();
+      }
+      return nx < ny;
+    };
+    auto features_equal = [&](const CandidateEntry& x, const CandidateEntry& y) {
+      return !features_less(x, y) && !features_less(y, x);
+    };
     std::sort(v.begin(), v.end(), [&](const CandidateEntry& x, const CandidateEntry& y) {
       if (x.theta != y.theta) return x.theta < y.theta;
       if (x.kind != y.kind) return x.kind < y.kind;
       if (refs_less(x, y)) return true;
       if (refs_less(y, x)) return false;
-      return sources_less(x, y);
+      if (sources_less(x, y)) return true;
+      if (sources_less(y, x)) return false;
+      return features_less(x, y);
     });
     v.erase(std::unique(v.begin(), v.end(),
                         [&](const CandidateEntry& x, const CandidateEntry& y) {
-                          return x.theta == y.theta && x.kind == y.kind && refs_equal(x, y) && sources_equal(x, y);
+                          return x.theta == y.theta && x.kind == y.kind && refs_equal(x, y) && sources_equal(x, y) &&
+                                 features_equal(x, y);
                         }),
             v.end());
     v.shrink_to_fit();
@@ -556,17 +608,27 @@ class CandidateGenerator {
   // The listing before CandidateList (the reference): sorted and deduplicated as CriticalOrientations.
   void SortReference() {
     auto& out = reference_out_;
+    const auto points_less = [](const std::vector<Vector2d>& x, const std::vector<Vector2d>& y) {
+      return std::lexicographical_compare(
+          x.begin(), x.end(), y.begin(), y.end(),
+          [](const Vector2d& a, const Vector2d& b) { return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y()); });
+    };
+    // A sliding candidate's feature (SortAndDeduplicate says why; the others' follows from their refs).
+    const auto feature = [](const CriticalOrientation& c) {
+      return c.kind == CriticalKind::kSliding ? c.feature : std::vector<Vector2d>{};
+    };
     // Sources break ties (an edge's two ends are both candidates at one orientation), so both searches give one order.
-    std::sort(out.begin(), out.end(), [](const CriticalOrientation& x, const CriticalOrientation& y) {
+    std::sort(out.begin(), out.end(), [&](const CriticalOrientation& x, const CriticalOrientation& y) {
       const auto kx = std::tie(x.theta, x.kind, x.refs), ky = std::tie(y.theta, y.kind, y.refs);
       if (kx != ky) return kx < ky;
-      return std::lexicographical_compare(
-          x.sources.begin(), x.sources.end(), y.sources.begin(), y.sources.end(),
-          [](const Vector2d& a, const Vector2d& b) { return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y()); });
+      if (points_less(x.sources, y.sources)) return true;
+      if (points_less(y.sources, x.sources)) return false;
+      return points_less(feature(x), feature(y));
     });
     out.erase(std::unique(out.begin(), out.end(),
-                          [](const CriticalOrientation& x, const CriticalOrientation& y) {
-                            return x.theta == y.theta && x.kind == y.kind && x.refs == y.refs && x.sources == y.sources;
+                          [&](const CriticalOrientation& x, const CriticalOrientation& y) {
+                            return x.theta == y.theta && x.kind == y.kind && x.refs == y.refs &&
+                                   x.sources == y.sources && feature(x) == feature(y);
                           }),
               out.end());
   }
@@ -614,11 +676,13 @@ class CandidateGenerator {
       for (size_t k = 0; k < ray.segments.size(); ++k) {
         const std::string ref = ray.segments.size() == 1 ? ray.id : ray.id + "#" + std::to_string(k);
         segs_.push_back({ray.segments[k][0], ray.segments[k][1], ray.id, SegKind::kRay});
-        points_.push_back({ray.segments[k][0], ref + ".end[0]"});
-        points_.push_back({ray.segments[k][1], ref + ".end[1]"});
+        points_.push_back({ray.segments[k][0], ref + ".end[0]", false, true});
+        points_.push_back({ray.segments[k][1], ref + ".end[1]", false, true});
         // Where the tracking error cuts the ray, a part of it starts to fail: a static point of the regions.
         const auto cuts = TrackingErrorCuts(pr_, ray.segments[k][0], ray.segments[k][1]);
-        for (size_t c = 0; c < cuts.size(); ++c) points_.push_back({cuts[c], ref + ".cut[" + std::to_string(c) + "]"});
+        for (size_t c = 0; c < cuts.size(); ++c) {
+          points_.push_back({cuts[c], ref + ".cut[" + std::to_string(c) + "]", false, true});
+        }
       }
     }
     if (start) AddRing(*start, "start", SegKind::kStart, true);
@@ -650,7 +714,8 @@ class CandidateGenerator {
           if ((x - t.a).norm() <= tol || (x - t.b).norm() <= tol) continue;
         }
         const bool with_start = s.kind == SegKind::kStart || t.kind == SegKind::kStart;
-        points_.push_back({x, "x(" + s.ref + "," + t.ref + ")", with_start});
+        const bool with_ray = s.kind == SegKind::kRay || t.kind == SegKind::kRay;
+        points_.push_back({x, "x(" + s.ref + "," + t.ref + ")", with_start, with_ray});
       }
     }
     // Points outside the bounds never matter (nothing of the region is there).
@@ -670,6 +735,7 @@ class CandidateGenerator {
         if (!gone[l] && (points_[l].p - p.p).norm() <= tol) {
           gone[l] = true;
           p.start = p.start || points_[l].start;
+          p.ray = p.ray && points_[l].ray;  // a ray point only if nothing but rays makes it
         }
       }
       unique.push_back(std::move(p));
@@ -847,6 +913,10 @@ class CandidateGenerator {
       for (size_t j = i + 1; j < n; ++j) {
         const Vector2d d = points_[j].p - points_[i].p;
         if (d.norm() <= cb_.tolerance) continue;
+        // A free edge of a ray point that is not listed: only along a static segment or with the start region.
+        const bool listed_i = listed_[i] != 0, listed_j = listed_[j] != 0;
+        const bool always = points_[i].start || points_[j].start || along_static.count({i, j}) != 0;
+        if (!listed_i && !listed_j && !always) continue;
         if (!cb_.Sees(points_[i].p, points_[j].p)) continue;
         ++visible_pairs_;
         const double beta = std::atan2(d.y(), d.x());
@@ -870,8 +940,8 @@ class CandidateGenerator {
             Add(beta + se * eps_, kind, {pi, pj}, {pi}, {sign}, feature);
             Add(beta + M_PI + se * eps_, kind, {pi, pj}, {pj}, {sign}, feature);
           } else {
-            Add(beta + se * eps_, kind, {pi, pj}, {pj}, {sign}, feature, &points_[i].p);
-            Add(beta + M_PI + se * eps_, kind, {pi, pj}, {pi}, {sign}, feature, &points_[j].p);
+            if (listed_j || always) Add(beta + se * eps_, kind, {pi, pj}, {pj}, {sign}, feature, &points_[i].p);
+            if (listed_i || always) Add(beta + M_PI + se * eps_, kind, {pi, pj}, {pi}, {sign}, feature, &points_[j].p);
           }
         }
       }
@@ -891,6 +961,9 @@ class CandidateGenerator {
     for (size_t i = i0; i < i1; ++i) {
       for (size_t j = indexed_ ? i + 1 : 0; j < n; ++j) {
         if (i == j) continue;
+        // A free vertex of a ray point that is not listed: only where it crosses the start region's edges.
+        const bool listed = listed_[i] != 0 && listed_[j] != 0;
+        if (!listed && !with_start_) continue;
         const Vector2d a = points_[i].p, b = points_[j].p;
         const Vector2d ab = b - a;
         const double len = ab.norm();
@@ -902,7 +975,7 @@ class CandidateGenerator {
         for (double side : {-1.0, 1.0}) {
           const Vector2d c = m + side * h * nrm;
           auto meet = [&](size_t k) {
-            if (r_only_ && segs_[k].kind != SegKind::kStart) return;
+            if ((r_only_ || !listed) && segs_[k].kind != SegKind::kStart) return;
             CircleMeetsSegment(i, j, c, r, k);
             if (indexed_) CircleMeetsSegment(j, i, c, r, k);  // (b, a): the same circle, not walked on its own
           };
@@ -959,6 +1032,8 @@ class CandidateGenerator {
   ObstacleRegion cb_;
   SegmentGrid seg_grid_;  // every segment (the circles of free vertices meet them)
   bool indexed_ = false;
+  bool with_start_ = false;
+  std::vector<char> listed_;  // per point: its events are listed (Scope)
   std::int64_t visible_pairs_ = 0;
   std::set<std::pair<size_t, size_t>> along_static_;  // PairsAlongStaticSegments
   bool reference_ = false;
@@ -1058,8 +1133,8 @@ double WrapAngle(double theta) {
 
 CandidateList CriticalCandidateList(const BackprojectionProblem& problem, const NamedPolygon* start,
                                     CriticalCounts* counts, CandidateSearch search, const std::atomic<bool>* stop,
-                                    int threads) {
-  return CandidateGenerator(problem, start, search, stop).Run(counts, false, nullptr, threads);
+                                    int threads, const CandidateScope* scope) {
+  return CandidateGenerator(problem, start, search, stop, scope).Run(counts, false, nullptr, threads);
 }
 
 namespace {

@@ -128,13 +128,32 @@ struct CandidateEntry {
   std::uint8_t flags = 0;
 };
 
+/// Which candidates CriticalCandidateList lists. A *ray point* is a static point that only CVC rays make: a ray's end
+/// or cut, or a crossing of a ray with another edge or ray, where no C-obstacle, goal, bounds, forbidden or start
+/// edge has a vertex or crosses another. It is a vertex of a region only where a ray through it is active, which
+/// few are; most candidates of a scene with a camera are events of ray points (BM_MultiStep's n = 106, seed 2: 900 of
+/// its 1 158 points). With `all` every candidate is listed (the full listing, the reference); otherwise the events
+/// whose sources include a ray point are listed only where every such source is one of `ray_points` (within 10⁻⁹ of
+/// the scene's size, as the kinetic walk matches sources). Events along a static segment, those of the start region
+/// (R) and those without sources (sliding, vc) are always listed. docs/planning_nondirectional.md, "Ray points'
+/// events on demand".
+struct CandidateScope {
+  bool all = true;
+  std::vector<Eigen::Vector2d> ray_points;
+};
+
 /// The candidates of CriticalCandidates, stored compactly (CandidateEntry) and read one at a time.
 class CandidateList {
  public:
   CandidateList() = default;
   CandidateList(std::deque<CandidateEntry> entries, std::vector<std::string> strings,
-                std::vector<Eigen::Vector2d> points)
-      : entries_(std::move(entries)), strings_(std::move(strings)), points_(std::move(points)) {}
+                std::vector<Eigen::Vector2d> points, std::vector<Eigen::Vector2d> ray_points = {})
+      : entries_(std::move(entries)),
+        strings_(std::move(strings)),
+        points_(std::move(points)),
+        ray_points_(std::move(ray_points)) {}
+  /// Every ray point of the static arrangement (CandidateScope), listed or not, sorted by x.
+  const std::vector<Eigen::Vector2d>& ray_points() const { return ray_points_; }
   std::size_t size() const { return entries_.size(); }
   bool empty() const { return entries_.empty(); }
   double theta(std::size_t i) const { return entries_[i].theta; }
@@ -152,17 +171,20 @@ class CandidateList {
   std::deque<CandidateEntry> entries_;  // no huge block: a large scene has tens of millions
   std::vector<std::string> strings_;
   std::vector<Eigen::Vector2d> points_;
+  std::vector<Eigen::Vector2d> ray_points_;
 };
 
 /// Every candidate critical orientation of the problem's B_θ(G) and B_vcθ(G) over all θ (problem.theta is ignored),
 /// sorted by θ in [−π, π), exact duplicates (same θ, kind, refs and sources) removed. `start` (may be null) adds the
 /// R-critical orientations of that region. A superset: the nondirectional backprojection (nondirectional.h) keeps
 /// those where the structure really changes. `threads` list the pairs of points' events side by side (the same list
-/// whatever the threads). Not real-time safe.
+/// whatever the threads). `scope` (null: every candidate) leaves out the events of ray points it does not name.
+/// Not real-time safe.
 CandidateList CriticalCandidateList(const BackprojectionProblem& problem, const NamedPolygon* start,
                                     CriticalCounts* counts = nullptr,
                                     CandidateSearch search = CandidateSearch::kIndexed,
-                                    const std::atomic<bool>* stop = nullptr, int threads = 1);
+                                    const std::atomic<bool>* stop = nullptr, int threads = 1,
+                                    const CandidateScope* scope = nullptr);
 
 /// The same candidates as CriticalOrientations (for the command line and the tests; large scenes take gigabytes).
 std::vector<CriticalOrientation> CriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon* start,

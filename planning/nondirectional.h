@@ -88,7 +88,12 @@ struct NondirectionalStats {
   std::int64_t updated = 0;
   /// With `check_updates`: computed slices whose structure or areas differ from the sweep's (the tests require 0).
   std::int64_t update_mismatches = 0;
-  std::int64_t r_critical = 0;         ///< R-critical orientations reported (they bound where R fits)
+  std::int64_t r_critical = 0;  ///< R-critical orientations reported (they bound where R fits)
+  /// With `ray_events_on_demand`: the walks (one more each time slices had ray points whose events were not listed),
+  /// the ray points whose events were listed in the end, and the backprojections the later walks reused.
+  std::int64_t walks = 1;
+  std::int64_t ray_points_listed = 0;
+  std::int64_t reused = 0;
   std::vector<double> unexplained_at;  ///< where those were found (radians)
 };
 
@@ -139,6 +144,11 @@ struct NondirectionalOptions {
   /// With computed_updates: sweep as well, count the computed slices that differ (stats.update_mismatches), and go on
   /// with the sweep. For the tests.
   bool check_updates = false;
+  /// Kinetic walk: list the events of ray points (CandidateScope, critical.h) only for the ray points the walk's
+  /// slices have as event points: walk with the others' events, and where a slice had ray points not listed, list
+  /// their events too and walk again (the backprojections already swept are reused). false: list every candidate
+  /// (the full listing, kept to compare; docs/planning_nondirectional.md, "Ray points' events on demand").
+  bool ray_events_on_demand = true;
   /// Called now and then with the fraction done (0..1), from the calling thread.
   std::function<void(double)> progress;
   /// When it points to true the computation ends at its next backprojection, throwing NondirectionalStopped (the

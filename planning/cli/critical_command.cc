@@ -129,7 +129,10 @@ void Run(const Args& a) {
                   {"rule_missed", st.rule_missed},
                   {"rule_missed_sliding", st.rule_missed_sliding},
                   {"explained", st.explained},
-                  {"updated", st.updated}};
+                  {"updated", st.updated},
+                  {"walks", st.walks},
+                  {"ray_points_listed", st.ray_points_listed},
+                  {"reused", st.reused}};
   for (int i = 0; i < kSweepPurposes; ++i) {
     doc["stats"]["sweeps"][SweepPurposeName(static_cast<SweepPurpose>(i))] = st.sweeps[i];
   }

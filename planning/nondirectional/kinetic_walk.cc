@@ -33,50 +33,34 @@ NondirectionalBackprojection KineticWalk::Run() {
     for (const auto& ray : pr_.rays)
       ray_segments_.insert(ray_segments_.end(), ray.segments.begin(), ray.segments.end());
   }
-  structural_ = CriticalCandidateList(pr_, start_, &nd.stats.counts, CandidateSearch::kIndexed, options_.stop,
-                                      std::max(1, options_.threads));
-  nd.stats.candidates = static_cast<std::int64_t>(structural_.size());
-  std::vector<CriticalOrientation> r_candidates = structural_.TakeKind(CriticalKind::kR);
-  // Events: groups of structural candidates at (nearly) one θ.
-  for (size_t i = 0; i < structural_.size();) {
-    size_t j = i + 1;
-    while (j < structural_.size() && structural_.theta(j) - structural_.theta(j - 1) <= kSameTheta) ++j;
-    events_.push_back({static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j)});
-    i = j;
-  }
-  // Interval k's structure is that of intervals[source[k]] (the last swept interval up to k).
-  std::vector<std::uint32_t> source;
-  const SweptSlices intervals = IntervalSlices(source);
-  // Orientations where the interval structure changes.
+  // The events of ray points are listed for the ray points the walk's slices have as event points: walk with what is
+  // listed, and where the slices had others, list theirs too and walk again (the sweeps done are reused). The walk
+  // takes an event only where its sources are the slice's event points, so the final walk has every event it can take.
+  const bool on_demand = options_.ray_events_on_demand && options_.method == SliceMethod::kKinetic;
+  CandidateScope scope;
+  scope.all = !on_demand;
+  std::set<size_t> listed;  // indices into ray_points_ (the same arrangement every time)
+  std::vector<CriticalOrientation> r_candidates;
   std::vector<double> changes;
   std::vector<int> change_candidate;
-  const size_t m = events_.size();
-  for (size_t k = 0; k < m && m > 1; ++k) {
-    const size_t b = source[(k + m - 1) % m], a = source[k];
-    if (a == b) continue;  // no sweep in between: the same structure
-    const Slice& before = intervals.at(b);
-    const Slice& after = intervals.at(a);
-    if (before.structure == after.structure) continue;
-    if (const auto rays = RaySwitchInGap(k, before, after)) {
-      AddSelection(*rays, changes, change_candidate);
-      continue;
+  for (;;) {
+    structural_ = CriticalCandidateList(pr_, start_, &nd.stats.counts, CandidateSearch::kIndexed, options_.stop,
+                                        std::max(1, options_.threads), &scope);
+    nd.stats.candidates = static_cast<std::int64_t>(structural_.size());
+    r_candidates = structural_.TakeKind(CriticalKind::kR);
+    if (on_demand) ray_points_ = structural_.ray_points();
+    needed_ray_points_.clear();
+    Walk(changes, change_candidate);
+    if (!on_demand ||
+        std::includes(listed.begin(), listed.end(), needed_ray_points_.begin(), needed_ray_points_.end())) {
+      break;
     }
-    changes.push_back(EventTheta(k));
-    change_candidate.push_back(PickCandidate(k, before, after));
-    // The rule judged against the true structure before the event: a change it would skip was found only by the
-    // walk's later sweeps (docs/planning_nondirectional.md argues there is none with the same chosen rays; a switch
-    // of the rays can follow from an event in a ray's trial region, outside the regions the rule looks at).
-    if (options_.method == SliceMethod::kKinetic && before.structure.active_rays == after.structure.active_rays &&
-        !EventRelevant(k, WalkPointsOf(before), before)) {
-      ++rule_missed_;
-      bool sliding = false;
-      for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
-        sliding = sliding || structural_.kind(i) == CriticalKind::kSliding;
-      }
-      if (sliding) ++rule_missed_sliding_;
-    }
+    listed.insert(needed_ray_points_.begin(), needed_ray_points_.end());
+    scope.ray_points.clear();
+    for (const size_t i : listed) scope.ray_points.push_back(ray_points_[i]);
+    ++nd.stats.walks;
   }
-  Verify(changes, change_candidate, intervals, source);
+  nd.stats.ray_points_listed = static_cast<std::int64_t>(listed.size());
   // Final slices.
   std::vector<std::pair<double, int>> order;
   for (size_t i = 0; i < changes.size(); ++i) order.push_back({changes[i], change_candidate[i]});
@@ -139,6 +123,7 @@ NondirectionalBackprojection KineticWalk::Run() {
   nd.stats.updated = updated_.load();
   nd.stats.update_mismatches = update_mismatches_.load();
   nd.stats.rule_missed_sliding = rule_missed_sliding_;
+  nd.stats.reused = reused_.load();
   nd.stats.unexplained_at = unexplained_at_;
   for (auto& c : r_candidates) {
     const Slice& s = SliceAt(nd, c.theta);
@@ -150,11 +135,74 @@ NondirectionalBackprojection KineticWalk::Run() {
   std::stable_sort(nd.orientations.begin(), nd.orientations.end(),
                    [](const CriticalOrientation& x, const CriticalOrientation& y) { return x.theta < y.theta; });
   for (auto& o : nd.orientations) o.sources.clear();
+  swept_by_theta_.clear();
   return nd;
+}
+
+void KineticWalk::Walk(std::vector<double>& changes, std::vector<int>& change_candidate) {
+  changes.clear();
+  change_candidate.clear();
+  events_.clear();
+  checked_ = unexplained_ = found_by_probes_ = rule_missed_ = explained_ = rule_missed_sliding_ = 0;
+  unexplained_at_.clear();
+  selection_refs_.clear();
+  midpoints_.clear();
+  updated_ = 0;
+  update_mismatches_ = 0;
+  // Events: groups of structural candidates at (nearly) one θ.
+  for (size_t i = 0; i < structural_.size();) {
+    size_t j = i + 1;
+    while (j < structural_.size() && structural_.theta(j) - structural_.theta(j - 1) <= kSameTheta) ++j;
+    events_.push_back({static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(j)});
+    i = j;
+  }
+  // Interval k's structure is that of intervals[source[k]] (the last swept interval up to k).
+  std::vector<std::uint32_t> source;
+  const SweptSlices intervals = IntervalSlices(source);
+  // Orientations where the interval structure changes.
+  const size_t m = events_.size();
+  for (size_t k = 0; k < m && m > 1; ++k) {
+    const size_t b = source[(k + m - 1) % m], a = source[k];
+    if (a == b) continue;  // no sweep in between: the same structure
+    const Slice& before = intervals.at(b);
+    const Slice& after = intervals.at(a);
+    if (before.structure == after.structure) continue;
+    if (const auto rays = RaySwitchInGap(k, before, after)) {
+      AddSelection(*rays, changes, change_candidate);
+      continue;
+    }
+    changes.push_back(EventTheta(k));
+    change_candidate.push_back(PickCandidate(k, before, after));
+    NoteRayPoints(EventPointsOf(before));  // PickCandidate's rule: every vertex
+    NoteRayPoints(EventPointsOf(after));
+    // The rule judged against the true structure before the event: a change it would skip was found only by the
+    // walk's later sweeps (docs/planning_nondirectional.md argues there is none with the same chosen rays; a switch
+    // of the rays can follow from an event in a ray's trial region, outside the regions the rule looks at).
+    if (options_.method == SliceMethod::kKinetic && before.structure.active_rays == after.structure.active_rays &&
+        !EventRelevant(k, WalkPointsOf(before), before)) {
+      ++rule_missed_;
+      bool sliding = false;
+      for (size_t i = events_[k].begin; i < events_[k].end; ++i) {
+        sliding = sliding || structural_.kind(i) == CriticalKind::kSliding;
+      }
+      if (sliding) ++rule_missed_sliding_;
+    }
+  }
+  Verify(changes, change_candidate, intervals, source);
 }
 
 Slice KineticWalk::Evaluate(double theta, SweepPurpose purpose) {
   if (options_.stop != nullptr && options_.stop->load(std::memory_order_relaxed)) throw NondirectionalStopped();
+  if (!ray_points_.empty()) {  // an earlier walk may have swept here
+    std::unique_lock<std::mutex> lock(swept_mutex_);
+    if (const auto it = swept_by_theta_.find(theta); it != swept_by_theta_.end()) {
+      Slice s = it->second;
+      lock.unlock();
+      ++reused_;
+      NoteRayPoints(WalkPointsOf(s));
+      return s;
+    }
+  }
   const auto t0 = std::chrono::steady_clock::now();
   BackprojectionProblem p = pr_;
   p.theta = theta;
@@ -168,7 +216,28 @@ Slice KineticWalk::Evaluate(double theta, SweepPurpose purpose) {
   ++sweeps_[purpose];
   sweep_ns_[purpose] +=
       std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::steady_clock::now() - t0).count();
+  if (!ray_points_.empty()) {
+    NoteRayPoints(WalkPointsOf(s));
+    const std::lock_guard<std::mutex> lock(swept_mutex_);
+    swept_by_theta_.emplace(theta, s);
+  }
   return s;
+}
+
+void KineticWalk::NoteRayPoints(const std::vector<EventPoint>& points) const {
+  if (ray_points_.empty()) return;
+  const double tol = 1e-9 * size_;  // IsEventPoint's match in Relevant
+  std::vector<size_t> found;
+  for (const EventPoint& e : points) {
+    for (auto it = std::lower_bound(ray_points_.begin(), ray_points_.end(), e.p.x() - tol,
+                                    [](const Vector2d&r, double x) { return r.x() < x; });
+         it != ray_points_.end() && it->x() <= e.p.x() + tol; ++it) {
+      if ((*it - e.p).norm() <= tol) found.push_back(static_cast<size_t>(it - ray_points_.begin()));
+    }
+  }
+  if (found.empty()) return;
+  const std::lock_guard<std::mutex> lock(ray_points_mutex_);
+  needed_ray_points_.insert(found.begin(), found.end());
 }
 
 std::optional<Slice> KineticWalk::Updated(size_t k, const Slice& last, const std::vector<EventPoint>& ends) const {
@@ -214,6 +283,7 @@ std::optional<Slice> KineticWalk::Updated(size_t k, const Slice& last, const std
   s.structure.classic = RegionStructure(s.vc.classic);
   s.structure.vc = RegionStructure(s.vc.region);
   s.structure.active_rays = s.vc.active_rays;
+  NoteRayPoints(WalkPointsOf(s));
   return s;
 }
 

@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cstdint>
 #include <map>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <string>
@@ -41,6 +42,13 @@ class KineticWalk {
   double EventTheta(size_t k) const { return structural_.theta(events_[k].begin); }
 
   Slice Evaluate(double theta, SweepPurpose purpose);
+
+  // One walk over the listed candidates: the changes it finds (θ, and the candidate reported or −1 for a switch of
+  // the chosen rays), checked (Verify).
+  void Walk(std::vector<double>& changes, std::vector<int>& change_candidate);
+
+  // Records the ray points (CandidateScope) that are event points of `points` (within the walk's match of a source).
+  void NoteRayPoints(const std::vector<EventPoint>& points) const;
 
   // Where events can change the slice's regions (both of them).
   std::vector<EventPoint> EventPointsOf(const Slice& s) const;
@@ -162,6 +170,15 @@ class KineticWalk {
   std::set<std::string> crossed_;                         // of those, the ones another meets (RegionUpdater::Crossed)
   std::vector<std::array<Vector2d, 2>> ray_segments_;     // every candidate ray's segments (computed_updates)
   std::atomic<std::int64_t> updated_{0}, update_mismatches_{0};
+  // Ray events on demand: every ray point of the arrangement (sorted by x), the ones the walk's slices had as event
+  // points (indices into it), and the backprojections swept so far by θ (a later walk sweeps mostly where the one
+  // before did).
+  std::vector<Vector2d> ray_points_;
+  mutable std::mutex ray_points_mutex_;
+  mutable std::set<size_t> needed_ray_points_;
+  std::mutex swept_mutex_;
+  std::map<double, Slice> swept_by_theta_;
+  std::atomic<std::int64_t> reused_{0};
 };
 
 }  // namespace visco::planning::internal

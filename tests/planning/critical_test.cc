@@ -5,12 +5,13 @@
 // counts. The grid only skips segments that cannot meet the query, so any difference is a bug in it. And the compact
 // list (CandidateList, what the nondirectional backprojection reads) against the listing before it, which kept every
 // candidate as a CriticalOrientation (CriticalCandidatesReference): the same candidates in the same order, every
-// field, on the same scenes.
+// field, on the same scenes. And the listing of a CandidateScope against the full one filtered by its rule.
 
 #include "planning/critical.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <random>
 #include <string>
 #include <vector>
@@ -122,6 +123,61 @@ void ExpectSameAsReference(const std::string& name, const BackprojectionProblem&
   }
 }
 
+// The listing with a CandidateScope against the full listing filtered by the scope's rule (critical.h): a candidate is
+// kept where it has no sources (sliding, vc), is of the start region (R), runs along a static segment (a vgraph event
+// with a feature), or each of its sources that is a ray point is one the scope names. Every field, in order, on one
+// thread and on three; the scope names none of the ray points, then every third one. Adds the candidates left out to
+// `left_out`.
+void ExpectScopedListIsTheFilteredFullListing(const std::string& name, const BackprojectionProblem& pr,
+                                              const NamedPolygon* start, std::int64_t& left_out) {
+  const CandidateList full = CriticalCandidateList(pr, start);
+  const std::vector<Eigen::Vector2d>& ray_points = full.ray_points();
+  for (const int every : {0, 3}) {
+    CandidateScope scope;
+    scope.all = false;
+    for (size_t k = 0; every > 0 && k < ray_points.size(); k += static_cast<size_t>(every)) {
+      scope.ray_points.push_back(ray_points[k]);
+    }
+    const auto is = [](const std::vector<Eigen::Vector2d>& v, const Eigen::Vector2d& p) {
+      return std::find(v.begin(), v.end(), p) != v.end();
+    };
+    std::vector<CriticalOrientation> expected;
+    CriticalOrientation c;
+    for (size_t i = 0; i < full.size(); ++i) {
+      full.Get(i, c);
+      bool keep =
+          c.sources.empty() || c.kind == CriticalKind::kR || (c.kind == CriticalKind::kVgraph && !c.feature.empty());
+      if (!keep) {
+        keep = std::all_of(c.sources.begin(), c.sources.end(), [&](const Eigen::Vector2d& source) {
+          return !is(ray_points, source) || is(scope.ray_points, source);
+        });
+      }
+      if (keep) expected.push_back(c);
+    }
+    left_out += static_cast<std::int64_t>(full.size() - expected.size());
+    for (const int threads : {1, 3}) {
+      const std::string what =
+          name + " (every " + std::to_string(every) + "th ray point, " + std::to_string(threads) + " threads)";
+      const CandidateList scoped =
+          CriticalCandidateList(pr, start, nullptr, CandidateSearch::kIndexed, nullptr, threads, &scope);
+      EXPECT_EQ(scoped.ray_points(), ray_points) << what;
+      ASSERT_EQ(scoped.size(), expected.size()) << what;
+      for (size_t k = 0; k < expected.size(); ++k) {
+        const CriticalOrientation& r = expected[k];
+        scoped.Get(k, c);
+        ASSERT_EQ(c.theta, r.theta) << what << " candidate " << k;
+        ASSERT_EQ(c.kind, r.kind) << what << " candidate " << k;
+        ASSERT_EQ(c.refs, r.refs) << what << " candidate " << k;
+        ASSERT_EQ(c.sources, r.sources) << what << " candidate " << k;
+        ASSERT_EQ(c.source_signs, r.source_signs) << what << " candidate " << k;
+        ASSERT_EQ(c.feature, r.feature) << what << " candidate " << k;
+        ASSERT_EQ(c.point, r.point) << what << " candidate " << k;
+        ASSERT_EQ(c.sliding, r.sliding) << what << " candidate " << k;
+      }
+    }
+  }
+}
+
 #if defined(__SANITIZE_ADDRESS__)
 constexpr std::uint64_t kSeeds = 12;  // the scan is O(n³): slow under a sanitizer
 #else
@@ -130,7 +186,7 @@ constexpr std::uint64_t kSeeds = 60;
 
 TEST(CriticalCandidates, IndexedSearchEqualsTheScanOnRandomWholeScenes) {
   int compared = 0, with_start = 0;
-  std::int64_t candidates = 0;
+  std::int64_t candidates = 0, left_out = 0;
   for (std::uint64_t seed = 1; seed <= kSeeds; ++seed) {
     Scene scene;
     double theta = 0;
@@ -144,12 +200,14 @@ TEST(CriticalCandidates, IndexedSearchEqualsTheScanOnRandomWholeScenes) {
     if (start) r.vertices = scene.start->polygon.vertices;
     ExpectSameCandidates("seed " + std::to_string(seed), pr, start ? &r : nullptr);
     ExpectSameAsReference("seed " + std::to_string(seed), pr, start ? &r : nullptr);
+    ExpectScopedListIsTheFilteredFullListing("seed " + std::to_string(seed), pr, start ? &r : nullptr, left_out);
     candidates += static_cast<std::int64_t>(CriticalCandidates(pr, start ? &r : nullptr).size());
     ++compared;
     with_start += start;
   }
-  std::printf("compared %d scenes (%d with a start region), %lld candidates\n", compared, with_start,
-              static_cast<long long>(candidates));
+  std::printf("compared %d scenes (%d with a start region), %lld candidates, %lld left out by the scopes\n", compared,
+              with_start, static_cast<long long>(candidates), static_cast<long long>(left_out));
+  EXPECT_GT(left_out, 0) << "no scope left anything out: the filter is not exercised";
   EXPECT_GE(compared, static_cast<int>(kSeeds) * 9 / 10);
   EXPECT_GE(with_start, 1);
 }
@@ -171,6 +229,8 @@ TEST(CriticalCandidates, IndexedSearchEqualsTheScanOnTheExampleScenes) {
     if (s.start) r.vertices = s.start->polygon.vertices;
     ExpectSameCandidates(file, pr, s.start ? &r : nullptr);
     ExpectSameAsReference(file, pr, s.start ? &r : nullptr);
+    std::int64_t left_out = 0;
+    ExpectScopedListIsTheFilteredFullListing(file, pr, s.start ? &r : nullptr, left_out);
   }
 }
 

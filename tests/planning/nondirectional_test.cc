@@ -678,6 +678,65 @@ TEST(NondirectionalProperty, TheWalksEconomiesChangeOnlyTheSweeps) {
   EXPECT_LE(sweeps, sweeps_without[0]);
 }
 
+// Ray points' events on demand (docs/planning_nondirectional.md, "Ray points' events on demand"): the walk over the
+// candidates it lists (the events of the ray points its slices have, walked again when a slice has more) gives what
+// the walk over the full listing gives: the same orientations (kind, refs, θ within 1e-9 rad: an event's θ is that of
+// its first candidate, and a ray point's candidate not listed can be one within 1e-10 rad before it) and open slices'
+// structures, and the same critical slices where the orientation is the same bit for bit, on random whole scenes with
+// cameras (2 x 1 cells; VISCO_FULL_PROPERTY=1: 100 scenes, a third of them of 3 x 2 cells).
+TEST(NondirectionalProperty, RayEventsOnDemandGiveWhatTheFullListingGives) {
+  int compared = 0, walked_again = 0, moved = 0;
+  std::int64_t listed = 0, full = 0, ray_points = 0, reused = 0;
+  const int to_compare = FullProperty() ? 100 : (kSanitizerDivisor > 1 ? 2 : 6);
+  for (std::uint64_t seed = 1; compared < to_compare && seed <= 400; ++seed) {
+    Scene scene;
+    double theta = 0;
+    const bool large = FullProperty() && seed % 3 == 0;
+    if (!testing::RandomWholeScene(seed, scene, theta, large ? 3 : 2, large ? 2 : 1)) continue;
+    const CSpace cspace(scene);
+    const VcRays rays = ComputeVcRays(scene, cspace);
+    const BackprojectionProblem pr = SceneProblem(scene, cspace, rays);
+    if (pr.rays.empty()) continue;
+    const auto nd = ComputeNondirectional(pr, nullptr, Options());
+    NondirectionalOptions o = Options();
+    o.ray_events_on_demand = false;
+    const auto reference = ComputeNondirectional(pr, nullptr, o);
+    // The same orientations and open slices; a critical slice (swept at exactly its orientation, a degenerate
+    // configuration) wherever the orientation is the same bit for bit.
+    const std::string name = "seed " + std::to_string(seed);
+    ASSERT_EQ(nd.orientations.size(), reference.orientations.size()) << name;
+    for (size_t k = 0; k < nd.orientations.size(); ++k) {
+      EXPECT_NEAR(nd.orientations[k].theta, reference.orientations[k].theta, 1e-9) << name;
+      EXPECT_EQ(nd.orientations[k].kind, reference.orientations[k].kind) << name;
+      EXPECT_EQ(nd.orientations[k].refs, reference.orientations[k].refs) << name;
+      moved += nd.orientations[k].theta != reference.orientations[k].theta;
+    }
+    ASSERT_EQ(nd.slices.size(), reference.slices.size()) << name;
+    for (size_t k = 0; k < nd.slices.size(); ++k) {
+      if (nd.slices[k].critical && nd.slices[k].theta != reference.slices[k].theta) continue;
+      EXPECT_EQ(nd.slices[k].structure, reference.slices[k].structure) << name << " slice " << k;
+    }
+    EXPECT_EQ(reference.stats.walks, 1);
+    EXPECT_LE(nd.stats.candidates, reference.stats.candidates) << "seed " << seed;
+    listed += nd.stats.candidates;
+    full += reference.stats.candidates;
+    ray_points += nd.stats.ray_points_listed;
+    reused += nd.stats.reused;
+    walked_again += nd.stats.walks > 1;
+    ++compared;
+  }
+  std::printf(
+      "scenes %d: %lld candidates listed against %lld in full; %lld ray points listed, %d scenes walked again "
+      "(%lld backprojections reused); %d orientations moved by under 1e-9 rad\n",
+      compared, static_cast<long long>(listed), static_cast<long long>(full), static_cast<long long>(ray_points),
+      walked_again, static_cast<long long>(reused), moved);
+  EXPECT_EQ(compared, to_compare);
+  EXPECT_LT(listed, full);
+  if (kSanitizerDivisor == 1) {
+    EXPECT_GT(walked_again, 0) << "no slice had a ray point: walking again is not exercised";
+  }
+}
+
 // The kinetic walk's computed updates (docs/planning_nondirectional.md, "Computing the slice after a change"): every
 // slice it computes from the last one instead of sweeping has the swept slice's structure and areas (check_updates
 // sweeps as well and counts the differences), on random whole scenes; and with the updates the result is the one
