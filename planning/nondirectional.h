@@ -149,6 +149,9 @@ struct NondirectionalOptions {
   /// their events too and walk again (the backprojections already swept are reused). false: list every candidate
   /// (the full listing, kept to compare; docs/planning_nondirectional.md, "Ray points' events on demand").
   bool ray_events_on_demand = true;
+  /// With ray_events_on_demand: only where the ray points times the points come to this many or more; a smaller
+  /// scene lists every candidate (its listing costs less than a second walk would).
+  double ray_events_min_pairs = 1e4;
   /// Called now and then with the fraction done (0..1), from the calling thread.
   std::function<void(double)> progress;
   /// When it points to true the computation ends at its next backprojection, throwing NondirectionalStopped (the

@@ -36,7 +36,7 @@ NondirectionalBackprojection KineticWalk::Run() {
   // The events of ray points are listed for the ray points the walk's slices have as event points: walk with what is
   // listed, and where the slices had others, list theirs too and walk again (the sweeps done are reused). The walk
   // takes an event only where its sources are the slice's event points, so the final walk has every event it can take.
-  const bool on_demand = options_.ray_events_on_demand && options_.method == SliceMethod::kKinetic;
+  bool on_demand = options_.ray_events_on_demand && options_.method == SliceMethod::kKinetic;
   CandidateScope scope;
   scope.all = !on_demand;
   std::set<size_t> listed;  // indices into ray_points_ (the same arrangement every time)
@@ -46,6 +46,16 @@ NondirectionalBackprojection KineticWalk::Run() {
   for (;;) {
     structural_ = CriticalCandidateList(pr_, start_, &nd.stats.counts, CandidateSearch::kIndexed, options_.stop,
                                         std::max(1, options_.threads), &scope);
+    // Few pairs of a ray point and another point: the full listing costs less than a second walk would (slot, 26
+    // ray points of 52: 165 sweeps with it, 193 on demand).
+    if (on_demand &&
+        static_cast<double>(structural_.ray_points().size()) * static_cast<double>(nd.stats.counts.points) <
+            options_.ray_events_min_pairs) {
+      on_demand = false;
+      scope.all = true;
+      structural_ = CriticalCandidateList(pr_, start_, &nd.stats.counts, CandidateSearch::kIndexed, options_.stop,
+                                          std::max(1, options_.threads), &scope);
+    }
     nd.stats.candidates = static_cast<std::int64_t>(structural_.size());
     r_candidates = structural_.TakeKind(CriticalKind::kR);
     if (on_demand) ray_points_ = structural_.ray_points();
@@ -175,6 +185,7 @@ void KineticWalk::Walk(std::vector<double>& changes, std::vector<int>& change_ca
     change_candidate.push_back(PickCandidate(k, before, after));
     NoteRayPoints(EventPointsOf(before));  // PickCandidate's rule: every vertex
     NoteRayPoints(EventPointsOf(after));
+    RaySwitchesBeside(k, before, after, changes, change_candidate);
     // The rule judged against the true structure before the event: a change it would skip was found only by the
     // walk's later sweeps (docs/planning_nondirectional.md argues there is none with the same chosen rays; a switch
     // of the rays can follow from an event in a ray's trial region, outside the regions the rule looks at).
@@ -222,6 +233,29 @@ Slice KineticWalk::Evaluate(double theta, SweepPurpose purpose) {
     swept_by_theta_.emplace(theta, s);
   }
   return s;
+}
+
+void KineticWalk::RaySwitchesBeside(size_t k, const Slice& before, const Slice& after, std::vector<double>& changes,
+                                    std::vector<int>& change_candidate) {
+  if (before.structure.active_rays == after.structure.active_rays) return;
+  const size_t m = events_.size();
+  const double at = EventTheta(k);
+  const double gap = std::min(at - EventTheta((k + m - 1) % m) + (k == 0 ? 2 * M_PI : 0.0),
+                              EventTheta((k + 1) % m) - at + (k + 1 == m ? 2 * M_PI : 0.0));
+  const double dt = std::min(1e-9, 0.25 * gap);  // as RaySwitchInGap (the slices there are reused or swept again)
+  if (!(dt > 0)) return;
+  const SliceStructure left = Evaluate(WrapAngle(at - dt), kSweepBisect).structure;
+  const SliceStructure right = Evaluate(WrapAngle(at + dt), kSweepBisect).structure;
+  std::vector<Switch> found;
+  if (left.active_rays != before.structure.active_rays) {
+    found.push_back(Bisect(Unwrap(before.theta, at - 2 * M_PI), at - dt, before.structure));
+  }
+  if (right.active_rays != after.structure.active_rays) {
+    found.push_back(Bisect(at + dt, Unwrap(after.theta, at), right));
+  }
+  for (const Switch& s : found) {
+    if (s.before.active_rays != s.after.active_rays) AddSelection(s, changes, change_candidate);
+  }
 }
 
 void KineticWalk::NoteRayPoints(const std::vector<EventPoint>& points) const {

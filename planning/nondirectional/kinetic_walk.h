@@ -132,6 +132,12 @@ class KineticWalk {
   // before it); a change there that is not the rays' stays with event k.
   std::optional<Switch> RaySwitchInGap(size_t k, const Slice& before, const Slice& after);
 
+  // Event k changes the structure and the chosen rays differ between the slices on its two sides: where the rays
+  // just beside k are not those of the slice on that side, they switch again within the gap (between two sweeps, so
+  // with the event's own change the walk would take the two for one), and each switch is bisected and reported.
+  void RaySwitchesBeside(size_t k, const Slice& before, const Slice& after, std::vector<double>& changes,
+                         std::vector<int>& change_candidate);
+
   // Reports a switch of the chosen rays as a `selection` orientation, naming the rays that come or go.
   void AddSelection(const Switch& s, std::vector<double>& changes, std::vector<int>& change_candidate);
 
