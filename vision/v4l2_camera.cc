@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstring>
 #include <ctime>
+#include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
@@ -30,6 +31,25 @@ std::int64_t ClockUs(clockid_t clock) {
   timespec ts{};
   clock_gettime(clock, &ts);
   return static_cast<std::int64_t>(ts.tv_sec) * 1000000 + ts.tv_nsec / 1000;
+}
+
+// The system clock's offset from the monotonic one, from a read of the system clock between two of the monotonic
+// clock: of three tries, the one with the shortest bracket (a thread preempted between two reads, milliseconds on a
+// loaded or emulated CPU, would put that time into the offset). `mono` is the first monotonic read of that try.
+std::int64_t RealMinusMonotonicUs(std::int64_t& mono) {
+  std::int64_t best_offset = 0, best_bracket = std::numeric_limits<std::int64_t>::max();
+  for (int i = 0; i < 3; ++i) {
+    const std::int64_t before = ClockUs(CLOCK_MONOTONIC);
+    const std::int64_t real = ClockUs(CLOCK_REALTIME);
+    const std::int64_t after = ClockUs(CLOCK_MONOTONIC);
+    if (after - before < best_bracket) {
+      best_bracket = after - before;
+      best_offset = real - (before + after) / 2;
+      mono = before;
+    }
+    if (best_bracket <= 20) break;  // a read without a preemption
+  }
+  return best_offset;
 }
 
 std::uint32_t FourccOf(V4l2PixelFormat f) {
@@ -579,14 +599,14 @@ V4l2Camera::Status V4l2Camera::Grab(int timeout_ms, V4l2Frame& frame, V4l2Fault&
   frame.data = static_cast<const std::uint8_t*>(m.buffers[b.index].start);
   frame.bytes = std::min<std::size_t>(b.bytesused, m.buffers[b.index].length);
   frame.seq = m.ready_seq;
-  // The two clocks read back to back: the epoch offset at this frame (the system clock may be stepped or slewed).
-  const std::int64_t mono = ClockUs(CLOCK_MONOTONIC);
-  const std::int64_t real = ClockUs(CLOCK_REALTIME);
+  // The epoch offset at this frame (the system clock may be stepped or slewed).
+  std::int64_t mono = 0;
+  const std::int64_t real_minus_mono = RealMinusMonotonicUs(mono);
   frame.dequeued_monotonic_us = mono;
   frame.monotonic_us = static_cast<std::int64_t>(b.timestamp.tv_sec) * 1000000 + b.timestamp.tv_usec;
   // A driver whose timestamps are not CLOCK_MONOTONIC: the time it was taken from the driver instead.
   if ((b.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) != V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC) frame.monotonic_us = mono;
-  frame.utime = frame.monotonic_us + (real - mono);
+  frame.utime = frame.monotonic_us + real_minus_mono;
   m.last_frame_mono = mono;
   m.timeouts_reported = 0;
   ++m.delivered;
