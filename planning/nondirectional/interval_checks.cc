@@ -36,13 +36,18 @@ KineticWalk::Switch KineticWalk::Bisect(double x, double y, const SliceStructure
   return {WrapAngle(0.5 * (x + y)), sx, Evaluate(WrapAngle(y), kSweepBisect).structure};
 }
 
-std::optional<KineticWalk::Switch> KineticWalk::RaySwitchInGap(size_t k, const Slice& before, const Slice& after) {
-  if (before.structure.active_rays == after.structure.active_rays) return std::nullopt;
+double KineticWalk::StepBeside(size_t k) const {
   const size_t m = events_.size();
   const double at = EventTheta(k);
   const double gap = std::min(at - EventTheta((k + m - 1) % m) + (k == 0 ? 2 * M_PI : 0.0),
                               EventTheta((k + 1) % m) - at + (k + 1 == m ? 2 * M_PI : 0.0));
-  const double dt = std::min(1e-9, 0.25 * gap);
+  return std::min(1e-9, 0.25 * gap);
+}
+
+std::optional<KineticWalk::Switch> KineticWalk::RaySwitchInGap(size_t k, const Slice& before, const Slice& after) {
+  if (before.structure.active_rays == after.structure.active_rays) return std::nullopt;
+  const double at = EventTheta(k);
+  const double dt = StepBeside(k);
   if (!(dt > 0)) return std::nullopt;
   const SliceStructure right = Evaluate(WrapAngle(at + dt), kSweepBisect).structure;
   if (!(Evaluate(WrapAngle(at - dt), kSweepBisect).structure == right)) return std::nullopt;

@@ -238,11 +238,8 @@ Slice KineticWalk::Evaluate(double theta, SweepPurpose purpose) {
 void KineticWalk::RaySwitchesBeside(size_t k, const Slice& before, const Slice& after, std::vector<double>& changes,
                                     std::vector<int>& change_candidate) {
   if (before.structure.active_rays == after.structure.active_rays) return;
-  const size_t m = events_.size();
   const double at = EventTheta(k);
-  const double gap = std::min(at - EventTheta((k + m - 1) % m) + (k == 0 ? 2 * M_PI : 0.0),
-                              EventTheta((k + 1) % m) - at + (k + 1 == m ? 2 * M_PI : 0.0));
-  const double dt = std::min(1e-9, 0.25 * gap);  // as RaySwitchInGap (the slices there are reused or swept again)
+  const double dt = StepBeside(k);  // as RaySwitchInGap (the slices there are reused or swept again)
   if (!(dt > 0)) return;
   const SliceStructure left = Evaluate(WrapAngle(at - dt), kSweepBisect).structure;
   const SliceStructure right = Evaluate(WrapAngle(at + dt), kSweepBisect).structure;

@@ -131,6 +131,9 @@ class KineticWalk {
   // just beside k, the gap is bisected for the switch (after k, towards the gap's midpoint where `after` was swept, or
   // before it); a change there that is not the rays' stays with event k.
   std::optional<Switch> RaySwitchInGap(size_t k, const Slice& before, const Slice& after);
+  /// The step from event k to the orientations just beside it: 1e-9 rad, or a quarter of the smaller gap to its
+  /// neighbouring events (0 when two events coincide).
+  double StepBeside(size_t k) const;
 
   // Event k changes the structure and the chosen rays differ between the slices on its two sides: where the rays
   // just beside k are not those of the slice on that side, they switch again within the gap (between two sweeps, so
