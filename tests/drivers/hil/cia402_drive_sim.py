@@ -214,6 +214,7 @@ class Drive:
             self.nmt = PRE_OPERATIONAL
         elif command in (0x81, 0x82):
             self.boot(communication_only=command == 0x82)
+            self.sim.refilter()  # the default COB-IDs, no consumer
             return
         else:
             return
@@ -259,6 +260,8 @@ class Drive:
         if index == 0x1016:
             self.consumer_seen = None
             self.heartbeat_event = False
+        if index in (0x1016, 0x1400, 0x1401):
+            self.sim.refilter()
         self.send(0x580 + self.node, [0x60, data[1], data[2], sub, 0, 0, 0, 0])
 
     def check_write(self, index, sub, value):
@@ -368,11 +371,14 @@ class Drive:
                 self.set_state(ENABLED)  # 16
 
     # --- time ---
-    def tick(self, now, dt):
+    def tick(self, now, dt, read_up_to=None):
+        """read_up_to: the time up to which every frame the bus delivered has been read (now unless frames still wait
+        in the socket); the heartbeat consumer judges only that far."""
         if not self.powered:
             if self.power_at is not None and now >= self.power_at:
                 self.powered = True
                 self.boot()
+                self.sim.refilter()
             return
         if self.silent:
             return
@@ -381,8 +387,9 @@ class Drive:
             self.send(0x700 + self.node, [self.nmt])
             self.next_heartbeat = now + period
         consumer = self.get(0x1016, 1)
+        judged = now if read_up_to is None else read_up_to
         if consumer & 0xFFFF and self.consumer_seen is not None and not self.heartbeat_event \
-                and now - self.consumer_seen > (consumer & 0xFFFF) / 1000.0:
+                and judged - self.consumer_seen > (consumer & 0xFFFF) / 1000.0:
             self.heartbeat_event = True  # CiA 301 heartbeat event, CiA 402 0x6007 abort connection
             self.record("heartbeat lost", consumer >> 16)
             option = self.get(0x6007)
@@ -443,26 +450,23 @@ class Sim:
         between the drives' time steps."""
         self.bus = can.Bus(interface="socketcan", channel=interface, receive_own_messages=False)
         self.tick_s = tick
-        if plant is not None:
-            try:
-                # The kernel counts about 1 kB per CAN frame against the receive buffer: the default holds 0.6 s of
-                # a busy bus, and a drive stalled longer (Python on an emulated CPU beside the whole loop) lost
-                # heartbeats and faulted.
-                self.bus.socket.setsockopt(socket.SOL_SOCKET, 33, 4 << 20)  # SO_RCVBUFFORCE (root)
-            except (AttributeError, OSError):
-                pass
-            # Only the frames a drive of these nodes can need, filtered by the kernel: those whose COB-ID carries
-            # one of its node ids (its RPDOs and SDO requests with the predefined connection set's COB-IDs), NMT,
-            # SYNC and every heartbeat; not the other drives' PDOs. Beside the whole loop on the emulated CPU the
-            # drive reads a third of the bus's frames.
-            filters = [{"can_id": n, "can_mask": 0x7F} for n in nodes]
-            filters += [{"can_id": 0x000, "can_mask": 0x7FF}, {"can_id": 0x080, "can_mask": 0x7FF},
-                        {"can_id": 0x700, "can_mask": 0x780}]
-            self.bus.set_filters(filters)
+        try:
+            # The kernel counts about 1 kB per CAN frame against the receive buffer: the default holds 0.6 s of a busy
+            # bus, and a drive stalled longer (Python on an emulated CPU beside the whole loop) lost heartbeats and
+            # faulted.
+            self.bus.socket.setsockopt(socket.SOL_SOCKET, 33, 4 << 20)  # SO_RCVBUFFORCE (root)
+        except (AttributeError, OSError):
+            pass
+        self.filters = None
         self.lock = threading.Lock()
         self.rng = random.Random(seed)
         self.speed_uncertainty = speed_uncertainty
         self.sent = 0
+        # What the simulator's own thread went through, for a test that fails to tell a slow simulator (its loop
+        # behind the bus, on a loaded emulated CPU) from a drive that misbehaved.
+        self.frames = 0
+        self.max_lag = 0.0        # longest time a frame waited in the socket before the drives read it, s
+        self.max_tick_gap = 0.0   # longest time between two time steps, s
         self.running = False
         boot_delays, aborts, max_velocities = boot_delays or {}, aborts or {}, max_velocities or {}
         self.plant = plant
@@ -484,10 +488,28 @@ class Sim:
         with self.lock:
             self.drives = {n: Drive(self, n, boot_delays.get(n, 0.0), aborts.get(n), max_velocities.get(n))
                            for n in nodes}
+            self.refilter()
             for n, axis in (axes or {}).items():
                 self.drives[n].axis = axis
                 self.drives[n].position = self.plant_state[axis[0]][0] * axis[1]
                 self.drives[n].put(0x6064, int(round(self.drives[n].position)))
+
+    def refilter(self):
+        """Only the frames the drives can need, filtered by the kernel (the bus's other traffic costs Python time
+        on the emulated CPU): NMT, SYNC, each drive's SDO requests and valid RPDOs, the heartbeat each consumes.
+        Called again when a drive's RPDO COB-ID or consumer changes."""
+        ids = {0x000, 0x080}
+        for d in self.drives.values():
+            ids.add(0x600 + d.node)
+            for k in (0, 1):
+                cob = d.get(0x1400 + k, 1)
+                if not cob & 0x80000000:
+                    ids.add(cob & 0x7FF)
+            if d.get(0x1016, 1) & 0xFFFF:
+                ids.add(0x700 + ((d.get(0x1016, 1) >> 16) & 0x7F))
+        if ids != self.filters:
+            self.filters = ids
+            self.bus.set_filters([{"can_id": i, "can_mask": 0x7FF, "extended": False} for i in sorted(ids)])
 
     def to_plant(self, axis, velocity):
         try:
@@ -506,11 +528,13 @@ class Sim:
                 self.plant_state[axis] = (position, velocity)
 
     def send(self, can_id, data):
+        # A struct can_frame written to the bus's socket: python-can's Message and send() cost the emulated CPU
+        # several times more, and a drive sends four TPDOs every SYNC.
         try:
-            self.bus.send(can.Message(arbitration_id=can_id, data=bytes(data), is_extended_id=False), timeout=0.01)
+            self.bus.socket.send(struct.pack("=IB3x8s", can_id, len(data), bytes(data)))
             self.sent += 1
-        except can.CanError:
-            pass  # the interface is down: a real drive's frames would be lost the same way
+        except OSError:
+            pass  # the interface is down or its queue full: a real drive's frames would be lost the same way
 
     def run(self):
         last = time.monotonic()
@@ -520,27 +544,35 @@ class Sim:
             except can.CanError:
                 msg = None
                 time.sleep(0.01)
-            now, wall = time.monotonic(), time.time()
             with self.lock:
-                # Every frame already received before the drives' time step, each at the time the kernel received it:
-                # a drive process descheduled for a while (Python on a loaded emulated CPU) must not judge its
-                # heartbeat consumer before reading the heartbeats that came meanwhile.
-                for _ in range(1000):  # bounded: a flooded bus must not keep the lock from the test's thread
-                    if msg is None:
-                        break
+                # The frames received so far, each at the time the kernel received it, for at most a time step: a drive
+                # whose reading falls behind the bus (Python on a loaded emulated CPU) still produces its heartbeat and
+                # moves on time. Its heartbeat consumer judges only up to the last frame read, so heartbeats still
+                # waiting in the socket are not taken for lost ones.
+                started = time.monotonic()
+                read_up_to = None
+                while msg is not None:
+                    now, wall = time.monotonic(), time.time()
+                    lag = min(max(0.0, wall - msg.timestamp), 10.0) if msg.timestamp else 0.0
                     if not msg.is_error_frame and not msg.is_remote_frame:
-                        arrived = now - min(max(0.0, wall - msg.timestamp), 10.0) if msg.timestamp else now
+                        self.frames += 1
+                        self.max_lag = max(self.max_lag, lag)
                         for drive in self.drives.values():
-                            drive.on_frame(msg, arrived)
+                            drive.on_frame(msg, now - lag)
+                    if now - started >= self.tick_s:
+                        read_up_to = now - lag  # the socket may hold more: judged up to this frame
+                        break
                     try:
                         msg = self.bus.recv(timeout=0)
                     except can.CanError:
                         msg = None
+                now = time.monotonic()
                 if now - last >= self.tick_s:
                     if self.plant is not None:
                         self.from_plant()
                     for drive in self.drives.values():
-                        drive.tick(now, now - last)
+                        drive.tick(now, now - last, read_up_to)
+                    self.max_tick_gap = max(self.max_tick_gap, now - last)
                     last = now
 
     def start(self):
@@ -565,6 +597,13 @@ class Sim:
 
     def drive(self, node):
         return self.drives[node]
+
+    def load(self):
+        """The simulator's own figures: frames read and sent, the longest a frame waited to be read, the longest
+        between two time steps (ms)."""
+        with self.lock:
+            return "frames read %d, sent %d, longest wait of a frame %.0f ms, longest time step %.0f ms" % (
+                self.frames, self.sent, self.max_lag * 1e3, self.max_tick_gap * 1e3)
 
     def snapshot(self, node):
         with self.lock:
@@ -610,6 +649,7 @@ def main():
     except KeyboardInterrupt:
         pass
     sim.stop()
+    print("drives: " + sim.load(), flush=True)
     for node in args.nodes:
         print(node, sim.snapshot(node), flush=True)
         # What the drive did and when (CLOCK_MONOTONIC seconds): for a test that judges a stop by its cause.

@@ -86,6 +86,12 @@ def mapping(sim, node, index):
     return [d.get(index, s) for s in range(1, d.get(index, 0) + 1)]
 
 
+def stop(sim):
+    # The simulator's own load beside the case's checks: a failure with a long wait or time step is the emulated CPU's.
+    print("   drives: " + sim.load(), flush=True)
+    sim.stop()
+
+
 def enable(peer, sim, what):
     peer.command(0, 0, reset=True)
     # Zero commands meanwhile: a drive's fault reset and enable take several SYNC periods, longer than the driver's
@@ -107,7 +113,7 @@ def case_a():
     if not up:
         print(output(driver))
         driver.kill()
-        sim.stop()
+        stop(sim)
         return
     boot3 = [t for t, what, value in sim.drive(3).history if what == "nmt" and value == "boot-up"]
     check(boot3 and boot3[-1] - t0 >= 0.5, "node 3 booted late (%.2f s after the driver started)" %
@@ -236,7 +242,7 @@ def case_a():
     check(all(0x8130 in [v for _, w, v in sim.drive(n).history if w == "emcy"] for n in (2, 3)),
           "each drive sent EMCY 0x8130 (heartbeat of the master lost)")
     peer.bus.shutdown()
-    sim.stop()
+    stop(sim)
 
 
 def refused(name, sim, cfg, expect_code, expect_words, interface="vcan0"):
@@ -255,7 +261,7 @@ def refused(name, sim, cfg, expect_code, expect_words, interface="vcan0"):
     for n in sim.drives:
         check(all(s not in (drives.READY, drives.SWITCHED_ON, drives.ENABLED) for s in states(sim, n)) and
               "operational" not in nmt_history(sim, n), "%s: node %d never started nor powered" % (name, n))
-    sim.stop()
+    stop(sim)
 
 
 def case_b():
@@ -321,7 +327,7 @@ def case_e():
     summary = [line for line in output(driver).splitlines() if line.startswith("{")]
     check(bool(summary) and json.loads(summary[-1])["estops"] == 1, "the driver's summary counts the e-stop")
     peer.bus.shutdown()
-    sim.stop()
+    stop(sim)
 
 
 def main():
