@@ -34,6 +34,11 @@ constexpr std::uint32_t kLcmSeqModulus = 0x80000000U;
 // number is explicit here, so any run of lost statuses is a gap. (The CAN link's window of kStatusWindow comes from
 // reconstructing an 8-bit counter; over LCM it took every status after 128 lost ones for a replay.)
 constexpr std::uint32_t kLcmStatusWindow = kLcmSeqModulus / 2;
+// UDP does not keep order: on a multi-core host a publisher whose thread moves between CPUs hands consecutive
+// datagrams to different CPUs' loopback queues, and one can overtake another (seen in the VM: status 2577 arrived
+// 28 ms late, after 2578 and 2579). A status this few behind the last accepted one, or a copy of it, is the network's
+// reordering: dropped and counted, not a stop. Further behind is a replay or a restarted numbering.
+constexpr std::uint32_t kLcmReorderWindow = 64;
 
 // Owns an lcm::LCM, an eventfd and the thread that serves both. In a lockstep simulation (LockstepBus) it uses the
 // caller's instance instead, starts no thread, and Wake() flushes at once on the caller's thread; message times come
@@ -178,8 +183,12 @@ class LcmRobotLink final : public QueuedRobotLink {
       if (status_synced_) {
         const std::uint32_t ahead = (s.seq - status_last_) % kLcmSeqModulus;
         if (ahead == 0 || ahead >= kLcmStatusWindow) {
-          // A status of this session that is not newer than the last one: a replay or a duplicate. It must not
-          // refresh the view of the driver; the controller stops (once per episode).
+          // A status of this session that is not newer than the last one never refreshes the view of the driver.
+          if (kLcmSeqModulus - ahead <= kLcmReorderWindow || ahead == 0) {
+            ++counters_.reordered_statuses;
+            continue;
+          }
+          // Far behind: a replay, or a numbering that restarted. The controller stops (once per episode).
           ++counters_.stale_statuses;
           if (!stale_reported_) {
             stale_reported_ = true;

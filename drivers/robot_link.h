@@ -219,9 +219,10 @@ struct LinkCounters {
   std::uint64_t rx_overflow_drops = 0;  // frames the kernel dropped because our receive queue was full (SO_RXQ_OVFL)
   std::uint64_t faults_dropped = 0;     // faults lost because the caller did not take them fast enough
   std::uint64_t io_errors = 0;
-  std::uint64_t session_changes = 0;  // announcements of a session other than the current one
-  std::uint64_t stale_statuses = 0;   // statuses of the current session out of sequence (replays, duplicates)
-  std::uint64_t boot_ups = 0;         // boot-up heartbeats after the driver had been seen operational
+  std::uint64_t session_changes = 0;     // announcements of a session other than the current one
+  std::uint64_t stale_statuses = 0;      // statuses of the current session out of sequence (replays, duplicates)
+  std::uint64_t reordered_statuses = 0;  // LCM: statuses a few behind the last or copies of it (UDP reordering)
+  std::uint64_t boot_ups = 0;            // boot-up heartbeats after the driver had been seen operational
 };
 
 /// Bus state as the link sees it (always kActive for LCM).
