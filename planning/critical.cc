@@ -432,7 +432,9 @@ class CandidateGenerator {
     std::vector<Vector2d> ray_points;
     for (const auto& p : points_)
       if (p.ray) ray_points.push_back(p.p);  // points_ is sorted by x (Collect)
-    return CandidateList(std::move(entries), std::move(strings_), std::move(coords_), std::move(ray_points));
+    CandidateList list(std::move(entries), std::move(strings_), std::move(coords_), std::move(ray_points));
+    list.set_scoped(scoped_);
+    return list;
   }
 
  private:
@@ -440,6 +442,9 @@ class CandidateGenerator {
   void Scope(const CandidateScope* scope) {
     listed_.assign(points_.size(), 1);
     if (scope == nullptr || scope->all) return;
+    const auto ray_points = std::count_if(points_.begin(), points_.end(), [](const Pt& p) { return p.ray; });
+    if (static_cast<double>(ray_points) * static_cast<double>(points_.size()) < scope->all_below_pairs) return;
+    scoped_ = true;
     std::vector<Vector2d> wanted = scope->ray_points;
     std::sort(wanted.begin(), wanted.end(), [](const Vector2d& a, const Vector2d& b) { return a.x() < b.x(); });
     const double tol = 1e-9 * (pr_.bounds_max - pr_.bounds_min).norm();  // the walk's match of a source
@@ -1034,6 +1039,7 @@ class CandidateGenerator {
   bool indexed_ = false;
   bool with_start_ = false;
   std::vector<char> listed_;  // per point: its events are listed (Scope)
+  bool scoped_ = false;       // some points' events are not listed
   std::int64_t visible_pairs_ = 0;
   std::set<std::pair<size_t, size_t>> along_static_;  // PairsAlongStaticSegments
   bool reference_ = false;

@@ -140,6 +140,10 @@ struct CandidateEntry {
 struct CandidateScope {
   bool all = true;
   std::vector<Eigen::Vector2d> ray_points;
+  /// Without `all`: every candidate is listed all the same where the ray points times the points are fewer than this
+  /// (a small scene's full listing costs less than a second walk would); CandidateList::scoped() says which it was.
+  /// Decided from the points before any event is listed, so a small scene is listed once.
+  double all_below_pairs = 0.0;
 };
 
 /// The candidates of CriticalCandidates, stored compactly (CandidateEntry) and read one at a time.
@@ -154,6 +158,9 @@ class CandidateList {
         ray_points_(std::move(ray_points)) {}
   /// Every ray point of the static arrangement (CandidateScope), listed or not, sorted by x.
   const std::vector<Eigen::Vector2d>& ray_points() const { return ray_points_; }
+  /// Whether the events of ray points the scope did not name were left out (false: every candidate is listed).
+  bool scoped() const { return scoped_; }
+  void set_scoped(bool scoped) { scoped_ = scoped; }
   std::size_t size() const { return entries_.size(); }
   bool empty() const { return entries_.empty(); }
   double theta(std::size_t i) const { return entries_[i].theta; }
@@ -172,6 +179,7 @@ class CandidateList {
   std::vector<std::string> strings_;
   std::vector<Eigen::Vector2d> points_;
   std::vector<Eigen::Vector2d> ray_points_;
+  bool scoped_ = false;
 };
 
 /// Every candidate critical orientation of the problem's B_θ(G) and B_vcθ(G) over all θ (problem.theta is ignored),
