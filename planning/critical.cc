@@ -383,10 +383,49 @@ void Materialize(const CandidateEntry& e, const std::vector<std::string>& string
   }
 }
 
+}  // namespace
+
+// What ListStaticCandidates lists (critical.h), in the numbering of a generator of the C-obstacles and bounds alone:
+// its points (sorted by x) and segments, and the events of its pairs of points, whose ids are those points and
+// segments (a segment k as points.size() + k, like the generator's SegRef).
+class StaticCandidates {
+ public:
+  // What they were listed from: a problem that differs lists its candidates itself.
+  std::vector<NamedPolygon> obstacles;
+  Vector2d bounds_min = Vector2d::Zero(), bounds_max = Vector2d::Zero();
+  double velocity_cone = 0.0, friction_cone = 0.0;
+  struct Point {
+    Vector2d p;
+    std::string ref;
+  };
+  struct Segment {
+    Vector2d a, b;
+    std::string ref;
+  };
+  std::vector<Point> points;
+  std::vector<Segment> segments;
+  std::deque<CandidateEntry> entries;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> visible_pairs;  // the pairs that see each other
+  std::set<std::pair<size_t, size_t>> along_static;                    // the generator's PairsAlongStaticSegments
+
+  bool FitsProblem(const BackprojectionProblem& pr) const {
+    auto same = [](const NamedPolygon& x, const NamedPolygon& y) {
+      return x.vertices == y.vertices && x.vertex_refs == y.vertex_refs && x.edge_refs == y.edge_refs &&
+             x.hole == y.hole;
+    };
+    return pr.bounds_min == bounds_min && pr.bounds_max == bounds_max && pr.velocity_cone == velocity_cone &&
+           pr.friction_cone == friction_cone && pr.obstacles.size() == obstacles.size() &&
+           std::equal(obstacles.begin(), obstacles.end(), pr.obstacles.begin(), same);
+  }
+};
+
+namespace {
+
 class CandidateGenerator {
  public:
   CandidateGenerator(const BackprojectionProblem& pr, const NamedPolygon* start, CandidateSearch search,
-                     const std::atomic<bool>* stop = nullptr, const CandidateScope* scope = nullptr)
+                     const std::atomic<bool>* stop = nullptr, const CandidateScope* scope = nullptr,
+                     const StaticCandidates* statics = nullptr)
       : pr_(pr), stop_(stop) {
     eps_ = std::max(pr.velocity_cone, 1e-9);
     phi_ = pr.friction_cone;
@@ -399,7 +438,34 @@ class CandidateGenerator {
       cb_.Index(extent, pad);
       seg_grid_.Build(segs_, extent, pad);
       indexed_ = true;
+      if (statics != nullptr && statics->FitsProblem(pr)) UseStatics(*statics, pad);
     }
+  }
+
+  // The static candidates of this problem's C-obstacles and bounds (ListStaticCandidates): the events of the pairs of
+  // points, unsorted, in this generator's numbering.
+  std::shared_ptr<StaticCandidates> ListStatics(int threads) {
+    MakeTables();
+    along_static_ = PairsAlongStaticSegments();
+    record_visible_ = true;
+    if (threads > 1) {
+      PairEventsInParallel(threads);
+    } else {
+      VisibilityEvents(0, points_.size());
+      FreeVertexEvents(0, points_.size());
+    }
+    auto statics = std::make_shared<StaticCandidates>();
+    statics->obstacles = pr_.obstacles;
+    statics->bounds_min = pr_.bounds_min;
+    statics->bounds_max = pr_.bounds_max;
+    statics->velocity_cone = pr_.velocity_cone;
+    statics->friction_cone = pr_.friction_cone;
+    for (const auto& p : points_) statics->points.push_back({p.p, p.ref});
+    for (const auto& sg : segs_) statics->segments.push_back({sg.a, sg.b, sg.ref});
+    statics->entries = std::move(entries_);
+    statics->visible_pairs = std::move(visible_log_);
+    statics->along_static = std::move(along_static_);
+    return statics;
   }
 
   // The candidates as a compact list (reference = false) or, as before CandidateList, as CriticalOrientations in
@@ -414,12 +480,15 @@ class CandidateGenerator {
       RayEvents();
     }
     along_static_ = PairsAlongStaticSegments();
+    if (r_only || reference_) statics_ = nullptr;
+    if (statics_ != nullptr) AlongDiffers();
     if (threads > 1 && !reference_) {
       PairEventsInParallel(threads);
     } else {
       VisibilityEvents(0, points_.size());
       FreeVertexEvents(0, points_.size());
     }
+    if (statics_ != nullptr) AppendStatics();
     if (reference_) {
       SortReference();
       if (counts) Count(counts, reference_out_.size(), [&](size_t i) { return reference_out_[i].kind; });
@@ -458,6 +527,104 @@ class CandidateGenerator {
         named = (*it - p).norm() <= tol;
       }
       listed_[i] = named ? 1 : 0;
+    }
+  }
+
+  // Which points and segments are the static candidates' (the same position and ref, and not the start region's), so
+  // that the events of a pair of them are taken from there. The events of a pair whose order differs here are listed
+  // again (its refs would come in the other order), and so are those of the other points and segments.
+  void UseStatics(const StaticCandidates& statics, double pad) {
+    statics_ = &statics;
+    const size_t n = statics.points.size();
+    static_of_.assign(points_.size(), CandidateEntry::kNoIndex);
+    point_of_static_.assign(n, CandidateEntry::kNoIndex);
+    auto by_x = [](const StaticCandidates::Point& p, double x) { return p.p.x() < x; };
+    for (size_t i = 0; i < points_.size(); ++i) {
+      if (points_[i].start || points_[i].ray) continue;
+      for (auto it = std::lower_bound(statics.points.begin(), statics.points.end(), points_[i].p.x(), by_x);
+           it != statics.points.end() && it->p.x() == points_[i].p.x(); ++it) {
+        const size_t s = static_cast<size_t>(it - statics.points.begin());
+        if (it->p == points_[i].p && it->ref == points_[i].ref && point_of_static_[s] == CandidateEntry::kNoIndex) {
+          static_of_[i] = static_cast<std::uint32_t>(s);
+          point_of_static_[s] = static_cast<std::uint32_t>(i);
+          break;
+        }
+      }
+    }
+    // The segments come in the same order (C-obstacles, then bounds), the problem's own among them.
+    static_segment_.assign(segs_.size(), 0);
+    segment_of_static_.assign(statics.segments.size(), CandidateEntry::kNoIndex);
+    size_t k = 0;
+    for (size_t s = 0; s < statics.segments.size(); ++s) {
+      const auto& sg = statics.segments[s];
+      while (k < segs_.size() && !(segs_[k].a == sg.a && segs_[k].b == sg.b && segs_[k].ref == sg.ref)) ++k;
+      if (k == segs_.size()) {  // not found in order: no statics
+        statics_ = nullptr;
+        return;
+      }
+      static_segment_[k] = 1;
+      segment_of_static_[s] = static_cast<std::uint32_t>(k++);
+    }
+    for (size_t k2 = 0; k2 < segs_.size(); ++k2) {
+      if (static_segment_[k2] == 0) {
+        own_segs_.push_back(segs_[k2]);
+        own_seg_index_.push_back(k2);
+        own_box_.extend(segs_[k2].a);
+        own_box_.extend(segs_[k2].b);
+      }
+    }
+    own_pad_ = pad;
+  }
+
+  // Both points' pair events are the static candidates' (i < j).
+  bool StaticPair(size_t i, size_t j) const {
+    return statics_ != nullptr && static_of_[i] != CandidateEntry::kNoIndex &&
+           static_of_[j] != CandidateEntry::kNoIndex && static_of_[i] < static_of_[j];
+  }
+
+  // The static pairs that lie on one static segment here and not there, or there and not here (a goal or forbidden
+  // edge through two C-obstacle points): their free edges' events are listed again.
+  void AlongDiffers() {
+    for (const auto& [i, j] : along_static_) {
+      if (StaticPair(i, j) && statics_->along_static.count({static_of_[i], static_of_[j]}) == 0) {
+        along_differs_.insert({i, j});
+      }
+    }
+    for (const auto& [a, b] : statics_->along_static) {
+      const auto i = point_of_static_[a], j = point_of_static_[b];
+      if (i == CandidateEntry::kNoIndex || j == CandidateEntry::kNoIndex || i > j) continue;
+      if (along_static_.count({i, j}) == 0) along_differs_.insert({i, j});
+    }
+  }
+
+  // The static candidates of the pairs not listed here, in this generator's numbering.
+  void AppendStatics() {
+    const std::uint32_t n = static_cast<std::uint32_t>(statics_->points.size());
+    auto pair_of = [&](std::uint32_t a, std::uint32_t b, size_t* i, size_t* j) {
+      const std::uint32_t pa = point_of_static_[a], pb = point_of_static_[b];
+      if (pa == CandidateEntry::kNoIndex || pb == CandidateEntry::kNoIndex) return false;
+      *i = std::min(pa, pb);
+      *j = std::max(pa, pb);
+      return StaticPair(*i, *j);
+    };
+    for (const auto& [a, b] : statics_->visible_pairs) {
+      size_t i = 0, j = 0;
+      if (pair_of(a, b, &i, &j) && along_differs_.count({i, j}) == 0) ++visible_pairs_;
+    }
+    for (CandidateEntry e : statics_->entries) {
+      size_t i = 0, j = 0;
+      if (!pair_of(e.ids[0], e.ids[1], &i, &j)) continue;
+      if (e.form == CandidateEntry::kThroughPoint) {
+        if (along_differs_.count({i, j}) != 0) continue;
+      } else if (e.form == CandidateEntry::kFreeVertex) {
+        e.ids[2] = SegRef(segment_of_static_[e.ids[2] - n]);
+      } else {
+        continue;  // pairs make no other form
+      }
+      e.ids[0] = point_of_static_[e.ids[0]];
+      e.ids[1] = point_of_static_[e.ids[1]];
+      CheckStop();
+      Push(e);
     }
   }
 
@@ -872,6 +1039,7 @@ class CandidateGenerator {
     const size_t blocks = cuts.size() - 1;
     std::vector<std::deque<CandidateEntry>> lists(2 * blocks);
     std::vector<std::int64_t> pairs(static_cast<size_t>(threads), 0);
+    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> visible_logs(static_cast<size_t>(threads));
     std::atomic<size_t> next{0};
     std::atomic<bool> failed{false};
     std::exception_ptr error;
@@ -879,6 +1047,7 @@ class CandidateGenerator {
     auto work = [&](size_t t) {
       CandidateGenerator copy = *this;
       copy.entries_.clear();
+      copy.visible_log_.clear();
       try {
         for (size_t task = next++; task < 2 * blocks && !failed; task = next++) {
           const size_t b = task % blocks;
@@ -896,6 +1065,7 @@ class CandidateGenerator {
         failed = true;
       }
       pairs[t] = copy.visible_pairs_;
+      visible_logs[t] = std::move(copy.visible_log_);
     };
     std::vector<std::thread> pool;
     for (size_t t = 1; t < static_cast<size_t>(threads); ++t) pool.emplace_back(work, t);
@@ -907,6 +1077,7 @@ class CandidateGenerator {
       std::deque<CandidateEntry>().swap(list);
     }
     for (const std::int64_t p : pairs) visible_pairs_ += p;
+    for (const auto& log : visible_logs) visible_log_.insert(visible_log_.end(), log.begin(), log.end());
     generated_ = static_cast<std::int64_t>(entries_.size());
   }
 
@@ -916,6 +1087,7 @@ class CandidateGenerator {
     const auto& along_static = along_static_;
     for (size_t i = i0; i < i1; ++i) {
       for (size_t j = i + 1; j < n; ++j) {
+        if (StaticPair(i, j) && along_differs_.count({i, j}) == 0) continue;  // AppendStatics
         const Vector2d d = points_[j].p - points_[i].p;
         if (d.norm() <= cb_.tolerance) continue;
         // A free edge of a ray point that is not listed: only along a static segment or with the start region.
@@ -924,6 +1096,7 @@ class CandidateGenerator {
         if (!listed_i && !listed_j && !always) continue;
         if (!cb_.Sees(points_[i].p, points_[j].p)) continue;
         ++visible_pairs_;
+        if (record_visible_) visible_log_.push_back({PointId(i), PointId(j)});
         const double beta = std::atan2(d.y(), d.x());
         const CriticalKind kind = points_[i].start || points_[j].start ? CriticalKind::kR : CriticalKind::kVgraph;
         if (r_only_ && kind != CriticalKind::kR) continue;
@@ -977,6 +1150,8 @@ class CandidateGenerator {
         const Vector2d nrm(-ab.y() / len, ab.x() / len);
         const double r = len / (2 * std::sin(two_eps));
         const double h = len / (2 * std::tan(two_eps));
+        // A static pair's crossings with the static segments are the static candidates' (AppendStatics).
+        const bool static_pair = indexed_ && StaticPair(i, j);
         for (double side : {-1.0, 1.0}) {
           const Vector2d c = m + side * h * nrm;
           auto meet = [&](size_t k) {
@@ -984,7 +1159,11 @@ class CandidateGenerator {
             CircleMeetsSegment(i, j, c, r, k);
             if (indexed_) CircleMeetsSegment(j, i, c, r, k);  // (b, a): the same circle, not walked on its own
           };
-          if (indexed_) {
+          if (static_pair) {
+            if (!NearCircle(own_box_, c, r)) continue;
+            for (size_t k = 0; k < own_segs_.size(); ++k)
+              if (NearCircle(own_segs_[k], c, r)) meet(own_seg_index_[k]);
+          } else if (indexed_) {
             for (int k : seg_grid_.NearCircle(c, r)) meet(static_cast<size_t>(k));
           } else {
             for (size_t k = 0; k < segs_.size(); ++k) meet(k);
@@ -992,6 +1171,28 @@ class CandidateGenerator {
         }
       }
     }
+  }
+
+  // Whether segment s comes within the grids' pad (and then some) of the circle: its nearest point inside the
+  // circle's padded outside, its farthest end outside its padded inside. A superset of the segments CircleMeetsSegment
+  // finds a crossing on, like SegmentGrid::NearCircle's, for the few segments that are not the static candidates'.
+  bool NearCircle(const Seg& s, const Vector2d& c, double r) const {
+    const double p = 2 * own_pad_ + 1e-6 * r;
+    const Vector2d d = s.b - s.a;
+    const double t = d.squaredNorm() > 0 ? std::clamp((c - s.a).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
+    const double nearest = (s.a + t * d - c).norm();
+    const double farthest = std::max((s.a - c).norm(), (s.b - c).norm());
+    return nearest <= r + p && farthest >= r - p;
+  }
+
+  // The same for a box (around all of them): its nearest point and its farthest corner.
+  bool NearCircle(const Eigen::AlignedBox2d& box, const Vector2d& c, double r) const {
+    if (box.isEmpty()) return false;
+    const double p = 2 * own_pad_ + 1e-6 * r;
+    const double nearest = (c.cwiseMax(box.min()).cwiseMin(box.max()) - c).norm();
+    const Vector2d far_corner((c.x() - box.min().x() > box.max().x() - c.x()) ? box.min().x() : box.max().x(),
+                              (c.y() - box.min().y() > box.max().y() - c.y()) ? box.min().y() : box.max().y());
+    return nearest <= r + p && (far_corner - c).norm() >= r - p;
   }
 
   void CircleMeetsSegment(size_t i, size_t j, const Vector2d& c, double r, size_t k) {
@@ -1038,6 +1239,18 @@ class CandidateGenerator {
   SegmentGrid seg_grid_;  // every segment (the circles of free vertices meet them)
   bool indexed_ = false;
   bool with_start_ = false;
+  // The static candidates taken (UseStatics): per point its index there or kNoIndex, and back; per segment whether it
+  // is one of theirs, and theirs here; the others (tested one by one: few); the static pairs listed again.
+  const StaticCandidates* statics_ = nullptr;
+  std::vector<std::uint32_t> static_of_, point_of_static_, segment_of_static_;
+  std::vector<char> static_segment_;
+  std::vector<Seg> own_segs_;
+  std::vector<size_t> own_seg_index_;
+  double own_pad_ = 0;
+  Eigen::AlignedBox2d own_box_;  // around them (empty: none)
+  std::set<std::pair<size_t, size_t>> along_differs_;
+  bool record_visible_ = false;  // ListStatics: which pairs see each other
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> visible_log_;
   std::vector<char> listed_;  // per point: its events are listed (Scope)
   bool scoped_ = false;       // some points' events are not listed
   std::int64_t visible_pairs_ = 0;
@@ -1139,8 +1352,17 @@ double WrapAngle(double theta) {
 
 CandidateList CriticalCandidateList(const BackprojectionProblem& problem, const NamedPolygon* start,
                                     CriticalCounts* counts, CandidateSearch search, const std::atomic<bool>* stop,
-                                    int threads, const CandidateScope* scope) {
-  return CandidateGenerator(problem, start, search, stop, scope).Run(counts, false, nullptr, threads);
+                                    int threads, const CandidateScope* scope, const StaticCandidates* statics) {
+  return CandidateGenerator(problem, start, search, stop, scope, statics).Run(counts, false, nullptr, threads);
+}
+
+std::shared_ptr<const StaticCandidates> ListStaticCandidates(const BackprojectionProblem& problem, int threads,
+                                                             const std::atomic<bool>* stop) {
+  BackprojectionProblem statics = problem;
+  statics.goal.clear();
+  statics.rays.clear();
+  statics.forbidden.clear();
+  return CandidateGenerator(statics, nullptr, CandidateSearch::kIndexed, stop).ListStatics(std::max(1, threads));
 }
 
 namespace {

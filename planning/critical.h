@@ -26,6 +26,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -182,17 +183,32 @@ class CandidateList {
   bool scoped_ = false;
 };
 
+/// The events of the pairs of static points that a problem's C-obstacles and bounds make among themselves (their
+/// vertices, the bounds' corners and the crossings of their edges): free edges through one another, and free vertices
+/// crossing their edges. They depend on the C-obstacles, the bounds and the cones only, so the child targets of a
+/// multi-step search (each with its own goal and forbidden strips and no rays) share them: listed once
+/// (ListStaticCandidates) and given to CriticalCandidateList, which then lists only the events its other points and
+/// edges add. Opaque (planning/critical.cc).
+class StaticCandidates;
+
+/// The static candidates of `problem`'s C-obstacles and bounds (its goal, rays and forbidden regions are left out).
+/// `threads` and `stop` as for CriticalCandidateList.
+std::shared_ptr<const StaticCandidates> ListStaticCandidates(const BackprojectionProblem& problem, int threads = 1,
+                                                             const std::atomic<bool>* stop = nullptr);
+
 /// Every candidate critical orientation of the problem's B_θ(G) and B_vcθ(G) over all θ (problem.theta is ignored),
 /// sorted by θ in [−π, π), exact duplicates (same θ, kind, refs and sources) removed. `start` (may be null) adds the
 /// R-critical orientations of that region. A superset: the nondirectional backprojection (nondirectional.h) keeps
 /// those where the structure really changes. `threads` list the pairs of points' events side by side (the same list
 /// whatever the threads). `scope` (null: every candidate) leaves out the events of ray points it does not name.
+/// `statics` (may be null) are taken instead of listing those pairs again where the problem's C-obstacles, bounds and
+/// cones are those they were listed from (else, and with CandidateSearch::kScan, they are not used): the same list.
 /// Not real-time safe.
 CandidateList CriticalCandidateList(const BackprojectionProblem& problem, const NamedPolygon* start,
                                     CriticalCounts* counts = nullptr,
                                     CandidateSearch search = CandidateSearch::kIndexed,
                                     const std::atomic<bool>* stop = nullptr, int threads = 1,
-                                    const CandidateScope* scope = nullptr);
+                                    const CandidateScope* scope = nullptr, const StaticCandidates* statics = nullptr);
 
 /// The same candidates as CriticalOrientations (for the command line and the tests; large scenes take gigabytes).
 std::vector<CriticalOrientation> CriticalCandidates(const BackprojectionProblem& problem, const NamedPolygon* start,

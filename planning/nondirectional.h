@@ -19,6 +19,7 @@
 #include <atomic>
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -152,6 +153,10 @@ struct NondirectionalOptions {
   /// With ray_events_on_demand: only where the ray points times the points come to this many or more; a smaller
   /// scene lists every candidate (its listing costs less than a second walk would).
   double ray_events_min_pairs = 1e4;
+  /// The candidates the problem's C-obstacles and bounds make among themselves, listed once for problems that share
+  /// them (ListStaticCandidates, critical.h; the multi-step search's children): taken instead of listed again where
+  /// they fit the problem. Null: every candidate is listed.
+  std::shared_ptr<const StaticCandidates> static_candidates;
   /// Called now and then with the fraction done (0..1), from the calling thread.
   std::function<void(double)> progress;
   /// When it points to true the computation ends at its next backprojection, throwing NondirectionalStopped (the

@@ -13,6 +13,7 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -532,6 +533,9 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
   bool memory_reached = false;
   int stopped_level = 0;
   std::int64_t stopped_done = 0, stopped_total = 0;
+  // The candidates the C-obstacles and bounds make among themselves, the same for every child (listed at the first
+  // level with children; the search before lists them per child, kept to compare).
+  std::shared_ptr<const StaticCandidates> static_candidates;
   for (int level = 2; level <= options.max_steps && !options.kernel_only && !budget_reached; ++level) {
     out.levels = level;
     std::vector<Node> next;
@@ -718,6 +722,14 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
     NondirectionalOptions nd_options = NdOptions(options);
     if (lean) nd_options.threads = std::max(1, options.threads / workers);
     nd_options.stop = memory.Flag();
+    if (lean && !pending.empty() && !static_candidates && !memory.Exceeded()) {
+      try {
+        static_candidates = ListStaticCandidates(base, options.threads, memory.Flag());
+      } catch (const NondirectionalStopped&) {
+        // the memory limit: the children stop at it below
+      }
+    }
+    nd_options.static_candidates = static_candidates;
     auto work = [&] {
       for (;;) {
         if (stop.load() || memory.Exceeded()) return;

@@ -48,7 +48,7 @@ NondirectionalBackprojection KineticWalk::Run() {
   std::vector<int> change_candidate;
   for (;;) {
     structural_ = CriticalCandidateList(pr_, start_, &nd.stats.counts, CandidateSearch::kIndexed, options_.stop,
-                                        std::max(1, options_.threads), &scope);
+                                        std::max(1, options_.threads), &scope, options_.static_candidates.get());
     on_demand = on_demand && structural_.scoped();
     nd.stats.candidates = static_cast<std::int64_t>(structural_.size());
     r_candidates = structural_.TakeKind(CriticalKind::kR);

@@ -5,7 +5,9 @@
 // counts. The grid only skips segments that cannot meet the query, so any difference is a bug in it. And the compact
 // list (CandidateList, what the nondirectional backprojection reads) against the listing before it, which kept every
 // candidate as a CriticalOrientation (CriticalCandidatesReference): the same candidates in the same order, every
-// field, on the same scenes. And the listing of a CandidateScope against the full one filtered by its rule.
+// field, on the same scenes. And the listing of a CandidateScope against the full one filtered by its rule. And the
+// listing that takes the static candidates (ListStaticCandidates, listed once per scene) against the full one, on the
+// problems of a multi-step search's children (a goal strip, forbidden strips, no rays) and on others.
 
 #include "planning/critical.h"
 
@@ -178,6 +180,46 @@ void ExpectScopedListIsTheFilteredFullListing(const std::string& name, const Bac
   }
 }
 
+// The list of `pr` with the static candidates of `statics_of` taken against the list made without them: every field,
+// in order, and the counts, on one thread and on three.
+void ExpectStaticsChangeNothing(const std::string& name, const BackprojectionProblem& pr, const NamedPolygon* start,
+                                const BackprojectionProblem& statics_of) {
+  CriticalCounts full_counts;
+  const CandidateList full = CriticalCandidateList(pr, start, &full_counts);
+  const auto statics = ListStaticCandidates(statics_of, 2);
+  CriticalOrientation c, r;
+  for (const int threads : {1, 3}) {
+    const std::string what = name + " (" + std::to_string(threads) + " threads)";
+    CriticalCounts counts;
+    const CandidateList list =
+        CriticalCandidateList(pr, start, &counts, CandidateSearch::kIndexed, nullptr, threads, nullptr, statics.get());
+    ASSERT_EQ(list.size(), full.size()) << what;
+    for (size_t k = 0; k < full.size(); ++k) {
+      full.Get(k, r);
+      list.Get(k, c);
+      ASSERT_EQ(c.theta, r.theta) << what << " candidate " << k;
+      ASSERT_EQ(c.kind, r.kind) << what << " candidate " << k;
+      ASSERT_EQ(c.refs, r.refs) << what << " candidate " << k;
+      ASSERT_EQ(c.sources, r.sources) << what << " candidate " << k;
+      ASSERT_EQ(c.source_signs, r.source_signs) << what << " candidate " << k;
+      ASSERT_EQ(c.feature, r.feature) << what << " candidate " << k;
+      ASSERT_EQ(c.point, r.point) << what << " candidate " << k;
+      ASSERT_EQ(c.sliding, r.sliding) << what << " candidate " << k;
+    }
+    for (int kind = 0; kind < 7; ++kind) EXPECT_EQ(counts.by_kind[kind], full_counts.by_kind[kind]) << what;
+    EXPECT_EQ(counts.visible_pairs, full_counts.visible_pairs) << what;
+    EXPECT_EQ(counts.points, full_counts.points) << what;
+  }
+}
+
+// A square strip of half-width w around the segment ab (like a child's goal and forbidden strips).
+NamedPolygon StripAround(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double w) {
+  const Eigen::Vector2d d = (b - a).normalized(), n(-d.y(), d.x());
+  NamedPolygon p;
+  p.vertices = {a - w * n, b - w * n, b + w * n, a + w * n};
+  return p;
+}
+
 #if defined(__SANITIZE_ADDRESS__)
 constexpr std::uint64_t kSeeds = 12;  // the scan is O(n³): slow under a sanitizer
 #else
@@ -212,6 +254,54 @@ TEST(CriticalCandidates, IndexedSearchEqualsTheScanOnRandomWholeScenes) {
   EXPECT_GE(with_start, 1);
 }
 
+// The children of a multi-step search: the scene's C-obstacles and bounds with a goal strip on a ray, the rest of the
+// ray forbidden, no rays; a goal on a C-obstacle's face; a goal whose edge runs through two C-obstacle vertices (their
+// free edges' events along it are listed again); a start region; and statics of another scene (not taken).
+TEST(CriticalCandidates, StaticCandidatesGiveTheSameListOnRandomWholeScenes) {
+  int compared = 0;
+  for (std::uint64_t seed = 1; seed <= kSeeds / 2; ++seed) {
+    Scene scene;
+    double theta = 0;
+    if (!testing::RandomWholeScene(seed, scene, theta, seed % 2 ? 2 : 3, seed % 2 ? 1 : 2)) continue;
+    const bool start = seed % 2 == 0 && testing::PlaceStartRegion(seed, scene);
+    const CSpace cspace(scene);
+    const VcRays rays = ComputeVcRays(scene, cspace);
+    const BackprojectionProblem pr = ProblemFromScene(scene, cspace, &rays, theta, /*kernel=*/false);
+    if (pr.obstacles.empty()) continue;
+    NamedPolygon r;
+    if (start) r.vertices = scene.start->polygon.vertices;
+    const std::string name = "seed " + std::to_string(seed);
+    ExpectStaticsChangeNothing(name + ", the scene", pr, start ? &r : nullptr, pr);
+    const double w = 0.01;
+    if (!pr.rays.empty() && !pr.rays[0].segments.empty()) {
+      const auto& seg = pr.rays[0].segments[0];
+      const Eigen::Vector2d m = 0.5 * (seg[0] + seg[1]);
+      BackprojectionProblem child = pr;
+      child.goal = {StripAround(m, seg[1], w)};
+      child.forbidden.push_back(StripAround(seg[0], m, w));
+      child.rays.clear();
+      ExpectStaticsChangeNothing(name + ", a ray's child", child, start ? &r : nullptr, pr);
+    }
+    const auto& obstacle = pr.obstacles[0].vertices;
+    BackprojectionProblem face = pr;
+    face.goal = {StripAround(obstacle[0], obstacle[1], w)};
+    face.rays.clear();
+    ExpectStaticsChangeNothing(name + ", a face's child", face, start ? &r : nullptr, pr);
+    if (obstacle.size() >= 3) {
+      BackprojectionProblem through = face;
+      NamedPolygon triangle;
+      triangle.vertices = {obstacle[0], obstacle[2], obstacle[0] + 2 * (obstacle[1] - obstacle[0])};
+      through.goal = {triangle};
+      ExpectStaticsChangeNothing(name + ", a goal through two vertices", through, start ? &r : nullptr, pr);
+    }
+    BackprojectionProblem other = pr;
+    other.obstacles[0].vertices[0] += Eigen::Vector2d(1e-3, 0);
+    ExpectStaticsChangeNothing(name + ", another scene's statics", pr, start ? &r : nullptr, other);
+    ++compared;
+  }
+  EXPECT_GE(compared, static_cast<int>(kSeeds) / 3);
+}
+
 TEST(CriticalCandidates, IndexedSearchEqualsTheScanOnPentagonGrids) {
   for (int m : {1, 4, 9, 16}) {
     ExpectSameCandidates("pentagons " + std::to_string(m), bench::PentagonGrid(m), nullptr);
@@ -231,6 +321,7 @@ TEST(CriticalCandidates, IndexedSearchEqualsTheScanOnTheExampleScenes) {
     ExpectSameAsReference(file, pr, s.start ? &r : nullptr);
     std::int64_t left_out = 0;
     ExpectScopedListIsTheFilteredFullListing(file, pr, s.start ? &r : nullptr, left_out);
+    ExpectStaticsChangeNothing(file, pr, s.start ? &r : nullptr, pr);
   }
 }
 
