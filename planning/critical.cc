@@ -438,7 +438,14 @@ class CandidateGenerator {
       cb_.Index(extent, pad);
       seg_grid_.Build(segs_, extent, pad);
       indexed_ = true;
-      if (statics != nullptr && statics->FitsProblem(pr)) UseStatics(*statics, pad);
+      grid_pad_ = pad;
+      for (size_t k = 0; k < segs_.size(); ++k) {
+        if (segs_[k].kind != SegKind::kStart) continue;
+        start_segs_.push_back(k);
+        start_box_.extend(segs_[k].a);
+        start_box_.extend(segs_[k].b);
+      }
+      if (statics != nullptr && statics->FitsProblem(pr)) UseStatics(*statics);
     }
   }
 
@@ -533,7 +540,7 @@ class CandidateGenerator {
   // Which points and segments are the static candidates' (the same position and ref, and not the start region's), so
   // that the events of a pair of them are taken from there. The events of a pair whose order differs here are listed
   // again (its refs would come in the other order), and so are those of the other points and segments.
-  void UseStatics(const StaticCandidates& statics, double pad) {
+  void UseStatics(const StaticCandidates& statics) {
     statics_ = &statics;
     const size_t n = statics.points.size();
     static_of_.assign(points_.size(), CandidateEntry::kNoIndex);
@@ -573,7 +580,6 @@ class CandidateGenerator {
         own_box_.extend(segs_[k2].b);
       }
     }
-    own_pad_ = pad;
   }
 
   // Both points' pair events are the static candidates' (i < j).
@@ -1088,6 +1094,7 @@ class CandidateGenerator {
     for (size_t i = i0; i < i1; ++i) {
       for (size_t j = i + 1; j < n; ++j) {
         if (StaticPair(i, j) && along_differs_.count({i, j}) == 0) continue;  // AppendStatics
+        if (r_only_ && !points_[i].start && !points_[j].start) continue;      // not an R event
         const Vector2d d = points_[j].p - points_[i].p;
         if (d.norm() <= cb_.tolerance) continue;
         // A free edge of a ray point that is not listed: only along a static segment or with the start region.
@@ -1159,7 +1166,12 @@ class CandidateGenerator {
             CircleMeetsSegment(i, j, c, r, k);
             if (indexed_) CircleMeetsSegment(j, i, c, r, k);  // (b, a): the same circle, not walked on its own
           };
-          if (static_pair) {
+          if (r_only_ && indexed_) {
+            // Only the start region's edges make R events here: those few, one by one.
+            if (!NearCircle(start_box_, c, r)) continue;
+            for (const size_t k : start_segs_)
+              if (NearCircle(segs_[k], c, r)) meet(k);
+          } else if (static_pair) {
             if (!NearCircle(own_box_, c, r)) continue;
             for (size_t k = 0; k < own_segs_.size(); ++k)
               if (NearCircle(own_segs_[k], c, r)) meet(own_seg_index_[k]);
@@ -1175,9 +1187,9 @@ class CandidateGenerator {
 
   // Whether segment s comes within the grids' pad (and then some) of the circle: its nearest point inside the
   // circle's padded outside, its farthest end outside its padded inside. A superset of the segments CircleMeetsSegment
-  // finds a crossing on, like SegmentGrid::NearCircle's, for the few segments that are not the static candidates'.
+  // finds a crossing on, like SegmentGrid::NearCircle's, for few segments (a child's own, the start region's).
   bool NearCircle(const Seg& s, const Vector2d& c, double r) const {
-    const double p = 2 * own_pad_ + 1e-6 * r;
+    const double p = 2 * grid_pad_ + 1e-6 * r;
     const Vector2d d = s.b - s.a;
     const double t = d.squaredNorm() > 0 ? std::clamp((c - s.a).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
     const double nearest = (s.a + t * d - c).norm();
@@ -1188,7 +1200,7 @@ class CandidateGenerator {
   // The same for a box (around all of them): its nearest point and its farthest corner.
   bool NearCircle(const Eigen::AlignedBox2d& box, const Vector2d& c, double r) const {
     if (box.isEmpty()) return false;
-    const double p = 2 * own_pad_ + 1e-6 * r;
+    const double p = 2 * grid_pad_ + 1e-6 * r;
     const double nearest = (c.cwiseMax(box.min()).cwiseMin(box.max()) - c).norm();
     const Vector2d far_corner((c.x() - box.min().x() > box.max().x() - c.x()) ? box.min().x() : box.max().x(),
                               (c.y() - box.min().y() > box.max().y() - c.y()) ? box.min().y() : box.max().y());
@@ -1238,6 +1250,9 @@ class CandidateGenerator {
   ObstacleRegion cb_;
   SegmentGrid seg_grid_;  // every segment (the circles of free vertices meet them)
   bool indexed_ = false;
+  double grid_pad_ = 0;             // the grids' pad (within it a segment is near)
+  std::vector<size_t> start_segs_;  // the start region's edges, and a box around them (R events)
+  Eigen::AlignedBox2d start_box_;
   bool with_start_ = false;
   // The static candidates taken (UseStatics): per point its index there or kNoIndex, and back; per segment whether it
   // is one of theirs, and theirs here; the others (tested one by one: few); the static pairs listed again.
@@ -1246,7 +1261,6 @@ class CandidateGenerator {
   std::vector<char> static_segment_;
   std::vector<Seg> own_segs_;
   std::vector<size_t> own_seg_index_;
-  double own_pad_ = 0;
   Eigen::AlignedBox2d own_box_;  // around them (empty: none)
   std::set<std::pair<size_t, size_t>> along_differs_;
   bool record_visible_ = false;  // ListStatics: which pairs see each other
