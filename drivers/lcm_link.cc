@@ -215,7 +215,7 @@ class LcmRobotLink final : public QueuedRobotLink {
     }
     // The driver sends the fault it stopped for before it announces the session the stop begins (on another
     // channel, handed over on another queue): a fault that arrives with the announcement is this controller's
-    // session's, and it goes first, so that the controller stops with the driver's reason (issue 39).
+    // session's, and it goes first, so that the controller stops with the driver's reason.
     LinkFault f;
     while (incoming_faults_.Pop(f)) {
       f.receive_us = now_us;

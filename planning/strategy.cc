@@ -440,7 +440,7 @@ Strategy PlanStrategy(const Scene& scene, const PlanOptions& options) {
   VcRays rays;
   if (camera) rays = ComputeVcRays(scene, cspace);
   const BackprojectionProblem base = ProblemFromScene(scene, cspace, camera ? &rays : nullptr, 0.0, /*kernel=*/true);
-  if (base.goal.empty()) {  // infeasible like any scene without a strategy: `visco plan` writes why (issue 39)
+  if (base.goal.empty()) {  // infeasible like any scene without a strategy: `visco plan` writes why
     Strategy none;
     none.reason = kEmptyGoalKernel;
     return none;

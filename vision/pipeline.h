@@ -101,7 +101,7 @@ struct PipelineOptions {
   ContactOptions contact;  ///< face-contact refinement of the object poses
   /// Expect (and so search the whole image for, every frame, while missing) only the tags predicted visible at the
   /// objects' last poses: facing the camera, inside the image, large enough, not hidden by the prisms. false: every
-  /// model tag is expected (the rule before issue 16; a tag that cannot be seen then forces full detections).
+  /// model tag is expected (the rule before 2026-12-04; a tag that cannot be seen then forces full detections).
   bool expect_only_visible = true;
   VisibilityOptions visibility;
   /// The robot's model-based tracker (tracker.mode == TagTrackingMode::kModelBased).

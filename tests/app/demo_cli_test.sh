@@ -33,7 +33,7 @@ assert plan["feasible"] and len(plan["steps"]) == s["steps"], plan
 svg = open(d + "/run.svg").read()
 ET.fromstring(svg.split("?>", 1)[1])
 assert len(re.findall('class="trajectory"', svg)) > 10, "run.svg draws no trajectory"
-# run.svg draws the camera and the rays the plan uses, with a legend in words (issue 39).
+# run.svg draws the camera and the rays the plan uses, with a legend in words.
 assert 'class="camera"' in svg and 'class="active-ray step' in svg, "run.svg draws no camera or rays"
 legend = re.findall(r'class="legend" fill="black">([^<]*)<', svg)
 assert any(w.startswith("executed trajectory") for w in legend) and "start region" in legend, legend

@@ -27,7 +27,7 @@ out=$("$rt" --config "$tmp/driver.json" driver --start 3 6.5 2>/dev/null) || fai
 python3 -c 'import json,sys; d = json.loads(sys.argv[1]); assert d["position"] == [3, 6.5], d' "$out" ||
   fail "the command line did not win: $out"
 
-# A relative path in the file is relative to the file's folder (issue 39: the demo's driver.json named a world relative
+# A relative path in the file is relative to the file's folder (the demo's driver.json named a world relative
 # to where the demo ran), from any working directory.
 mkdir -p "$tmp/conf"
 cat >"$tmp/conf/driver.json" <<JSON

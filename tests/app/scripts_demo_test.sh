@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The README's first command as written, `scripts/demo --out DIR`, on the built tree: it runs scripts/setup, configures
 # and builds target visco in build/ (seconds when the tree is built), then `visco demo` (not `visco --help`, as it did
-# when a SIGPIPE'd probe fell through: issue 39). The goal is reached (summary.json); a relative DIR is the caller's;
+# when a SIGPIPE'd probe fell through). The goal is reached (summary.json); a relative DIR is the caller's;
 # the parameter files of the run name files that resolve from their own folder.
 # usage: scripts_demo_test.sh SOURCE_DIR VISCO   (skipped, exit 77, unless VISCO is SOURCE_DIR/build/bin/visco: the
 # script builds build/, and building another tree there would cost minutes)

@@ -1,4 +1,4 @@
-// The real-time guard on the production path (issue 15): the controller's loop (ControlLoop + Executor, as
+// The real-time guard on the production path: the controller's loop (ControlLoop + Executor, as
 // `visco run --can` runs it) over the SocketCAN link against a `visco-rt driver --can vcan0` process, with SCHED_FIFO
 // and mlockall on, under a RealtimeGuard on the loop thread. Runs inside the VM of scripts/hil-vm
 // (tests/drivers/hil/run_in_vm.sh), never on the host: the host kernel has no CAN.

@@ -431,7 +431,7 @@ TEST(Executor, DriverFaultStopsWithItsNames) {
   h.driver_fault_bits = robot_status_t::FAULT_WATCHDOG;
   h.Tick();
   EXPECT_EQ(h.executor().mode(), Mode::kStopped);
-  // From the stop on, every command asks the driver for a quick stop (issue 15: not only its watchdog, later).
+  // From the stop on, every command asks the driver for a quick stop (not only its watchdog, later).
   EXPECT_TRUE(h.Tick().command.quick_stop);
   EXPECT_EQ(Norm(h.Tick().command.velocity), 0.0);
   EXPECT_EQ(h.executor().stop_code(), FaultCode::kPeerTimeout);

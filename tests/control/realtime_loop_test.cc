@@ -445,7 +445,7 @@ TEST(RealtimeLoop, RealLcmLinkAgainstTheDriverIsAllocationLockAndExceptionFree) 
   RecordProperty("io_calls", static_cast<int>(counts.io));
 }
 
-// Issue 15: the robot driver restarts during a run (a new process on the same bus, inside every time-out). The
+// The robot driver restarts during a run (a new process on the same bus, inside every time-out). The
 // controller must not go on commanding it as if nothing happened: the boot-up heartbeat stops the run, and the stop
 // says why; the restarted driver, disabled, never takes the old run's commands.
 TEST(RealtimeLoop, ADriverRestartDuringARunStopsTheControllerAndSaysWhy) {
@@ -574,7 +574,7 @@ class ScriptedLink final : public drivers::RobotLink {
   std::int64_t now_us_ = 0;
 };
 
-// Issue 15: each bus state by its own code, and only bus-off (and the link's other stopping faults) stops the
+// Each bus state by its own code, and only bus-off (and the link's other stopping faults) stops the
 // controller; error passive and warning, from the link or the driver, are reported only. A foreign fault (another
 // controller's session) does not stop either.
 TEST(RealtimeLoop, OnlyStoppingLinkFaultsStopTheController) {

@@ -30,7 +30,7 @@ grep -q 'goal recognised' "$tmp/run.log" || fail "the log does not say why the r
 grep -q '"commands_applied"' "$tmp/sim.json" || { fail "sim printed no summary:"; cat "$tmp/sim.json" "$tmp/sim.log"; }
 
 # The driver stops the robot at the workspace's bounds (the controller, given no scene, does not know them): the run
-# stops with the driver's own reason (its EMCY), not only "the driver started a new session" (issue 39).
+# stops with the driver's own reason (its EMCY), not only "the driver started a new session".
 echo '{"steps": [{"theta_deg": 90, "active_rays": [], "terminate": {"kind": "contact"}, "timeout_s": 30}]}' \
   >"$tmp/up.json"
 "$visco" sim "$data/post_scene.json" --start 1.84 1.55 --seed 3 --lcm-url "$url" --duration 30 \

@@ -49,7 +49,7 @@ TEST(Safety, BoundsRemoveOutwardMotionAndRejectOutside) {
   EXPECT_EQ(Norm(out), 0.0);
 }
 
-// Issue 15: with the default limits (0.2 m/s, 2 m/s^2, 5 mm: the stopping distance 10 mm is twice the margin) a
+// With the default limits (0.2 m/s, 2 m/s^2, 5 mm: the stopping distance 10 mm is twice the margin) a
 // robot driven straight at a bound brakes at the acceleration limit and comes to rest inside the margin, without
 // leaving the bounds and without the hard outside-bounds stop, also when the position it is given is 6 ms old.
 TEST(Safety, ApproachingABoundAtTheDefaultLimitsBrakesSmoothlyAndStopsInside) {

@@ -128,7 +128,7 @@ TEST(Task, SceneAttachesGoalBoundsAndVertexOffsets) {
   EXPECT_THROW(LoadScene(WriteTemp("bad.json", R"({"robot": {"polygon": [[0, 0], [1, 0]]}})")), InputError);
 }
 
-// A strategy or rays file made for another scene is refused (issue 39: a strategy planned for the slot drove the
+// A strategy or rays file made for another scene is refused (a strategy planned for the slot drove the
 // robot out of another scene's workspace). The digest is of the scene's content, whatever its spacing and key order.
 TEST(Task, FilesMadeForAnotherSceneAreRefused) {
   const char* const kScene = R"({"name": "slot", "bounds": {"min": [0, 0], "max": [10, 8]},

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""docs/getting_started.md's examples, run as written, so that the page cannot drift from the program (issue 39).
+"""docs/getting_started.md's examples, run as written, so that the page cannot drift from the program.
 
 usage: getting_started_test.py SOURCE_DIR BIN_DIR
 

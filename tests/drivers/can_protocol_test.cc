@@ -67,7 +67,7 @@ std::uint8_t ReferenceSessionCrc(const Frame& frame, std::uint32_t session, std:
   return ReferenceCrc8(bytes, 16);
 }
 
-// Issue 15, found by the link's fuzzer: a CRC is linear, so over the raw nonce a frame of another session passed or
+// Found by the link's fuzzer: a CRC is linear, so over the raw nonce a frame of another session passed or
 // failed by a constant of the two nonces: 1 session in 256 had *every* frame valid in the current one. With the
 // session key each frame passes by chance 1 in 256, independently of the others: measured on seeded random sessions,
 // frames and numbers, no other session has more than a few of 16 consecutive numbers valid, and the three frames of

@@ -1,5 +1,5 @@
 // The driver's safety logic with a scripted transport and its own clock: sessions, watchdog, sequence, malformed
-// commands, e-stop and the operator's release, NMT, bus-off, reset; the attacks of issue 15 done in-process (an old
+// commands, e-stop and the operator's release, NMT, bus-off, reset; the link attacks done in-process (an old
 // recorded command stream replayed into a fresh driver, an in-window replay, a forged NMT start during an e-stop);
 // and the simulated robot's limits.
 
@@ -439,7 +439,7 @@ TEST(Driver, EStopIsHonouredWhateverTheSessionNumberOrChecksum) {
   }
 }
 
-// The controller's stop (issue 15): its quick-stop flag stops the robot at once with the quick-stop deceleration
+// The controller's stop: its quick-stop flag stops the robot at once with the quick-stop deceleration
 // (not the normal one of a zero velocity, and not a watchdog period later), STOPPED until a reset; honoured whatever
 // the frame's session, number or CRC, like the e-stop flag.
 TEST(Driver, AQuickStopRequestStopsAtOnceAndAResetRecovers) {
@@ -557,7 +557,7 @@ TEST(Driver, FramesOfASessionThatEndedInThisUpdateAreVoid) {
   EXPECT_EQ(rig.driver.state(), RobotState::kReady);
 }
 
-// Issue 15, a flood: the kernel's drops (SO_RXQ_OVFL) are counted at once and reported at most once per 100 ms
+// A flood: the kernel's drops (SO_RXQ_OVFL) are counted at once and reported at most once per 100 ms
 // with the number lost; a flood of rejected frames is answered with at most one status per millisecond (not three
 // frames per bad frame), while a single bad frame still gets its answer.
 TEST(Driver, AFloodIsCountedAndReportedWithoutAmplifyingIt) {
@@ -644,7 +644,7 @@ TEST(Driver, SpeedLimitClampsAndReports) {
   EXPECT_EQ(rig.transport.faults.back().emcy_code, can::kEmcyVelocityLimit);
 }
 
-// Attack 1 of issue 15: a command stream recorded from an earlier session (here: a whole run of another driver,
+// Attack 1: a command stream recorded from an earlier session (here: a whole run of another driver,
 // with resets, motion, a watchdog stop and a second controller) replayed into a freshly started driver. The robot
 // must not move and the driver must say so.
 TEST(DriverAttack, OldRecordedCommandStreamIntoAFreshDriverMovesNothing) {

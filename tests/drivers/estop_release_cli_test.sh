@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # `visco driver` and `visco run` (the real-time executable) as processes over LCM (private port, ttl=0): a latched
-# e-stop is not undone by the next controller (issue 15: SIGINT of `visco run` is an e-stop, and the next `visco
+# e-stop is not undone by the next controller (SIGINT of `visco run` is an e-stop, and the next `visco
 # run` used to clear it with its reset); only the operator's release at the driver (SIGUSR1) does.
 #   1. a run reaches its goal (exit 0);
 #   2. a run interrupted with SIGINT: e-stop (exit 1, "e-stop requested");

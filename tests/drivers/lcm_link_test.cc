@@ -160,7 +160,7 @@ TEST_F(LcmLink, CommandsWatchdogResetAndHeartbeat) {
 
 // The driver stops the robot at its workspace's bounds: the EMCY that says why and the announcement of the session
 // the stop begins arrive together; the link hands over the driver's fault first, as this controller's (not foreign),
-// so that the controller stops with the driver's reason, then its own "new session" (issue 39).
+// so that the controller stops with the driver's reason, then its own "new session".
 TEST_F(LcmLink, ABoundsStopIsReportedWithTheDriversReasonFirst) {
   robot_config_.world.bounds_min = {-0.05, -1.0};
   robot_config_.world.bounds_max = {0.05, 1.0};

@@ -1,4 +1,4 @@
-// Contacts found from noisy poses (issue 16): random assemblies of boxes on a table (stacked, side by side touching,
+// Contacts found from noisy poses: random assemblies of boxes on a table (stacked, side by side touching,
 // side by side 2–10 mm apart), observed with seeded Gaussian pose noise (object frame). The face pairs found are
 // compared with the true ones (found at the true poses with zero tolerance): missed true relations and false ones,
 // with the fixed default thresholds (3 mm, 3°) and with thresholds derived from the poses' covariance
@@ -38,7 +38,7 @@ struct NoisyScene {
 struct NoiseRange {
   double t_lo, t_hi, r_lo, r_hi;
 };
-constexpr NoiseRange kReal{0.001, 0.003, 0.5, 2.0};  // a real observation (issue 16)
+constexpr NoiseRange kReal{0.001, 0.003, 0.5, 2.0};  // a real observation
 
 NoisyScene MakeScene(unsigned seed, int boxes, const NoiseRange& range = kReal) {
   std::mt19937_64 rng(seed);

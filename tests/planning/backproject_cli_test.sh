@@ -54,7 +54,7 @@ for key, g in groups.items():
     assert len(list(g.iter(ns + "path"))) >= 4, key  # bounds, region, obstacles, C-obstacles, goal
     assert len(list(g.iter(ns + "line"))) >= 4, key  # region edges, velocity arrow
     assert any(t.text and t.text.startswith(titles[key]) for t in g.iter(ns + "text")), key
-    # A legend in words for what each colour means (issue 39).
+    # A legend in words for what each colour means.
     legend = [t.text for t in g.iter(ns + "text") if t.get("class") == "legend"]
     for words in ("the backprojection", "its edges on an active ray", "obstacle", "C-obstacle", "goal",
                   "active CVC ray", "commanded direction θ", "camera"):

@@ -33,7 +33,7 @@ PY
 grep -q '<svg' "$tmp/cells.svg" && grep -q 'class="cell view' "$tmp/cells.svg" && grep -q '>best<' "$tmp/cells.svg" ||
   fail "cells.svg lacks cells or the best camera"
 # A legend in words for every colour and mark, and no grey but the obstacles' (a candidate without a strategy is
-# purple, not the obstacles' grey: issue 39).
+# purple, not the obstacles' grey).
 python3 - "$tmp/cells.svg" <<'PY' || fail "cells.svg: legend or colours"
 import re, sys
 svg = open(sys.argv[1]).read()

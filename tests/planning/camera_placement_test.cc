@@ -1,4 +1,4 @@
-// Camera placement (issue 12, `visco camera`): the viewing cells against the slow reference visibility on seeded
+// Camera placement (`visco camera`): the viewing cells against the slow reference visibility on seeded
 // random scenes (overlapping, non-convex, lattice-aligned: cameras on supporting lines are common), the candidates'
 // evaluation against the planner itself, and the best camera's strategy checked by the adversarial simulator.
 

@@ -20,7 +20,7 @@ grep -q '"feasible":true' "$tmp/plan.json" || fail "no feasible plan: $(head -c 
 grep -q "10 of 10 start configurations reach the goal" "$tmp/plan.log" || fail "simulation check: $(cat "$tmp/plan.log")"
 grep -q '<svg' "$tmp/plan.svg" && grep -q 'class="preimage' "$tmp/plan.svg" || fail "plan.svg has no preimage"
 # The picture draws the camera and the ray each step uses, numbers steps from 0 as the JSON does, and says in a legend
-# what each colour means (issue 39).
+# what each colour means.
 python3 - "$tmp/plan.svg" "$tmp/plan.json" <<'PY' || fail "plan.svg lacks the camera, the rays, step 0 or the legend"
 import json, re, sys, xml.etree.ElementTree as ET
 svg = open(sys.argv[1]).read()
@@ -124,7 +124,7 @@ grep -q "planned for scene \"slot\", not for $corner" <<<"$out" || fail "message
 out=$("$visco" sim "$scene" --rays "$tmp/corner_rays.json" --lcm-url "$url" --duration 1 2>&1); status=$?
 [[ $status -eq 2 ]] || fail "visco sim with the corner's rays exited $status, expected 2: $out"
 
-# A goal narrower than twice the position uncertainty: one behaviour (issue 39). `visco vcrays` warns and writes its
+# A goal narrower than twice the position uncertainty: one behaviour. `visco vcrays` warns and writes its
 # output; `visco plan` writes its --out file with "feasible": false and the reason, and exits 1, as when no strategy
 # exists within --max-steps.
 python3 - "$corner" "$tmp/narrow.json" <<'PY'

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A closed-loop simulated run, logged and replayed (issue 14's proof):
+# A closed-loop simulated run, logged and replayed (the replay's proof):
 #   visco sim (robot + rendered camera) -> visco track --log (vision) -> visco run --log (the executor), over real LCM
 #   (UDP multicast, private port, ttl=0); then
 #   1. `visco replay TRACK_LOG --check`: the logged images through vision again: identical, field by field;

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Lockstep runs (issue 14: "two runs with the same seed write logs with identical payloads"):
+# Lockstep runs ("two runs with the same seed write logs with identical payloads"):
 #   1. `visco demo --lockstep` plans the default scene and runs it as one process on a simulated clock
 #      (`visco sim --lockstep`): it must reach the goal (exit 0; the summary's outcome).
 #   2. The same lockstep run again, from the demo's parameter file, with the same seed: the log is byte-identical

@@ -35,7 +35,7 @@ sys.exit(0 if s["identical"] and s["frames"] >= 20 and s["compared"] >= 4 * s["f
          c["compared"] >= 1000 and c["frames_from_vision"] > 0 else 1)' "$tmp/out.json" ||
   fail "fixture: not identical or too few frames or periods compared"
 
-# What the summary claims is what happened (issue 39): with --no-publish nothing is "published"; without --check
+# What the summary claims is what happened: with --no-publish nothing is "published"; without --check
 # "identical" is not claimed.
 python3 -S -c '
 import json, sys

@@ -1,6 +1,6 @@
 // The robot's model-based tracker (TagTrackingMode::kModelBased: ViSP's vpMbGenericTracker on the robot prism's
 // edges, started from the tags' pose) against ROI re-detection (kRoiDetection), on rendered sequences with ground
-// truth (issue 16): motion blur at demo speeds, the robot's tag partly hidden by an obstacle, tags at grazing angles,
+// truth: motion blur at demo speeds, the robot's tag partly hidden by an obstacle, tags at grazing angles,
 // a lighting change, the robot sliding along an obstacle. Per mode: CM-vertex image error, event timing (frames
 // between the true and the reported crossing) and signed-distance error, loss rate, latency. The table is printed;
 // the checks are on the model-based mode's accuracy against the truth. docs/vision.md, "Model-based tracking of the

@@ -342,7 +342,7 @@ TEST(MultiTagPose, CoplanarTagsFarAwayTwoMinimaTheTrueOneChosen) {
     // The mirror: tilted the other way, about 2 tilt from the truth; outside the bound above.
     EXPECT_GT(RotationError(mirror, cMo), tilt_i) << "case " << i << ": the other minimum is not the mirror";
     EXPECT_GT(mirror_sd, 5) << "case " << i;
-    // The single-tag rule before issue 16 (RMS excess below 3 x 0.3 px = 0.9 px: ambiguous whatever the noise).
+    // The single-tag rule before 2026-12-04 (RMS excess below 3 x 0.3 px = 0.9 px: ambiguous whatever the noise).
     old_rule_ambiguous += fit->alternative->rms_error_px - fit->rms_error_px < 3.0 * 0.3 ? 1 : 0;
     // How well the mirror fits: its excess sum of squares in units of the true corner variance.
     const double dssr =

@@ -159,7 +159,7 @@ TEST(Pipeline, FolderWithBadFilesToLcmAndLatestValue) {
   std::filesystem::remove_all(dir);
 }
 
-// Issue 16: a frame that OpenCV cannot decode in the middle of a video (read() returns false, as at the end) used to
+// A frame that OpenCV cannot decode in the middle of a video (read() returns false, as at the end) used to
 // end the stream silently. A real MJPG AVI is written from rendered frames, one frame's JPEG data is overwritten with
 // bytes that hold no JPEG marker, and the video is run through the pipeline: that frame is reported with its number,
 // the frames after it are processed (robot against the truth of its frame), and the stream ends at the real end.
@@ -240,7 +240,7 @@ TEST(Pipeline, CorruptVideoFrameIsReportedAndTheVideoGoesOn) {
               corrupt, processed.size(), faults[0].c_str(), 1e3 * worst);
 }
 
-// Issue 16: frames are ordered by capture time; the counter says what was lost. A gap is reported with the lost
+// Frames are ordered by capture time; the counter says what was lost. A gap is reported with the lost
 // frames' numbers (and the tracker detects in full again); a counter that goes back while time goes on is a stream
 // restart (reported; tracker and features reset), not a reason to reject the camera for ever; a counter that does
 // not advance is said once, and its frames are taken.
@@ -410,7 +410,7 @@ TEST(Pipeline, LcmCameraChannelIn) {
   EXPECT_EQ(outs[2].detections.camera, "synthetic");
 }
 
-// Issue 16, streams: 640x480 GRAY8 frames (307 kB each) published at 30 Hz over a real LCM bus (UDP multicast,
+// Streams: 640x480 GRAY8 frames (307 kB each) published at 30 Hz over a real LCM bus (UDP multicast,
 // ttl=0, a private port; the receiver with LCM's recv_buf_size, as docs/vision.md says a tracker over udpm must) into
 // the LCM frame source and the pipeline thread. Every published frame must be processed (0 lost); then three frames
 // are dropped on purpose (not published) and the gap must be reported with their numbers.

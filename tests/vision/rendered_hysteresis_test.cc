@@ -1,4 +1,4 @@
-// The noise model's promise checked on rendered sequences through the whole per-frame path (issue 16): rendered
+// The noise model's promise checked on rendered sequences through the whole per-frame path: rendered
 // images (noise, blur) of the robot flush against a block on the table, the AprilTag detector, FeatureEstimator with
 // the online corner-noise estimate (pose fits, contact refinement, d, sigma_d). Per pair, the stated sigma_d against
 // the empirical stddev of d - truth over the frames, and the hysteresis' two rates against d - truth: a vertex on the

@@ -1,4 +1,4 @@
-// Tracking with motion, against the ground truth of rendered sequences (issue 16):
+// Tracking with motion, against the ground truth of rendered sequences:
 // - the robot drives across the VC lines of the demo world: CM-vertex image error and event timing (frames between
 //   the true and the reported crossing) with ROI tracking, against detection in every frame;
 // - a box whose tags are turned away from the camera or hidden behind a pillar: only tags predicted visible are
@@ -189,7 +189,7 @@ TEST(TrackingWithMotion, CmVerticesAndEventTimingAgainstTruth) {
 
 // A box with a tag on its top face (seen), one on its back face (turned away from the camera) and one on its top
 // face behind a pillar (hidden); the pillar and the robot carry a tag each. Every model tag expected (the rule before
-// issue 16): the two tags that cannot be seen force a full detection in every frame. Tags predicted visible: the
+// 2026-12-04): the two tags that cannot be seen force a full detection in every frame. Tags predicted visible: the
 // tracker follows the tags in windows and the poses keep their accuracy.
 constexpr const char* kBoxAndPillar = R"({
   "robot": {"id": "robot", "polygon": [[-0.04, -0.04], [0.04, -0.04], [0.04, 0.04], [-0.04, 0.04]], "height": 0.03,

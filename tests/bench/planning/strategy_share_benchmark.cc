@@ -1,4 +1,4 @@
-// The figure of issue 12: over seeded random scenes with a start region (the planner tests' generator: 8 m x 4 m,
+// The strategy-share figure: over seeded random scenes with a start region (the planner tests' generator: 8 m x 4 m,
 // star-shaped and overlapping obstacles, a camera on the edge of the bounds or anywhere, ε_v 2-8°), the share that has
 // a strategy within two steps with visual constraints and without, and the step counts.
 //

@@ -1,7 +1,7 @@
 // Replay throughput: the checked-in log of a rendered closed-loop run (tests/replay/data/slot_run.lcmlog, 640x480
 // frames at 15 Hz) read, decoded and put through the vision pipeline as fast as possible, with --check's field by
 // field comparison on. Counters: frames/s of replay and the log's own frame rate, measured in the same run, and their
-// ratio (x_real_time; issue 14's goal is >= 5 for 640x480 at 30 Hz on the 2-core machine, i.e. >= 150 frames/s).
+// ratio (x_real_time; the goal is >= 5 for 640x480 at 30 Hz on the 2-core machine, i.e. >= 150 frames/s).
 // A second benchmark reads the log only (the event log reader's share).
 
 #include <benchmark/benchmark.h>

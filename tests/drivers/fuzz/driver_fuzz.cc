@@ -1,4 +1,4 @@
-// Property fuzzer of the driver's session, sequence and state logic (issue 15): arbitrary bytes become a sequence of
+// Property fuzzer of the driver's session, sequence and state logic: arbitrary bytes become a sequence of
 // events for a Driver with a scripted CAN transport (commands of the session at any number, of other sessions,
 // corrupted, replays of earlier frames, NMT, bus events, the operator's release, time passing). After every event:
 // - a command moves the robot only if it is of the current session and 1..kCommandWindow ahead (the README's rule);

@@ -1,4 +1,4 @@
-// Property fuzzer of the SocketCAN link's status-triple assembly (issue 15): arbitrary bytes become the frames a
+// Property fuzzer of the SocketCAN link's status-triple assembly: arbitrary bytes become the frames a
 // controller's link receives (drivers/README.md, "Sessions"): the driver's status triples (status, position, force
 // with one counter, each with the CRC over the session nonce and the counter), lost frames, counters jumping ahead,
 // replays of earlier triples whole or in part, triples of other sessions, single-bit corruptions, frames out of

@@ -312,7 +312,7 @@ TEST_F(CanHil, MalformedAndOutOfSequenceFramesAreIgnoredAndReported) {
   Move(0.1, 0.0);
 }
 
-// Issue 15: an SO_RXQ_OVFL flood. Command frames of no session (the driver must read and reject each) are written
+// An SO_RXQ_OVFL flood. Command frames of no session (the driver must read and reject each) are written
 // faster than they are read: first while the driver process is stalled (SIGSTOP for the first burst, as a
 // preempted process), so that its receive queue overflows whatever the speed of the emulated CPU; then for 0.6 s
 // while the controller is stalled (not polling), so that its queue overflows with the driver's answers and
