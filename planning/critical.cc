@@ -439,12 +439,8 @@ class CandidateGenerator {
       seg_grid_.Build(segs_, extent, pad);
       indexed_ = true;
       grid_pad_ = pad;
-      for (size_t k = 0; k < segs_.size(); ++k) {
-        if (segs_[k].kind != SegKind::kStart) continue;
-        start_segs_.push_back(k);
-        start_box_.extend(segs_[k].a);
-        start_box_.extend(segs_[k].b);
-      }
+      for (size_t k = 0; k < segs_.size(); ++k)
+        if (segs_[k].kind == SegKind::kStart) start_segs_.Add(k, segs_[k]);
       if (statics != nullptr && statics->FitsProblem(pr)) UseStatics(*statics);
     }
   }
@@ -559,7 +555,7 @@ class CandidateGenerator {
       }
     }
     // The segments come in the same order (C-obstacles, then bounds), the problem's own among them.
-    static_segment_.assign(segs_.size(), 0);
+    std::vector<char> static_segment(segs_.size(), 0);
     segment_of_static_.assign(statics.segments.size(), CandidateEntry::kNoIndex);
     size_t k = 0;
     for (size_t s = 0; s < statics.segments.size(); ++s) {
@@ -569,17 +565,11 @@ class CandidateGenerator {
         statics_ = nullptr;
         return;
       }
-      static_segment_[k] = 1;
+      static_segment[k] = 1;
       segment_of_static_[s] = static_cast<std::uint32_t>(k++);
     }
-    for (size_t k2 = 0; k2 < segs_.size(); ++k2) {
-      if (static_segment_[k2] == 0) {
-        own_segs_.push_back(segs_[k2]);
-        own_seg_index_.push_back(k2);
-        own_box_.extend(segs_[k2].a);
-        own_box_.extend(segs_[k2].b);
-      }
-    }
+    for (size_t k2 = 0; k2 < segs_.size(); ++k2)
+      if (static_segment[k2] == 0) own_segs_.Add(k2, segs_[k2]);
   }
 
   // Both points' pair events are the static candidates' (i < j).
@@ -1106,7 +1096,6 @@ class CandidateGenerator {
         if (record_visible_) visible_log_.push_back({PointId(i), PointId(j)});
         const double beta = std::atan2(d.y(), d.x());
         const CriticalKind kind = points_[i].start || points_[j].start ? CriticalKind::kR : CriticalKind::kVgraph;
-        if (r_only_ && kind != CriticalKind::kR) continue;
         // Along β the free edge runs from b (its direction θ + π ± ε_v is β + π); along β + π from a. At
         // θ = β + se·ε_v (+π) that is the free edge of sign −se.
         const bool along = along_static.count({i, j}) != 0;
@@ -1166,15 +1155,15 @@ class CandidateGenerator {
             CircleMeetsSegment(i, j, c, r, k);
             if (indexed_) CircleMeetsSegment(j, i, c, r, k);  // (b, a): the same circle, not walked on its own
           };
-          if (r_only_ && indexed_) {
-            // Only the start region's edges make R events here: those few, one by one.
-            if (!NearCircle(start_box_, c, r)) continue;
-            for (const size_t k : start_segs_)
+          auto meet_few = [&](const FewSegments& few) {
+            if (!NearCircle(few.box, c, r)) return;
+            for (const size_t k : few.index)
               if (NearCircle(segs_[k], c, r)) meet(k);
+          };
+          if (r_only_ && indexed_) {
+            meet_few(start_segs_);  // only the start region's edges make R events here
           } else if (static_pair) {
-            if (!NearCircle(own_box_, c, r)) continue;
-            for (size_t k = 0; k < own_segs_.size(); ++k)
-              if (NearCircle(own_segs_[k], c, r)) meet(own_seg_index_[k]);
+            meet_few(own_segs_);
           } else if (indexed_) {
             for (int k : seg_grid_.NearCircle(c, r)) meet(static_cast<size_t>(k));
           } else {
@@ -1250,18 +1239,24 @@ class CandidateGenerator {
   ObstacleRegion cb_;
   SegmentGrid seg_grid_;  // every segment (the circles of free vertices meet them)
   bool indexed_ = false;
-  double grid_pad_ = 0;             // the grids' pad (within it a segment is near)
-  std::vector<size_t> start_segs_;  // the start region's edges, and a box around them (R events)
-  Eigen::AlignedBox2d start_box_;
+  double grid_pad_ = 0;  // the grids' pad (within it a segment is near)
+  // A few segments tested against a circle one by one (NearCircle) instead of through the grid, and a box around them.
+  struct FewSegments {
+    std::vector<size_t> index;
+    Eigen::AlignedBox2d box;  // empty: none
+    void Add(size_t k, const Seg& s) {
+      index.push_back(k);
+      box.extend(s.a);
+      box.extend(s.b);
+    }
+  };
+  FewSegments start_segs_;  // the start region's edges (R events)
   bool with_start_ = false;
-  // The static candidates taken (UseStatics): per point its index there or kNoIndex, and back; per segment whether it
-  // is one of theirs, and theirs here; the others (tested one by one: few); the static pairs listed again.
+  // The static candidates taken (UseStatics): per point its index there or kNoIndex, and back; per static segment its
+  // index here; the problem's own segments; the static pairs listed again.
   const StaticCandidates* statics_ = nullptr;
   std::vector<std::uint32_t> static_of_, point_of_static_, segment_of_static_;
-  std::vector<char> static_segment_;
-  std::vector<Seg> own_segs_;
-  std::vector<size_t> own_seg_index_;
-  Eigen::AlignedBox2d own_box_;  // around them (empty: none)
+  FewSegments own_segs_;
   std::set<std::pair<size_t, size_t>> along_differs_;
   bool record_visible_ = false;  // ListStatics: which pairs see each other
   std::vector<std::pair<std::uint32_t, std::uint32_t>> visible_log_;
